@@ -1,0 +1,1 @@
+"""Lunar reaction-wheel hopper: model, controller, phases, metrics and telemetry (no UI)."""

@@ -1,0 +1,263 @@
+"""The simulation: model, controller, phases and metrics stepped together at 1 kHz.
+
+The headless runner and the dashboard both drive this class. Only its `step()` touches MjData;
+other threads `submit()` commands that the next step applies.
+"""
+
+from __future__ import annotations
+
+import collections
+import dataclasses
+import logging
+import math
+from typing import Any, Callable, Literal, Protocol
+
+import mujoco
+import numpy as np
+
+from hopper.config import (
+    FOOT_RADIUS,
+    HIP_OFFSET_Z,
+    THIGH_LENGTH,
+    Gains,
+    SimConfig,
+    require_finite,
+)
+from hopper.controller import HopController
+from hopper.metrics import HopMetrics, MetricsTracker
+from hopper.model import Physics, build_model, set_terrain, set_wheel_enabled, terrain_heights
+from hopper.phases import Phase
+
+log = logging.getLogger(__name__)
+
+DisturbanceKind = Literal["pitch_kick", "push_forward", "push_backward", "torque_pulse"]
+DISTURBANCE_LIMITS: dict[str, tuple[float, str]] = {  # largest magnitude, unit
+    "pitch_kick": (5.0, "N m s"),  # angular impulse on the torso
+    "push_forward": (20.0, "N s"),  # linear impulse on the torso
+    "push_backward": (20.0, "N s"),
+    "torque_pulse": (30.0, "N m"),  # pitch torque on the torso for TORQUE_PULSE_S, in flight
+}
+TORQUE_PULSE_S = 0.1  # s
+TORQUE_PULSE_DELAY_S = 0.15  # s after liftoff, when armed on the ground
+DIVERGENCE_CHECK_TICKS = 50
+
+
+@dataclasses.dataclass(frozen=True)
+class Event:
+    """Something that happened at a simulation time: a phase event, a disturbance, a change."""
+
+    time: float
+    kind: str
+    data: dict[str, Any] = dataclasses.field(default_factory=dict)
+
+
+class Listener(Protocol):
+    """Sees every tick (after mj_step) and every event; telemetry and the dashboard implement it."""
+
+    def tick(self, sim: Simulation) -> None: ...
+
+    def event(self, sim: Simulation, event: Event) -> None: ...
+
+
+class Simulation:
+    """One robot on one terrain, stepped one control tick at a time."""
+
+    def __init__(self, config: SimConfig) -> None:
+        self.config = config
+        self.heights = terrain_heights(config)
+        self.model = build_model(config, self.heights)
+        self.data = mujoco.MjData(self.model)
+        self.physics = Physics(self.model, self.data)
+        self.controller = HopController(config.gains, config.gait, config.gravity, config.wheel)
+        self.metrics = MetricsTracker()
+        self.events: list[Event] = []
+        self.listeners: list[Listener] = []
+        self._commands: collections.deque[Callable[[Simulation], None]] = collections.deque()
+        self._ticks = 0
+        self._pulse_until = -1.0
+        self._pulse_armed = 0.0
+        self._pulse_at = math.inf
+        self._prev_vz = 0.0
+        self._warnings = 0
+        self.reset(reason="start")
+
+    # -- reading ---------------------------------------------------------------------------
+    @property
+    def time(self) -> float:
+        return self.data.time
+
+    @property
+    def phase(self) -> Phase:
+        return self.controller.phase
+
+    @property
+    def hops(self) -> list[HopMetrics]:
+        return self.metrics.hops
+
+    @property
+    def gains(self) -> Gains:
+        return self.controller.gains
+
+    @property
+    def fallen(self) -> bool:
+        return self.controller.phase is Phase.FALLEN
+
+    # -- stepping --------------------------------------------------------------------------
+    def step(self) -> None:
+        """One control tick: apply queued commands, control, account metrics, mj_step."""
+        if self._commands:
+            self._drain()
+        s, c = self.physics, self.controller
+        s.refresh()
+        if not (math.isfinite(s.z) and math.isfinite(s.pitch) and math.isfinite(s.wheel_speed)):
+            self._diverged("non-finite state")
+            return
+        dt = self.model.opt.timestep
+        self.data.ctrl[:] = c.update(s, dt)
+        if c.events:
+            self._controller_events()
+        flying = c.phase is Phase.FLIGHT
+        if flying and self._prev_vz > 0.0 >= s.vz:
+            self._emit("apex", height_m=s.z)
+        self._prev_vz = s.vz
+        self.metrics.update(flying, s.pitch, s.pitch_rate, s.wheel_torque, s.wheel_speed, s.z, dt)
+        if s.time >= self._pulse_at and flying:
+            self._fire_pulse(self._pulse_armed)
+        elif self._pulse_until >= 0.0 and s.time >= self._pulse_until:
+            self.data.xfrc_applied[self._torso, 4] = 0.0
+            self._pulse_until = -1.0
+        mujoco.mj_step(self.model, self.data)
+        self._ticks += 1
+        if self._ticks % DIVERGENCE_CHECK_TICKS == 0:
+            self._check_warnings()
+        for listener in self.listeners:
+            listener.tick(self)
+
+    def run(self, hops: int, max_time: float | None = None) -> list[HopMetrics]:
+        """Step until `hops` hops are done, the robot falls, or `max_time` (s) of simulation."""
+        limit = self.time + (max_time if max_time is not None else 6.0 * hops + 5.0)
+        while len(self.hops) < hops and not self.fallen and self.time < limit:
+            self.step()
+        return self.hops
+
+    def submit(self, command: Callable[[Simulation], None]) -> None:
+        """Queue a command from any thread; the next step applies it (deque appends are atomic)."""
+        self._commands.append(command)
+
+    def _drain(self) -> None:
+        while self._commands:
+            command = self._commands.popleft()
+            try:
+                command(self)
+            except Exception as exc:  # a bad command must never stop the loop
+                log.exception("command failed")
+                self._emit("error", message=f"{type(exc).__name__}: {exc}")
+
+    # -- events ----------------------------------------------------------------------------
+    def _emit(self, kind: str, **data: Any) -> Event:
+        event = Event(self.time, kind, data)
+        self.events.append(event)
+        for listener in self.listeners:
+            listener.event(self, event)
+        return event
+
+    def _controller_events(self) -> None:
+        s = self.physics
+        for kind, _ in self.controller.events:
+            if kind == "liftoff":
+                momentum = s.angular_momentum()
+                self.metrics.liftoff(s.time, s.z, momentum)
+                self._emit("liftoff", momentum=momentum)
+                if self._pulse_armed:
+                    self._pulse_at = s.time + TORQUE_PULSE_DELAY_S
+            elif kind == "touchdown":
+                hop = self.metrics.touchdown(s.time, s.x, s.pitch)
+                self._emit("touchdown", hop=hop)
+            elif kind == "fall":
+                hop = self.metrics.touchdown(s.time, s.x, s.pitch, completed=False)
+                self._emit("fall", pitch_deg=math.degrees(s.pitch), hop=hop)
+        self.controller.events.clear()
+
+    # -- commands (call from the loop, or submit() them) ----------------------------------
+    def reset(self, reason: str = "user") -> None:
+        """Stand the robot at the start of the terrain, at rest."""
+        mujoco.mj_resetData(self.model, self.data)
+        gait = self.controller.gait
+        stand = gait.stand_height
+        for side, offset in (("L", gait.foot_spread / 2), ("R", -gait.foot_spread / 2)):
+            knee = -2.0 * math.acos(min(math.hypot(offset, stand) / (2 * THIGH_LENGTH), 1.0))
+            angle = math.atan2(-offset, stand)
+            self.data.joint(f"hip_{side}").qpos = angle - knee / 2
+            self.data.joint(f"knee_{side}").qpos = knee
+        torso_z = self.model.body("torso").pos[2]
+        self.data.joint("root_z").qpos = FOOT_RADIUS + stand - HIP_OFFSET_Z - torso_z
+        mujoco.mj_forward(self.model, self.data)
+        self._torso = self.model.body("torso").id
+        self.data.xfrc_applied[:] = 0.0
+        self._pulse_until, self._pulse_armed, self._pulse_at, self._prev_vz = -1.0, 0.0, math.inf, 0.0
+        self._warnings = int(self.data.warning.number.sum())
+        self.physics.refresh()
+        self.controller.reset(self.time, standing=True)
+        self.metrics.reset(self.physics.x, self.time)
+        self._emit("reset", reason=reason)
+
+    def set_gains(self, gains: Gains) -> None:
+        self.controller.set_gains(gains)
+        self._emit("gains", kp=gains.kp, ki=gains.ki, kd=gains.kd)
+
+    def set_wheel(self, enabled: bool) -> None:
+        set_wheel_enabled(self.model, enabled)
+        self.controller.wheel_enabled = enabled
+        self._emit("wheel", enabled=enabled)
+
+    def set_gravity(self, gravity: float) -> None:
+        require_finite("gravity", gravity, 0.05, 30.0)
+        self.model.opt.gravity[2] = -gravity
+        self.controller.gravity = gravity
+        self._emit("gravity", gravity=gravity)
+
+    def set_terrain(self, kind: Literal["crater", "flat"], seed: int) -> None:
+        """Regenerate the heightfield in place (no recompile) and restart the robot on it."""
+        self.config = dataclasses.replace(self.config, terrain=kind, seed=seed)
+        self.heights = terrain_heights(self.config)
+        set_terrain(self.model, self.heights)
+        self._emit("terrain", kind=kind, seed=seed)
+        self.reset(reason="terrain")
+
+    def disturb(self, kind: DisturbanceKind, magnitude: float) -> None:
+        """Apply a disturbance; impulses act at once, a torque pulse in (the next) flight."""
+        if kind not in DISTURBANCE_LIMITS:
+            raise ValueError(f"unknown disturbance {kind!r}; choose from {', '.join(DISTURBANCE_LIMITS)}")
+        limit, unit = DISTURBANCE_LIMITS[kind]
+        require_finite(f"{kind} magnitude ({unit})", magnitude, -limit, limit)
+        if kind == "torque_pulse":
+            if self.controller.phase is Phase.FLIGHT:
+                self._fire_pulse(magnitude)
+            else:
+                self._pulse_armed = magnitude
+                self._emit("disturbance_armed", kind=kind, magnitude=magnitude, unit=unit)
+            return
+        dof = self.model.joint("pitch" if kind == "pitch_kick" else "root_x").dofadr[0]
+        impulse = np.zeros(self.model.nv)
+        impulse[dof] = -magnitude if kind == "push_backward" else magnitude
+        dv = np.zeros(self.model.nv)
+        mujoco.mj_solveM(self.model, self.data, dv.reshape(1, -1), impulse.reshape(1, -1))
+        self.data.qvel += dv
+        self._emit("disturbance", kind=kind, magnitude=magnitude, unit=unit)
+
+    def _fire_pulse(self, magnitude: float) -> None:
+        self.data.xfrc_applied[self._torso, 4] = magnitude
+        self._pulse_until = self.time + TORQUE_PULSE_S
+        self._pulse_armed, self._pulse_at = 0.0, math.inf
+        self._emit("disturbance", kind="torque_pulse", magnitude=magnitude, unit="N m", duration_s=TORQUE_PULSE_S)
+
+    # -- health ----------------------------------------------------------------------------
+    def _check_warnings(self) -> None:
+        count = int(self.data.warning.number.sum())
+        if count > self._warnings:
+            self._diverged("MuJoCo warning")
+
+    def _diverged(self, why: str) -> None:
+        log.warning("simulation diverged (%s); resetting", why)
+        self._emit("diverged", reason=why)
+        self.reset(reason="diverged")
