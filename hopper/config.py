@@ -69,7 +69,7 @@ class GaitParams:
     """The hop cycle's targets. Lengths are hip heights above the feet, in metres."""
 
     apex_height: float = 0.25  # m above the liftoff height; v_z = sqrt(2 g h)
-    forward_speed: float = 0.55  # m/s at liftoff
+    forward_speed: float = 0.5  # m/s at liftoff
     stand_height: float = 0.85  # m
     crouch_height: float = 0.68  # m
     push_length: float = 0.96  # m, leg length where the push stops
@@ -77,7 +77,7 @@ class GaitParams:
     foot_spread: float = 0.36  # m between the feet at landing, a support base for stance pitch
     placement_gain: float = 0.3  # s, feet midpoint ahead of the hip = gain * forward speed
     crouch_lean: float = 0.1  # m, torso CoM ahead of the feet midpoint before the push
-    stance_time: float = 0.35  # s, minimum stabilisation time before the crouch
+    stance_time: float = 0.25  # s, minimum stabilisation time before the crouch
     friction: float = 0.7  # friction coefficient the stance forces assume (model: 0.8)
 
     def __post_init__(self) -> None:

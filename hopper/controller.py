@@ -1,346 +1,425 @@
-"""Hop controller: wheel PID in flight, impedance / virtual-model legs on the ground, phase logic.
+"""Hop controller: wheel PID in flight, virtual-model legs on the ground, the phase machine.
 
-Pure Python floats on purpose: this runs every 1 ms, and scalar numpy calls would cost more than
-MuJoCo's own step.
+The per-tick work is one numba-compiled kernel, `control_tick`, reading MuJoCo's arrays in place
+and writing `data.ctrl` directly. In plain Python the same logic cost ~25 us a tick, more than
+MuJoCo's step itself; compiled it costs ~1 us. The kernel reads the model's coordinates through
+the named indices of `hopper.model` (the layout `Physics` checks) and keeps its state in small
+float arrays whose slots are named below; `HopController` is the Python face of it.
+Set NUMBA_DISABLE_JIT=1 to step through the kernel in a Python debugger.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit
 
 from hopper.config import (
-    FOOT_RADIUS,
     HIP_OFFSET_Z,
     LEG_TORQUE_LIMIT,
     SATURATION_FRACTION,
     SHANK_LENGTH,
     THIGH_LENGTH,
     TOTAL_MASS,
+    WHEEL_GEAR,
     WHEEL_INERTIA,
     WHEEL_NO_LOAD_SPEED,
     WHEEL_TORQUE_LIMIT,
-    GaitParams,
     Gains,
+    GaitParams,
 )
-from hopper.model import Physics
-from hopper.phases import GROUND_PHASES, ContactDetector, Phase
+from hopper.model import (
+    Q_HIP_L,
+    Q_HIP_R,
+    Q_KNEE_L,
+    Q_KNEE_R,
+    Q_PITCH,
+    Q_WHEEL,
+    Q_X,
+    Q_Z,
+    S_FOOT_L,
+    S_FOOT_R,
+    S_GYRO_Y,
+    S_WHEEL_TORQUE,
+)
+from hopper.phases import CONTACT_OFF_N, CONTACT_ON_N, DEBOUNCE_S, Phase
 
 L1, L2 = THIGH_LENGTH, SHANK_LENGTH
 WHEEL_DAMPING = WHEEL_TORQUE_LIMIT / WHEEL_NO_LOAD_SPEED  # N m s/rad, back-EMF slope at the wheel
+SATURATION_TORQUE = SATURATION_FRACTION * WHEEL_TORQUE_LIMIT  # N m
 
-# Stance: virtual model gains, as natural frequency (rad/s) and damping ratio on the torso.
+# Stance: virtual model gains, from natural frequency (rad/s) and damping ratio.
 STANCE_HEIGHT_WN, STANCE_HEIGHT_ZETA = 5.0, 1.0
-STANCE_X_WN, STANCE_X_ZETA = 3.0, 1.0
+STANCE_X_WN, STANCE_X_ZETA = 4.0, 1.0
 STANCE_PITCH_WN, STANCE_PITCH_ZETA = 8.0, 1.0
 STANCE_PITCH_INERTIA = 0.5  # kg m^2, I_locked - I_w (PHYSICS.md)
+KZ, DZ = STANCE_HEIGHT_WN**2, 2 * STANCE_HEIGHT_ZETA * STANCE_HEIGHT_WN
+KX, DX = STANCE_X_WN**2, 2 * STANCE_X_ZETA * STANCE_X_WN
+KP_STANCE = STANCE_PITCH_INERTIA * STANCE_PITCH_WN**2
+KD_STANCE = 2 * STANCE_PITCH_ZETA * STANCE_PITCH_WN * STANCE_PITCH_INERTIA
 LANDING_DAMPING = 6.0  # 1/s, vertical velocity damping while absorbing the impact
 DESAT_TIME = 0.25  # s, time constant of the stance wheel spin-down
+MIN_SUPPORT = 0.4  # fraction of the weight the stance legs always carry
 PUSH_MAX_ACCEL = 8.0  # m/s^2, cap on the push-off acceleration
 PUSH_X_GAIN = 6.0  # 1/s, horizontal velocity tracking during the push
-# Flight: legs swing as a virtual leg (length, angle) with PD gains about the hip.
+# Flight: the legs swing as a virtual leg (length, angle) with PD gains about the hip.
 SWING_K, SWING_D = 15.0, 2.5  # N m/rad, N m s/rad  (wn ~ 10 rad/s for ~0.15 kg m^2)
 LENGTH_K, LENGTH_D = 300.0, 12.0  # N/m, N s/m
-# Fall: beyond this the body cannot be recovered by the legs.
+# Fall: beyond these the legs cannot recover the body.
 FALL_PITCH = math.radians(60.0)
 FALL_HIP_HEIGHT = 0.35  # m, hip above the feet in stance
+# Phase timing, s.
+LANDING_MIN_S, STANCE_MAX_S, CROUCH_MIN_S, CROUCH_MAX_S, PUSH_MAX_S = 0.1, 2.0, 0.15, 1.2, 1.0
+LIFTOFF_CONFIRM_S = 0.01  # both feet off this long before the flight counts
+
+LANDING, STANCE, CROUCH, PUSH, FLIGHT, FALLEN = (int(p) for p in Phase)
+
+# Parameter slots (written from Python when gains or gait change).
+(P_KP, P_KI, P_KD, P_GRAVITY, P_WHEEL_ON, P_VZ_LIFTOFF, P_FORWARD_SPEED, P_STAND, P_CROUCH, P_PUSH,
+ P_FLIGHT_LENGTH, P_SPREAD, P_PLACEMENT, P_LEAN, P_STANCE_TIME, P_FRICTION, P_X0, P_Z0, N_PARAMS) = range(19)
+# State slots (the kernel's memory between ticks).
+(K_PHASE, K_PHASE_START, K_PUSH_DONE, K_INTEGRAL, K_SATURATED, K_CONTACT_L, K_PENDING_L, K_CONTACT_R,
+ K_PENDING_R, K_WHEEL_COMMAND, K_PREV_VZ, K_LAST_CONTACT, N_STATE) = range(13)
+# Metric accumulators for the hop in progress (hopper.metrics reads and clears them).
+(A_SATURATION, A_PEAK_PITCH, A_RATE_SQ, A_FLIGHT_TICKS, A_APEX_Z, A_PEAK_WHEEL, N_ACC) = range(7)
+# Event bits returned by the kernel.
+EV_LIFTOFF, EV_TOUCHDOWN, EV_FALL, EV_APEX = 1, 2, 4, 8
 
 
-def wheel_ctrl(torque: float, wheel_speed: float) -> float:
-    """Normalised motor voltage in [-1, 1] that yields `torque` (N m at the wheel) at `wheel_speed`.
+@njit(cache=True)
+def clamp(value: float, limit: float) -> float:
+    return value if -limit < value < limit else (limit if value > 0 else -limit)
 
-    Inverts the model's DC motor: torque = limit * u - damping * speed, clamped to the limit.
+
+@njit(cache=True)
+def leg_kinematics(pitch: float, hip: float, knee: float) -> tuple[float, float, float, float]:
+    """Foot centre relative to the hip in world axes (px, pz) and d(px, pz)/d(knee).
+
+    d(px)/d(hip) = pz and d(pz)/d(hip) = -px, so they need no return slot.
     """
-    u = (torque + WHEEL_DAMPING * wheel_speed) / WHEEL_TORQUE_LIMIT
-    return -1.0 if u < -1.0 else 1.0 if u > 1.0 else u
+    a1 = pitch + hip
+    a2 = a1 + knee
+    s2, c2 = math.sin(a2), math.cos(a2)
+    return -L1 * math.sin(a1) - L2 * s2, -L1 * math.cos(a1) - L2 * c2, -L2 * c2, L2 * s2
 
 
-def wheel_torque_bounds(wheel_speed: float) -> tuple[float, float]:
-    """The torque-speed envelope (N m) at `wheel_speed` (rad/s, relative to the torso)."""
+@njit(cache=True)
+def push_torques(px: float, pz: float, jx: float, jz: float, fx: float, fz: float) -> tuple[float, float]:
+    """Hip and knee torques that make the ground push on the foot with (fx, fz): tau = -J^T f."""
+    return clamp(px * fz - pz * fx, LEG_TORQUE_LIMIT), clamp(-(jx * fx + jz * fz), LEG_TORQUE_LIMIT)
+
+
+@njit(cache=True)
+def swing_torques(
+    px: float, pz: float, knee: float, hip_rate: float, knee_rate: float, length: float, foot_x: float
+) -> tuple[float, float]:
+    """PD on the virtual leg toward a foot `foot_x` ahead of the hip, `length` from it.
+
+    The virtual leg (hip to foot) has length 2 L cos(knee / 2) and bisects the knee, so its angle
+    and length decouple into a hip torque and a knee force. Damping acts on the joint rates so
+    the legs do not fight the torso's rotation.
+    """
+    angle = -math.asin(clamp(foot_x / length, 0.9))  # world angle, + = foot behind the hip
+    dl_dknee = -L1 * math.sin(knee / 2)
+    torque = SWING_K * (angle - math.atan2(-px, -pz)) - SWING_D * (hip_rate + knee_rate / 2)
+    force = LENGTH_K * (length - math.hypot(px, pz)) - LENGTH_D * dl_dknee * knee_rate
+    return clamp(torque, LEG_TORQUE_LIMIT), clamp(torque / 2 + force * dl_dknee, LEG_TORQUE_LIMIT)
+
+
+@njit(cache=True)
+def wheel_torque_bound(wheel_speed: float, torque: float) -> float:
+    """Clamp a wheel torque (N m) to the motor's torque-speed envelope at `wheel_speed` (rad/s)."""
     back_emf = WHEEL_DAMPING * wheel_speed
     low = max(-WHEEL_TORQUE_LIMIT, -WHEEL_TORQUE_LIMIT - back_emf)
     high = min(WHEEL_TORQUE_LIMIT, WHEEL_TORQUE_LIMIT - back_emf)
-    return low, high
+    return low if torque < low else high if torque > high else torque
 
 
-class WheelPID:
-    """The paper's flight law on the measured pitch and rate, with anti-windup.
+@njit(cache=True)
+def wheel_ctrl(torque: float, wheel_speed: float) -> float:
+    """Normalised motor voltage in [-1, 1] giving `torque` (N m at the wheel) at `wheel_speed`.
+
+    Inverts the model's DC motor: torque = limit * u - damping * speed, clamped to the limit.
+    """
+    return clamp((torque + WHEEL_DAMPING * wheel_speed) / WHEEL_TORQUE_LIMIT, 1.0)
+
+
+@njit(cache=True)
+def wheel_pid(pitch: float, rate: float, wheel_speed: float, dt: float, p: np.ndarray, k: np.ndarray) -> float:
+    """The paper's flight law on the measured pitch and rate, clamped to the envelope, anti-windup.
 
     Sign: the paper's tau_w is the torque on the torso; MuJoCo's motor torque acts on the wheel
-    and the torso takes its reaction, so the motor command is the negated law:
-    motor torque = kp theta + kd theta_dot + ki int(theta).
+    and the torso takes its reaction, so the motor command is kp theta + kd theta_dot + ki int.
+    D acts on the measured rate, so a gain change causes no derivative kick.
     """
-
-    __slots__ = ("gains", "integral", "saturated")
-
-    def __init__(self, gains: Gains) -> None:
-        self.gains = gains
-        self.integral = 0.0
-        self.saturated = False
-
-    def reset(self) -> None:
-        self.integral, self.saturated = 0.0, False
-
-    def update(self, pitch: float, pitch_rate: float, wheel_speed: float, dt: float) -> float:
-        """Motor torque (N m at the wheel), clamped to the torque-speed envelope."""
-        g = self.gains
-        # D on the measured rate: no derivative kick when the setpoint or gains change.
-        command = g.kp * pitch + g.kd * pitch_rate + g.ki * self.integral
-        low, high = wheel_torque_bounds(wheel_speed)
-        self.saturated = command <= low or command >= high
-        if not self.saturated:  # conditional integration: no windup while saturated
-            self.integral += pitch * dt
-        return low if command < low else high if command > high else command
+    command = p[P_KP] * pitch + p[P_KD] * rate + p[P_KI] * k[K_INTEGRAL]
+    torque = wheel_torque_bound(wheel_speed, command)
+    saturated = torque != command
+    k[K_SATURATED] = 1.0 if saturated else 0.0
+    if not saturated:  # conditional integration: no windup while saturated
+        k[K_INTEGRAL] += pitch * dt
+    return torque
 
 
-@dataclass
-class Leg:
-    """One leg's kinematics in the sagittal plane, world axes, relative to the hip."""
-
-    px: float = 0.0  # foot centre relative to the hip, m
-    pz: float = 0.0
-    j_bx: float = 0.0  # d(px)/d(knee); d(px)/d(hip) = pz, d(pz)/d(hip) = -px
-    j_bz: float = 0.0  # d(pz)/d(knee)
-    length: float = 0.0  # hip-to-foot distance, m
-    angle: float = 0.0  # world angle of the virtual leg (0 = straight down, + = foot behind)
-    contact: ContactDetector = field(default_factory=ContactDetector)
-
-    def update(self, pitch: float, hip: float, knee: float) -> None:
-        a1 = pitch + hip
-        a2 = a1 + knee
-        s1, c1, s2, c2 = math.sin(a1), math.cos(a1), math.sin(a2), math.cos(a2)
-        self.px = -L1 * s1 - L2 * s2
-        self.pz = -L1 * c1 - L2 * c2
-        self.j_bx, self.j_bz = -L2 * c2, L2 * s2
-        self.length = math.hypot(self.px, self.pz)
-        self.angle = math.atan2(-self.px, -self.pz)
-
-    def force_torques(self, fx: float, fz: float) -> tuple[float, float]:
-        """Hip and knee torques that make the ground push on the foot with (fx, fz): tau = -J^T f."""
-        return -(self.pz * fx - self.px * fz), -(self.j_bx * fx + self.j_bz * fz)
-
-    def swing_torques(
-        self, length: float, angle: float, hip_rate: float, knee_rate: float, knee: float
-    ) -> tuple[float, float]:
-        """PD on the virtual leg (length, world angle); damping on joint rates, not the torso's."""
-        # For equal links, length = 2 L cos(knee / 2) and the leg bisects the knee.
-        dl_dknee = -L1 * math.sin(knee / 2)
-        torque_angle = SWING_K * (angle - self.angle) - SWING_D * (hip_rate + knee_rate / 2)
-        force = LENGTH_K * (length - self.length) - LENGTH_D * dl_dknee * knee_rate
-        return torque_angle, torque_angle / 2 + force * dl_dknee
+@njit(cache=True)
+def debounce(force: float, time: float, k: np.ndarray, on_slot: int, pending_slot: int) -> bool:
+    """One foot's contact with hysteresis (on above CONTACT_ON_N, off below CONTACT_OFF_N) and
+    a DEBOUNCE_S hold before a change is believed. pending < 0 means no change pending."""
+    on = k[on_slot] > 0.5
+    changing = force < CONTACT_OFF_N if on else force > CONTACT_ON_N
+    if not changing:
+        k[pending_slot] = -1.0
+    elif k[pending_slot] < 0.0:
+        k[pending_slot] = time
+    elif time - k[pending_slot] >= DEBOUNCE_S - 1e-9:
+        on = not on
+        k[on_slot] = 1.0 if on else 0.0
+        k[pending_slot] = -1.0
+    return on
 
 
-def clamp(value: float, limit: float) -> float:
-    return -limit if value < -limit else limit if value > limit else value
+@njit(cache=True)
+def enter(k: np.ndarray, phase: int, time: float) -> None:
+    k[K_PHASE], k[K_PHASE_START], k[K_PUSH_DONE] = phase, time, 0.0
+
+
+@njit(cache=True)
+def control_tick(
+    qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, time: float, dt: float,
+    p: np.ndarray, k: np.ndarray, acc: np.ndarray, ctrl: np.ndarray,
+) -> int:
+    """One 1 kHz tick: advance the phase, write the 5 actuator commands into `ctrl`, accumulate
+    the hop metrics. Returns the EV_* bits of what happened this tick."""
+    pitch, rate = qpos[Q_PITCH], sensors[S_GYRO_Y]
+    vx, vz, wheel_speed = qvel[Q_X], qvel[Q_Z], qvel[Q_WHEEL]
+    pxl, pzl, jxl, jzl = leg_kinematics(pitch, qpos[Q_HIP_L], qpos[Q_KNEE_L])
+    pxr, pzr, jxr, jzr = leg_kinematics(pitch, qpos[Q_HIP_R], qpos[Q_KNEE_R])
+    on_l = debounce(sensors[S_FOOT_L], time, k, K_CONTACT_L, K_PENDING_L)
+    on_r = debounce(sensors[S_FOOT_R], time, k, K_CONTACT_R, K_PENDING_R)
+    contact = on_l or on_r
+    # Support geometry: hip above the feet' centres, torso CoM ahead of the feet's midpoint.
+    if on_l and on_r:
+        height, px = -0.5 * (pzl + pzr), 0.5 * (pxl + pxr)
+    elif contact:
+        height, px = (-pzl, pxl) if on_l else (-pzr, pxr)
+    else:
+        height, px = 0.0, 0.0
+    if contact:
+        k[K_LAST_CONTACT] = time
+    offset_x = -(HIP_OFFSET_Z * math.sin(pitch) + px)
+
+    # -- phase transitions --
+    events = 0
+    phase = int(k[K_PHASE])
+    elapsed = time - k[K_PHASE_START]
+    if phase != FALLEN:
+        if not -FALL_PITCH < pitch < FALL_PITCH or (contact and phase != FLIGHT and height < FALL_HIP_HEIGHT):
+            enter(k, FALLEN, time)
+            events |= EV_FALL
+        elif phase == FLIGHT:
+            if contact:
+                enter(k, LANDING, time)
+                events |= EV_TOUCHDOWN
+        elif not contact:
+            # Liftoff once both feet have been off for a while: a foot skipping over a crater
+            # rim for a few ms during the push is not a hop.
+            if time - k[K_LAST_CONTACT] >= LIFTOFF_CONFIRM_S:
+                enter(k, FLIGHT, time)
+                k[K_INTEGRAL] = 0.0  # integral reset at liftoff
+                events |= EV_LIFTOFF
+        elif phase == LANDING:
+            if elapsed > LANDING_MIN_S and -0.1 < vz < 0.1:
+                enter(k, STANCE, time)
+        elif phase == STANCE:
+            settled = abs(vx) < 0.08 and abs(vz) < 0.08 and abs(pitch) < 0.05 and abs(rate) < 0.15
+            if elapsed > p[P_STANCE_TIME] and (settled or elapsed > STANCE_MAX_S):
+                enter(k, CROUCH, time)
+        elif phase == CROUCH:
+            loaded = abs(height - p[P_CROUCH]) < 0.03 and abs(offset_x - p[P_LEAN]) < 0.04 and elapsed > CROUCH_MIN_S
+            if loaded or elapsed > CROUCH_MAX_S:
+                enter(k, PUSH, time)
+        elif phase == PUSH and k[K_PUSH_DONE] > 0.5 and elapsed > PUSH_MAX_S:
+            enter(k, STANCE, time)  # the feet never left: stand and try again
+    phase = int(k[K_PHASE])
+
+    # -- actuation --
+    wheel = 0.0
+    if phase in (FLIGHT, FALLEN) or k[K_PUSH_DONE] > 0.5 or not contact:
+        # Legs swing to the landing pose, feet placed ahead by the Raibert term.
+        mid = p[P_PLACEMENT] * vx
+        half = 0.5 * p[P_SPREAD]
+        length = p[P_FLIGHT_LENGTH]
+        ctrl[1], ctrl[2] = swing_torques(pxl, pzl, qpos[Q_KNEE_L], qvel[Q_HIP_L], qvel[Q_KNEE_L], length, mid + half)
+        ctrl[3], ctrl[4] = swing_torques(pxr, pzr, qpos[Q_KNEE_R], qvel[Q_HIP_R], qvel[Q_KNEE_R], length, mid - half)
+        if phase == FLIGHT:
+            wheel = wheel_pid(pitch, rate, wheel_speed, dt, p, k)
+    else:
+        wheel = stance(pitch, rate, vx, vz, wheel_speed, phase, height, offset_x, on_l, on_r,
+                       pxl, pzl, jxl, jzl, pxr, pzr, jxr, jzr, qpos, qvel, p, k, ctrl)
+    if p[P_WHEEL_ON] < 0.5:
+        wheel = 0.0
+    k[K_WHEEL_COMMAND] = wheel
+    ctrl[0] = wheel_ctrl(wheel, wheel_speed)
+
+    # -- metrics of the hop in progress --
+    torque = sensors[S_WHEEL_TORQUE] * WHEEL_GEAR  # motor-side actuator force through the gear
+    if torque >= SATURATION_TORQUE or torque <= -SATURATION_TORQUE:
+        acc[A_SATURATION] += dt
+    acc[A_PEAK_WHEEL] = max(acc[A_PEAK_WHEEL], abs(wheel_speed))
+    if phase == FLIGHT:
+        acc[A_PEAK_PITCH] = max(acc[A_PEAK_PITCH], abs(pitch))
+        acc[A_RATE_SQ] += rate * rate
+        acc[A_FLIGHT_TICKS] += 1.0
+        acc[A_APEX_Z] = max(acc[A_APEX_Z], qpos[Q_Z] + p[P_Z0])
+        if k[K_PREV_VZ] > 0.0 >= vz:
+            events |= EV_APEX
+    k[K_PREV_VZ] = vz
+    return events
+
+
+@njit(cache=True)
+def stance(
+    pitch: float, rate: float, vx: float, vz: float, wheel_speed: float, phase: int, height: float,
+    offset_x: float, on_l: bool, on_r: bool, pxl: float, pzl: float, jxl: float, jzl: float,
+    pxr: float, pzr: float, jxr: float, jzr: float,
+    qpos: np.ndarray, qvel: np.ndarray, p: np.ndarray, k: np.ndarray, ctrl: np.ndarray,
+) -> float:
+    """Virtual model control of the torso through the feet on the ground. Returns wheel torque.
+
+    A desired force (fx, fz) and pitch moment on the torso are distributed over the feet in
+    contact and mapped to joint torques by tau = -J^T f (the legs are light: 1.2 of 8.2 kg).
+    """
+    both = on_l and on_r
+    hip_x, hip_z = HIP_OFFSET_Z * math.sin(pitch), HIP_OFFSET_Z * math.cos(pitch)  # hip rel. torso CoM
+
+    if phase == LANDING:
+        az = KZ * (p[P_STAND] - height) - LANDING_DAMPING * vz
+        ax = -DX * vx
+    elif phase == PUSH:
+        vz_lo = p[P_VZ_LIFTOFF]
+        remaining = max(p[P_PUSH] - height, 0.02)
+        az = min(max((vz_lo * vz_lo - vz * abs(vz)) / (2 * remaining), 0.0), PUSH_MAX_ACCEL)
+        ax = clamp(PUSH_X_GAIN * (p[P_FORWARD_SPEED] - vx), 3.0)
+        if vz >= vz_lo or height >= p[P_PUSH]:
+            k[K_PUSH_DONE] = 1.0
+    elif phase == CROUCH:
+        # Crouch leaning ahead of the feet midpoint: the push's ground force must point from the
+        # (rear) foot through the CoM, so the lean sets how much forward speed the push can add.
+        az = KZ * (p[P_CROUCH] - height) - DZ * vz
+        ax = KX * (p[P_LEAN] - offset_x) - DX * vx
+    else:
+        az = KZ * (p[P_STAND] - height) - DZ * vz
+        ax = -KX * offset_x - DX * vx
+    # Never ask the ground for less than MIN_SUPPORT of the weight: a limp leg loses its foot, and
+    # in low gravity the body sinks slowly enough that a crouch needs no faster drop.
+    fz = TOTAL_MASS * p[P_GRAVITY] * max(1.0 + az / p[P_GRAVITY], MIN_SUPPORT)
+    fx = TOTAL_MASS * ax
+
+    # Wheel: spin down (desaturate) on the ground; the legs take its reaction.
+    wheel = 0.0
+    if p[P_WHEEL_ON] > 0.5:
+        wheel = wheel_torque_bound(wheel_speed, -WHEEL_INERTIA * wheel_speed / DESAT_TIME)
+    moment = wheel - KP_STANCE * pitch - KD_STANCE * rate  # the torso takes -wheel from the motor
+
+    mu = p[P_FRICTION]
+    rax, rbx = hip_x + pxl, hip_x + pxr
+    if both and abs(rax - rbx) > 0.05:
+        # Two feet: split fz so that sum(rz fx - rx fz) = moment. Pitch first: keep fx within
+        # what the split can balance (all weight on one foot at the ends), with a margin.
+        rz2 = 2 * hip_z + pzl + pzr
+        fx_a, fx_b = 2 * (moment + rax * fz) / rz2, 2 * (moment + rbx * fz) / rz2
+        low, high = min(fx_a, fx_b), max(fx_a, fx_b)
+        margin = 0.1 * (high - low)
+        fx = min(max(fx, low + margin), high - margin) / 2
+        fz_l = min(max((rz2 * fx - moment - rbx * fz) / (rax - rbx), 0.0), fz)
+        fz_r = fz - fz_l
+        ctrl[1], ctrl[2] = push_torques(pxl, pzl, jxl, jzl, clamp(fx, mu * fz_l), fz_l)  # friction cone
+        ctrl[3], ctrl[4] = push_torques(pxr, pzr, jxr, jzr, clamp(fx, mu * fz_r), fz_r)
+    else:
+        # One support point. With the wheel, the legs keep the CoM over the foot and the wheel
+        # makes up the pitch moment they leave (its torque on the torso is -wheel); without it,
+        # the pitch moment has to come from the horizontal force alone.
+        if p[P_WHEEL_ON] > 0.5:
+            fx = clamp(fx, mu * fz)
+            legs_moment = (hip_z - height) * fx + offset_x * fz
+            wheel = wheel_torque_bound(wheel_speed, legs_moment - (moment - wheel))
+        else:
+            fx = (moment + offset_x * fz) / (hip_z - height)
+        if both:
+            ctrl[1], ctrl[2] = push_torques(pxl, pzl, jxl, jzl, clamp(fx / 2, mu * fz / 2), fz / 2)
+            ctrl[3], ctrl[4] = push_torques(pxr, pzr, jxr, jzr, clamp(fx / 2, mu * fz / 2), fz / 2)
+        else:
+            # The free foot reaches a little past the stance leg to find the ground.
+            reach = min(p[P_PUSH], p[P_STAND] + 0.1)
+            half = 0.5 * p[P_SPREAD]
+            if on_l:
+                ctrl[1], ctrl[2] = push_torques(pxl, pzl, jxl, jzl, clamp(fx, mu * fz), fz)
+                ctrl[3], ctrl[4] = swing_torques(pxr, pzr, qpos[Q_KNEE_R], qvel[Q_HIP_R], qvel[Q_KNEE_R], reach, -half)
+            else:
+                ctrl[3], ctrl[4] = push_torques(pxr, pzr, jxr, jzr, clamp(fx, mu * fz), fz)
+                ctrl[1], ctrl[2] = swing_torques(pxl, pzl, qpos[Q_KNEE_L], qvel[Q_HIP_L], qvel[Q_KNEE_L], reach, half)
+    return wheel
 
 
 class HopController:
-    """Runs the hop cycle one control tick at a time; gains may change between ticks."""
+    """The Python face of the kernel: parameters, phase, events. Gains may change between ticks."""
 
-    def __init__(self, gains: Gains, gait: GaitParams, gravity: float, wheel: bool = True) -> None:
+    def __init__(self, gains: Gains, gait: GaitParams, gravity: float, wheel: bool = True,
+                 x0: float = 0.0, z0: float = 0.0) -> None:
+        self.params = np.zeros(N_PARAMS)
+        self.state = np.zeros(N_STATE)
         self.gains, self.gait, self.gravity, self.wheel_enabled = gains, gait, gravity, wheel
-        self.pid = WheelPID(gains)
-        self.left, self.right = Leg(), Leg()
-        self.phase = Phase.STANCE
-        self.phase_start = 0.0
-        self.push_done = False
-        self.wheel_command = 0.0  # N m at the wheel, what was asked this tick
-        self.ctrl = [0.0] * 5  # wheel, hip_L, knee_L, hip_R, knee_R
-        self.events: list[tuple[str, float]] = []  # (kind, time), drained by the simulation
+        self.params[P_X0], self.params[P_Z0] = x0, z0
+        self._write_params()
+        self.reset()
+
+    def _write_params(self) -> None:
+        p, g, gait = self.params, self.gains, self.gait
+        p[P_KP], p[P_KI], p[P_KD] = g.kp, g.ki, g.kd
+        p[P_GRAVITY], p[P_WHEEL_ON] = self.gravity, float(self.wheel_enabled)
+        p[P_VZ_LIFTOFF] = math.sqrt(2.0 * self.gravity * gait.apex_height)  # v_z = sqrt(2 g h)
+        p[P_FORWARD_SPEED], p[P_STAND], p[P_CROUCH] = gait.forward_speed, gait.stand_height, gait.crouch_height
+        p[P_PUSH], p[P_FLIGHT_LENGTH], p[P_SPREAD] = gait.push_length, gait.flight_length, gait.foot_spread
+        p[P_PLACEMENT], p[P_LEAN] = gait.placement_gain, gait.crouch_lean
+        p[P_STANCE_TIME], p[P_FRICTION] = gait.stance_time, gait.friction
 
     def set_gains(self, gains: Gains) -> None:
         self.gains = gains
-        self.pid.gains = gains
+        self._write_params()
+
+    def set_gravity(self, gravity: float) -> None:
+        self.gravity = gravity
+        self._write_params()
+
+    def set_wheel(self, enabled: bool) -> None:
+        self.wheel_enabled = enabled
+        self._write_params()
 
     def reset(self, time: float = 0.0, standing: bool = True) -> None:
-        self.pid.reset()
-        self.left.contact.reset(standing)
-        self.right.contact.reset(standing)
-        self.phase, self.phase_start, self.push_done = Phase.STANCE, time, False
-        self.events.clear()
+        """Start in stance (feet believed on the ground when `standing`)."""
+        k = self.state
+        k[:] = 0.0
+        k[K_PHASE], k[K_PHASE_START] = STANCE, time
+        k[K_CONTACT_L] = k[K_CONTACT_R] = 1.0 if standing else 0.0
+        k[K_PENDING_L] = k[K_PENDING_R] = -1.0
+
+    def fall(self, time: float) -> None:
+        enter(self.state, FALLEN, time)
+
+    @property
+    def phase(self) -> Phase:
+        return Phase(int(self.state[K_PHASE]))
+
+    @property
+    def wheel_command(self) -> float:
+        """Wheel torque asked this tick, N m."""
+        return float(self.state[K_WHEEL_COMMAND])
+
+    @property
+    def saturated(self) -> bool:
+        return bool(self.state[K_SATURATED])
 
     @property
     def liftoff_speed(self) -> float:
-        """Vertical speed at liftoff for the apex height: v_z = sqrt(2 g h)."""
-        return math.sqrt(2.0 * self.gravity * self.gait.apex_height)
-
-    def _enter(self, phase: Phase, time: float) -> None:
-        self.phase, self.phase_start = phase, time
-
-    def update(self, s: Physics, dt: float) -> list[float]:
-        """One control tick: read `s`, advance the phase, return ctrl for the 5 actuators."""
-        t = s.time
-        self.left.update(s.pitch, s.hip_L, s.knee_L)
-        self.right.update(s.pitch, s.hip_R, s.knee_R)
-        on_l = self.left.contact.update(s.foot_force_L, t)
-        on_r = self.right.contact.update(s.foot_force_R, t)
-        self._advance(s, t, on_l or on_r)
-
-        if self.phase is Phase.FLIGHT or self.phase is Phase.FALLEN or (self.phase is Phase.PUSH and self.push_done):
-            wheel = self._flight(s, dt)
-        else:
-            wheel = self._stance(s, t, on_l, on_r)
-        if not self.wheel_enabled:
-            wheel = 0.0
-        self.wheel_command = wheel
-        self.ctrl[0] = wheel_ctrl(wheel, s.wheel_speed)
-        return self.ctrl
-
-    def _advance(self, s: Physics, t: float, contact: bool) -> None:
-        """Phase transitions; events are queued for the simulation to stamp and publish."""
-        phase, elapsed, gait = self.phase, t - self.phase_start, self.gait
-        if phase is Phase.FALLEN:
-            return
-        if abs(s.pitch) > FALL_PITCH:
-            self._enter(Phase.FALLEN, t)
-            self.events.append(("fall", t))
-            return
-        if phase in GROUND_PHASES and contact:
-            legs = [leg for leg in (self.left, self.right) if leg.contact.on]
-            height = -sum(leg.pz for leg in legs) / len(legs)
-            if height < FALL_HIP_HEIGHT:
-                self._enter(Phase.FALLEN, t)
-                self.events.append(("fall", t))
-                return
-        if phase is Phase.FLIGHT:
-            if contact:
-                self._enter(Phase.LANDING, t)
-                self.events.append(("touchdown", t))
-            return
-        if not contact and (phase is Phase.PUSH or elapsed > 0.05):
-            # Feet off the ground: liftoff (or a bounce off a crater rim, also ballistic).
-            self._enter(Phase.FLIGHT, t)
-            self.push_done = False
-            self.pid.reset()  # integral reset at liftoff
-            self.events.append(("liftoff", t))
-            return
-        if phase is Phase.LANDING and elapsed > 0.1 and abs(s.vz) < 0.1:
-            self._enter(Phase.STANCE, t)
-        elif phase is Phase.STANCE and elapsed > gait.stance_time:
-            settled = abs(s.vx) < 0.08 and abs(s.vz) < 0.08 and abs(s.pitch) < 0.05 and abs(s.pitch_rate) < 0.15
-            if settled or elapsed > 2.0:
-                self._enter(Phase.CROUCH, t)
-        elif phase is Phase.CROUCH:
-            height = -(self.left.pz + self.right.pz) / 2
-            if (abs(height - gait.crouch_height) < 0.02 and abs(s.vz) < 0.05 and elapsed > 0.15) or elapsed > 1.0:
-                self._enter(Phase.PUSH, t)
-                self.push_done = False
-        elif phase is Phase.PUSH and self.push_done and elapsed > 1.0:
-            self._enter(Phase.STANCE, t)  # the feet never left: stand and try again
-
-    def _flight(self, s: Physics, dt: float) -> float:
-        """Legs swing to the landing pose; the wheel PID holds the pitch. Returns wheel torque."""
-        gait, ctrl = self.gait, self.ctrl
-        mid = gait.placement_gain * s.vx
-        length = gait.flight_length
-        for i, (leg, offset, hip, knee, hip_rate, knee_rate) in enumerate(
-            (
-                (self.left, gait.foot_spread / 2, s.hip_L, s.knee_L, s.hip_L_rate, s.knee_L_rate),
-                (self.right, -gait.foot_spread / 2, s.hip_R, s.knee_R, s.hip_R_rate, s.knee_R_rate),
-            )
-        ):
-            # Foot ahead of the hip by x: world angle -asin(x / length).
-            angle = -math.asin(clamp((mid + offset) / length, 0.9))
-            tau_hip, tau_knee = leg.swing_torques(length, angle, hip_rate, knee_rate, knee)
-            ctrl[1 + 2 * i] = clamp(tau_hip, LEG_TORQUE_LIMIT)
-            ctrl[2 + 2 * i] = clamp(tau_knee, LEG_TORQUE_LIMIT)
-        if self.phase is Phase.FALLEN:
-            return 0.0
-        return self.pid.update(s.pitch, s.pitch_rate, s.wheel_speed, dt)
-
-    def _stance(self, s: Physics, t: float, on_l: bool, on_r: bool) -> float:
-        """Virtual model control of the torso through the feet on the ground. Returns wheel torque."""
-        gait, g, m = self.gait, self.gravity, TOTAL_MASS
-        legs = [leg for leg, on in ((self.left, on_l), (self.right, on_r)) if on]
-        if not legs:  # touchdown not yet debounced on either foot: keep the flight posture
-            return self._flight(s, 0.0)
-        height = -sum(leg.pz for leg in legs) / len(legs)  # hip above the feet' centres
-        # Torso CoM relative to the feet midpoint, horizontally (hip is below the CoM).
-        hip_x = HIP_OFFSET_Z * math.sin(s.pitch)
-        offset_x = -(hip_x + sum(leg.px for leg in legs) / len(legs))
-
-        kz, dz = STANCE_HEIGHT_WN**2, 2 * STANCE_HEIGHT_ZETA * STANCE_HEIGHT_WN
-        kx, dx = STANCE_X_WN**2, 2 * STANCE_X_ZETA * STANCE_X_WN
-        phase = self.phase
-        if phase is Phase.LANDING:
-            az = kz * (gait.stand_height - height) - LANDING_DAMPING * s.vz
-            ax = -dx * s.vx
-        elif phase is Phase.PUSH:
-            vz_lo = self.liftoff_speed
-            remaining = max(gait.push_length - height, 0.02)
-            az = min(max((vz_lo * vz_lo - s.vz * abs(s.vz)) / (2 * remaining), 0.0), PUSH_MAX_ACCEL)
-            ax = clamp(PUSH_X_GAIN * (gait.forward_speed - s.vx), 3.0)
-            if s.vz >= vz_lo or height >= gait.push_length:
-                self.push_done = True
-        else:
-            target = gait.crouch_height if phase is Phase.CROUCH else gait.stand_height
-            # Crouch leaning ahead of the feet midpoint: the push's ground force must point from the
-            # (rear) feet through the CoM, so the lean sets how much forward speed it can add.
-            lean = gait.crouch_lean if phase is Phase.CROUCH else 0.0
-            az = kz * (target - height) - dz * s.vz
-            ax = kx * (lean - offset_x) - dx * s.vx
-        fz_total = max(m * (g + az), 0.0)
-        fx_total = m * ax
-
-        # Wheel: spin down (desaturate); the legs take its reaction through the ground.
-        wheel = 0.0
-        if self.wheel_enabled:
-            low, high = wheel_torque_bounds(s.wheel_speed)
-            wheel = min(max(-WHEEL_INERTIA * s.wheel_speed / DESAT_TIME, low), high)
-        kp_s = STANCE_PITCH_INERTIA * STANCE_PITCH_WN**2
-        kd_s = 2 * STANCE_PITCH_ZETA * STANCE_PITCH_WN * STANCE_PITCH_INERTIA
-        moment = -kp_s * s.pitch - kd_s * s.pitch_rate + wheel  # torso takes -wheel from the motor
-
-        # Distribute (fx, fz, moment about the torso CoM) over the feet in contact.
-        hip_z = HIP_OFFSET_Z * math.cos(s.pitch)
-        mu = gait.friction
-        forces: list[tuple[float, float]]
-        if len(legs) == 2 and abs(legs[0].px - legs[1].px) > 0.05:
-            a, b = legs
-            rax, raz, rbx, rbz = hip_x + a.px, hip_z + a.pz, hip_x + b.px, hip_z + b.pz
-            # Pitch first: keep the horizontal force within what the vertical split can balance
-            # (all weight on one foot at the extremes), with a margin.
-            fx_a = 2 * (moment + rax * fz_total) / (raz + rbz)
-            fx_b = 2 * (moment + rbx * fz_total) / (raz + rbz)
-            low, high = min(fx_a, fx_b), max(fx_a, fx_b)
-            margin = 0.1 * (high - low)
-            fx_total = min(max(fx_total, low + margin), high - margin)
-            fx = fx_total / 2
-            # sum(rz fx - rx fz) = moment, fza + fzb = fz_total
-            rhs = (raz + rbz) * fx - moment
-            fza = (rhs - rbx * fz_total) / (rax - rbx)
-            fza = min(max(fza, 0.0), fz_total)
-            forces = [(fx, fza), (fx, fz_total - fza)]
-        else:
-            # One support point: the pitch moment has to come from the horizontal force.
-            rx = hip_x + sum(leg.px for leg in legs) / len(legs)
-            rz = hip_z - height
-            fx = (moment + rx * fz_total) / rz
-            forces = [(fx / len(legs), fz_total / len(legs))] * len(legs)
-
-        ctrl = self.ctrl
-        for leg, (fx, fz) in zip(legs, forces):
-            fx = clamp(fx, mu * fz)  # stay inside the friction cone
-            tau_hip, tau_knee = leg.force_torques(fx, fz)
-            i = 0 if leg is self.left else 1
-            ctrl[1 + 2 * i] = clamp(tau_hip, LEG_TORQUE_LIMIT)
-            ctrl[2 + 2 * i] = clamp(tau_knee, LEG_TORQUE_LIMIT)
-        if len(legs) == 1:  # the other foot keeps swinging toward the ground
-            self._swing_free_leg(s, on_l)
-        return wheel
-
-    def _swing_free_leg(self, s: Physics, left_on: bool) -> None:
-        gait, ctrl = self.gait, self.ctrl
-        if left_on:
-            leg, i, knee, hip_rate, knee_rate, offset = self.right, 1, s.knee_R, s.hip_R_rate, s.knee_R_rate, -1
-        else:
-            leg, i, knee, hip_rate, knee_rate, offset = self.left, 0, s.knee_L, s.hip_L_rate, s.knee_L_rate, 1
-        angle = -math.asin(clamp(offset * gait.foot_spread / 2 / gait.stand_height, 0.9))
-        # Reach a little longer than the stance leg so the foot finds the ground.
-        tau_hip, tau_knee = leg.swing_torques(min(gait.push_length, gait.stand_height + 0.1), angle, hip_rate, knee_rate, knee)
-        ctrl[1 + 2 * i] = clamp(tau_hip, LEG_TORQUE_LIMIT)
-        ctrl[2 + 2 * i] = clamp(tau_knee, LEG_TORQUE_LIMIT)
-
-
-SATURATION_TORQUE = SATURATION_FRACTION * WHEEL_TORQUE_LIMIT  # N m
-__all__ = ["HopController", "WheelPID", "wheel_ctrl", "wheel_torque_bounds", "SATURATION_TORQUE", "FOOT_RADIUS"]
+        return float(self.params[P_VZ_LIFTOFF])

@@ -5,7 +5,9 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from hopper.controller import SATURATION_TORQUE
+import numpy as np
+
+from hopper.controller import A_APEX_Z, A_FLIGHT_TICKS, A_PEAK_PITCH, A_PEAK_WHEEL, A_RATE_SQ, A_SATURATION, N_ACC
 
 RAD_S_TO_RPM = 60.0 / (2.0 * math.pi)
 
@@ -35,10 +37,12 @@ class HopMetrics:
 
 
 class MetricsTracker:
-    """Accumulates one hop at a time; `update` runs every tick and must stay cheap."""
+    """The hop in progress: the control kernel accumulates into `acc` every tick (cheap), and
+    liftoff / touchdown turn it into a HopMetrics."""
 
     def __init__(self, x0: float = 0.0) -> None:
         self.hops: list[HopMetrics] = []
+        self.acc = np.zeros(N_ACC)
         self.reset(x0)
 
     def reset(self, x0: float, time: float = 0.0) -> None:
@@ -47,37 +51,16 @@ class MetricsTracker:
         self._start_hop(time)
 
     def _start_hop(self, time: float) -> None:
+        self.acc[:] = 0.0
+        self.acc[A_APEX_Z] = -math.inf
         self._ground_start = time
         self._liftoff_time: float | None = None
         self._liftoff_z = 0.0
         self._liftoff_momentum = 0.0
-        self._apex_z = -math.inf
-        self._peak_pitch = 0.0
-        self._rate_sq_sum = 0.0
-        self._flight_ticks = 0
-        self._saturation = 0.0
-        self._peak_wheel = 0.0
-
-    def update(self, flying: bool, pitch: float, pitch_rate: float, wheel_torque: float,
-               wheel_speed: float, z: float, dt: float) -> None:
-        """Accumulate one tick (SI units)."""
-        if wheel_torque >= SATURATION_TORQUE or wheel_torque <= -SATURATION_TORQUE:
-            self._saturation += dt
-        w = abs(wheel_speed)
-        if w > self._peak_wheel:
-            self._peak_wheel = w
-        if flying:
-            p = abs(pitch)
-            if p > self._peak_pitch:
-                self._peak_pitch = p
-            self._rate_sq_sum += pitch_rate * pitch_rate
-            self._flight_ticks += 1
-            if z > self._apex_z:
-                self._apex_z = z
 
     def liftoff(self, time: float, z: float, momentum: float) -> None:
         self._liftoff_time, self._liftoff_z, self._liftoff_momentum = time, z, momentum
-        self._apex_z = z
+        self.acc[A_APEX_Z] = z
 
     @property
     def in_flight(self) -> bool:
@@ -87,18 +70,19 @@ class MetricsTracker:
         """Close the hop at a touchdown (or a fall in flight); None if no liftoff preceded it."""
         if self._liftoff_time is None:
             return None
-        n = max(self._flight_ticks, 1)
+        acc = self.acc
+        ticks = max(acc[A_FLIGHT_TICKS], 1.0)
         hop = HopMetrics(
             index=len(self.hops) + 1,
             distance_m=x - self._last_touchdown_x,
-            apex_height_m=self._apex_z - self._liftoff_z,
+            apex_height_m=float(acc[A_APEX_Z]) - self._liftoff_z,
             flight_time_s=time - self._liftoff_time,
             stance_time_s=self._liftoff_time - self._ground_start,
-            peak_pitch_deg=math.degrees(self._peak_pitch),
-            rms_pitch_rate_deg_s=math.degrees(math.sqrt(self._rate_sq_sum / n)),
+            peak_pitch_deg=math.degrees(acc[A_PEAK_PITCH]),
+            rms_pitch_rate_deg_s=math.degrees(math.sqrt(acc[A_RATE_SQ] / ticks)),
             landing_pitch_deg=math.degrees(abs(pitch)),
-            saturation_time_s=self._saturation,
-            peak_wheel_rpm=self._peak_wheel * RAD_S_TO_RPM,
+            saturation_time_s=float(acc[A_SATURATION]),
+            peak_wheel_rpm=float(acc[A_PEAK_WHEEL]) * RAD_S_TO_RPM,
             liftoff_momentum=self._liftoff_momentum,
             touchdown_time_s=time,
             completed=completed,

@@ -13,6 +13,9 @@ from hopper.config import SimConfig
 MODEL_PATH = Path(__file__).resolve().parent.parent / "models" / "hopper.xml"
 WHEEL_ACTUATOR_GROUP = 1  # models/hopper.xml: disabling this group turns the wheel off
 LEG_JOINTS = ("hip_L", "knee_L", "hip_R", "knee_R")
+# Named indices into qpos and qvel (nq == nv here) and sensordata; Physics checks the layout.
+Q_X, Q_Z, Q_PITCH, Q_WHEEL, Q_HIP_L, Q_KNEE_L, Q_HIP_R, Q_KNEE_R = range(8)
+S_PITCH, S_GYRO_X, S_GYRO_Y, S_GYRO_Z, S_WHEEL_SPEED, S_FOOT_L, S_FOOT_R, S_WHEEL_TORQUE = range(8)
 
 
 def terrain_heights(config: SimConfig) -> np.ndarray:
@@ -69,32 +72,34 @@ class Physics:
     controller in Python pays for a few list reads, not dozens of numpy scalar lookups.
     """
 
+    # The model's coordinate and sensor layout, checked against models/hopper.xml at construction,
+    # so that refresh() can unpack whole arrays instead of indexing them one by one.
+    QPOS = ("root_x", "root_z", "pitch", "wheel", "hip_L", "knee_L", "hip_R", "knee_R")
+    SENSORS = ("imu_pitch", "imu_gyro", "wheel_speed", "foot_L", "foot_R", "wheel_torque")
+
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         self.model, self.data = model, data
-        self._qpos = {n: model.joint(n).qposadr[0] for n in ("root_x", "root_z", "pitch", "wheel", *LEG_JOINTS)}
-        self._qvel = {n: model.joint(n).dofadr[0] for n in self._qpos}
-        self._sensor = {n: model.sensor(n).adr[0] for n in ("foot_L", "foot_R", "imu_gyro", "wheel_torque")}
+        if [model.joint(n).qposadr[0] for n in self.QPOS] != list(range(8)) or model.nv != 8:
+            raise ValueError("models/hopper.xml: joints must be ordered as Physics.QPOS")
+        if [model.sensor(n).adr[0] for n in self.SENSORS] != [0, 1, 4, 5, 6, 7]:
+            raise ValueError("models/hopper.xml: sensors must be ordered as Physics.SENSORS")
         self.wheel_gear = float(model.actuator("wheel").gear[0])
         # Slide joints measure from the torso's pose in the XML; add it back for world x, z.
         self._x0, _, self._z0 = model.body("torso").pos.tolist()
+        # MjData's array properties build a new numpy view on every access (~1 us each): keep them.
+        self._qpos, self._qvel, self._sensors = data.qpos, data.qvel, data.sensordata
         self.refresh()
 
     def refresh(self) -> None:
         """Copy the current state into named attributes (SI units, angles in rad)."""
-        q, v, s = self.data.qpos.tolist(), self.data.qvel.tolist(), self.data.sensordata.tolist()
-        a, b, c = self._qpos, self._qvel, self._sensor
         self.time: float = self.data.time
-        self.x, self.z = q[a["root_x"]] + self._x0, q[a["root_z"]] + self._z0  # torso CoM, world
-        self.pitch = q[a["pitch"]]
-        self.vx, self.vz = v[b["root_x"]], v[b["root_z"]]
-        self.pitch_rate: float = s[c["imu_gyro"] + 1]  # IMU gyro, body y axis
-        self.wheel_angle, self.wheel_speed = q[a["wheel"]], v[b["wheel"]]  # relative to the torso
-        self.hip_L, self.knee_L = q[a["hip_L"]], q[a["knee_L"]]
-        self.hip_R, self.knee_R = q[a["hip_R"]], q[a["knee_R"]]
-        self.hip_L_rate, self.knee_L_rate = v[b["hip_L"]], v[b["knee_L"]]
-        self.hip_R_rate, self.knee_R_rate = v[b["hip_R"]], v[b["knee_R"]]
-        self.foot_force_L, self.foot_force_R = s[c["foot_L"]], s[c["foot_R"]]  # N, normal
-        self.wheel_torque: float = s[c["wheel_torque"]] * self.wheel_gear  # N m at the wheel, applied
+        x, z, self.pitch, self.wheel_angle, self.hip_L, self.knee_L, self.hip_R, self.knee_R = self._qpos.tolist()
+        self.x, self.z = x + self._x0, z + self._z0  # torso CoM, world frame
+        (self.vx, self.vz, _, self.wheel_speed,  # wheel angle and speed are relative to the torso
+         self.hip_L_rate, self.knee_L_rate, self.hip_R_rate, self.knee_R_rate) = self._qvel.tolist()
+        # IMU pitch rate is the gyro's body-y axis; foot forces are touch-sensor normal forces (N).
+        _, _, self.pitch_rate, _, _, self.foot_force_L, self.foot_force_R, torque = self._sensors.tolist()
+        self.wheel_torque = torque * self.wheel_gear  # N m at the wheel, as applied
 
     def angular_momentum(self) -> float:
         """Total pitch angular momentum about the whole robot's CoM (kg m^2/s)."""

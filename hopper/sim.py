@@ -10,7 +10,8 @@ import collections
 import dataclasses
 import logging
 import math
-from typing import Any, Callable, Literal, Protocol
+from collections.abc import Callable
+from typing import Any, Literal, Protocol
 
 import mujoco
 import numpy as np
@@ -23,7 +24,7 @@ from hopper.config import (
     SimConfig,
     require_finite,
 )
-from hopper.controller import HopController
+from hopper.controller import EV_APEX, EV_FALL, EV_LIFTOFF, EV_TOUCHDOWN, HopController, control_tick
 from hopper.metrics import HopMetrics, MetricsTracker
 from hopper.model import Physics, build_model, set_terrain, set_wheel_enabled, terrain_heights
 from hopper.phases import Phase
@@ -39,7 +40,7 @@ DISTURBANCE_LIMITS: dict[str, tuple[float, str]] = {  # largest magnitude, unit
 }
 TORQUE_PULSE_S = 0.1  # s
 TORQUE_PULSE_DELAY_S = 0.15  # s after liftoff, when armed on the ground
-DIVERGENCE_CHECK_TICKS = 50
+HEALTH_CHECK_TICKS = 50  # ticks between checks for a diverged state
 
 
 @dataclasses.dataclass(frozen=True)
@@ -68,17 +69,18 @@ class Simulation:
         self.model = build_model(config, self.heights)
         self.data = mujoco.MjData(self.model)
         self.physics = Physics(self.model, self.data)
-        self.controller = HopController(config.gains, config.gait, config.gravity, config.wheel)
+        x0, _, z0 = self.model.body("torso").pos.tolist()
+        self.controller = HopController(config.gains, config.gait, config.gravity, config.wheel, x0, z0)
         self.metrics = MetricsTracker()
         self.events: list[Event] = []
         self.listeners: list[Listener] = []
         self._commands: collections.deque[Callable[[Simulation], None]] = collections.deque()
+        # MjData's array properties build a new numpy view per access: keep one of each.
+        d = self.data
+        self._qpos, self._qvel, self._sensors, self._ctrl = d.qpos, d.qvel, d.sensordata, d.ctrl
+        self._acc, self._dt = self.metrics.acc, self.model.opt.timestep
+        self._torso = self.model.body("torso").id
         self._ticks = 0
-        self._pulse_until = -1.0
-        self._pulse_armed = 0.0
-        self._pulse_at = math.inf
-        self._prev_vz = 0.0
-        self._warnings = 0
         self.reset(reason="start")
 
     # -- reading ---------------------------------------------------------------------------
@@ -104,32 +106,20 @@ class Simulation:
 
     # -- stepping --------------------------------------------------------------------------
     def step(self) -> None:
-        """One control tick: apply queued commands, control, account metrics, mj_step."""
+        """One control tick: apply queued commands, control (kernel), mj_step, notify listeners."""
         if self._commands:
             self._drain()
-        s, c = self.physics, self.controller
-        s.refresh()
-        if not (math.isfinite(s.z) and math.isfinite(s.pitch) and math.isfinite(s.wheel_speed)):
-            self._diverged("non-finite state")
-            return
-        dt = self.model.opt.timestep
-        self.data.ctrl[:] = c.update(s, dt)
-        if c.events:
-            self._controller_events()
-        flying = c.phase is Phase.FLIGHT
-        if flying and self._prev_vz > 0.0 >= s.vz:
-            self._emit("apex", height_m=s.z)
-        self._prev_vz = s.vz
-        self.metrics.update(flying, s.pitch, s.pitch_rate, s.wheel_torque, s.wheel_speed, s.z, dt)
-        if s.time >= self._pulse_at and flying:
-            self._fire_pulse(self._pulse_armed)
-        elif self._pulse_until >= 0.0 and s.time >= self._pulse_until:
-            self.data.xfrc_applied[self._torso, 4] = 0.0
-            self._pulse_until = -1.0
+        c = self.controller
+        events = control_tick(self._qpos, self._qvel, self._sensors, self.data.time, self._dt,
+                              c.params, c.state, self._acc, self._ctrl)
+        if events:
+            self._controller_events(events)
+        if self._pulse_at <= self.data.time:
+            self._pulse_event()
         mujoco.mj_step(self.model, self.data)
         self._ticks += 1
-        if self._ticks % DIVERGENCE_CHECK_TICKS == 0:
-            self._check_warnings()
+        if self._ticks % HEALTH_CHECK_TICKS == 0:
+            self._check_health()
         for listener in self.listeners:
             listener.tick(self)
 
@@ -161,22 +151,23 @@ class Simulation:
             listener.event(self, event)
         return event
 
-    def _controller_events(self) -> None:
+    def _controller_events(self, events: int) -> None:
         s = self.physics
-        for kind, _ in self.controller.events:
-            if kind == "liftoff":
-                momentum = s.angular_momentum()
-                self.metrics.liftoff(s.time, s.z, momentum)
-                self._emit("liftoff", momentum=momentum)
-                if self._pulse_armed:
-                    self._pulse_at = s.time + TORQUE_PULSE_DELAY_S
-            elif kind == "touchdown":
-                hop = self.metrics.touchdown(s.time, s.x, s.pitch)
-                self._emit("touchdown", hop=hop)
-            elif kind == "fall":
-                hop = self.metrics.touchdown(s.time, s.x, s.pitch, completed=False)
-                self._emit("fall", pitch_deg=math.degrees(s.pitch), hop=hop)
-        self.controller.events.clear()
+        s.refresh()
+        if events & EV_LIFTOFF:
+            momentum = s.angular_momentum()
+            self.metrics.liftoff(s.time, s.z, momentum)
+            self._emit("liftoff", momentum=momentum)
+            if self._pulse_armed:
+                self._pulse_at, self._pulse_magnitude = s.time + TORQUE_PULSE_DELAY_S, self._pulse_armed
+                self._pulse_armed = 0.0
+        if events & EV_APEX:
+            self._emit("apex", height_m=s.z)
+        if events & EV_TOUCHDOWN:
+            self._emit("touchdown", hop=self.metrics.touchdown(s.time, s.x, s.pitch))
+        if events & EV_FALL:
+            hop = self.metrics.touchdown(s.time, s.x, s.pitch, completed=False)
+            self._emit("fall", pitch_deg=math.degrees(s.pitch), hop=hop)
 
     # -- commands (call from the loop, or submit() them) ----------------------------------
     def reset(self, reason: str = "user") -> None:
@@ -192,9 +183,7 @@ class Simulation:
         torso_z = self.model.body("torso").pos[2]
         self.data.joint("root_z").qpos = FOOT_RADIUS + stand - HIP_OFFSET_Z - torso_z
         mujoco.mj_forward(self.model, self.data)
-        self._torso = self.model.body("torso").id
-        self.data.xfrc_applied[:] = 0.0
-        self._pulse_until, self._pulse_armed, self._pulse_at, self._prev_vz = -1.0, 0.0, math.inf, 0.0
+        self._pulse_armed, self._pulse_magnitude, self._pulse_at = 0.0, 0.0, math.inf
         self._warnings = int(self.data.warning.number.sum())
         self.physics.refresh()
         self.controller.reset(self.time, standing=True)
@@ -207,13 +196,13 @@ class Simulation:
 
     def set_wheel(self, enabled: bool) -> None:
         set_wheel_enabled(self.model, enabled)
-        self.controller.wheel_enabled = enabled
+        self.controller.set_wheel(enabled)
         self._emit("wheel", enabled=enabled)
 
     def set_gravity(self, gravity: float) -> None:
         require_finite("gravity", gravity, 0.05, 30.0)
         self.model.opt.gravity[2] = -gravity
-        self.controller.gravity = gravity
+        self.controller.set_gravity(gravity)
         self._emit("gravity", gravity=gravity)
 
     def set_terrain(self, kind: Literal["crater", "flat"], seed: int) -> None:
@@ -232,7 +221,7 @@ class Simulation:
         require_finite(f"{kind} magnitude ({unit})", magnitude, -limit, limit)
         if kind == "torque_pulse":
             if self.controller.phase is Phase.FLIGHT:
-                self._fire_pulse(magnitude)
+                self._pulse_at, self._pulse_magnitude = self.time, magnitude
             else:
                 self._pulse_armed = magnitude
                 self._emit("disturbance_armed", kind=kind, magnitude=magnitude, unit=unit)
@@ -245,16 +234,23 @@ class Simulation:
         self.data.qvel += dv
         self._emit("disturbance", kind=kind, magnitude=magnitude, unit=unit)
 
-    def _fire_pulse(self, magnitude: float) -> None:
-        self.data.xfrc_applied[self._torso, 4] = magnitude
-        self._pulse_until = self.time + TORQUE_PULSE_S
-        self._pulse_armed, self._pulse_at = 0.0, math.inf
-        self._emit("disturbance", kind="torque_pulse", magnitude=magnitude, unit="N m", duration_s=TORQUE_PULSE_S)
+    def _pulse_event(self) -> None:
+        """Start a scheduled torque pulse (in flight only), or end the running one."""
+        magnitude = self._pulse_magnitude
+        if magnitude and self.controller.phase is Phase.FLIGHT:
+            self.data.xfrc_applied[self._torso, 4] = magnitude  # pitch torque about world y
+            self._pulse_at, self._pulse_magnitude = self.time + TORQUE_PULSE_S, 0.0
+            self._emit("disturbance", kind="torque_pulse", magnitude=magnitude, unit="N m", duration_s=TORQUE_PULSE_S)
+        else:
+            self.data.xfrc_applied[self._torso, 4] = 0.0
+            self._pulse_at, self._pulse_magnitude = math.inf, 0.0
 
     # -- health ----------------------------------------------------------------------------
-    def _check_warnings(self) -> None:
-        count = int(self.data.warning.number.sum())
-        if count > self._warnings:
+    def _check_health(self) -> None:
+        """Reset on a non-finite state or a new MuJoCo warning (e.g. it auto-reset a bad qacc)."""
+        if not (np.isfinite(self._qpos).all() and np.isfinite(self._qvel).all()):
+            self._diverged("non-finite state")
+        elif int(self.data.warning.number.sum()) > self._warnings:
             self._diverged("MuJoCo warning")
 
     def _diverged(self, why: str) -> None:

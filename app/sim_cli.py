@@ -1,0 +1,236 @@
+"""`hopper-sim`: the headless runner (one run, or wheel on vs off over many seeds)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import multiprocessing
+import os
+import signal
+import statistics
+import sys
+import time
+from pathlib import Path
+from typing import Any, NoReturn
+
+from hopper.config import GRAVITY_PRESETS, Gains, InvalidConfig, SimConfig
+
+# The JSON keys of a hop, in table order, with their column headings.
+HOP_COLUMNS = {
+    "distance_m": "dist m",
+    "apex_height_m": "apex m",
+    "flight_time_s": "flight s",
+    "peak_pitch_deg": "peak deg",
+    "rms_pitch_rate_deg_s": "rms deg/s",
+    "landing_pitch_deg": "land deg",
+    "saturation_time_s": "sat s",
+    "peak_wheel_rpm": "wheel rpm",
+}
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse with errors on one line (no usage dump): `hopper-sim run: error: ...`."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def fail(message: str) -> NoReturn:
+    print(f"hopper-sim: error: {message}", file=sys.stderr)
+    raise SystemExit(2)
+
+
+def writable_file(text: str) -> Path:
+    """An output path whose folder exists and can be written (checked before any simulation)."""
+    path = Path(text)
+    folder = path.parent if str(path.parent) else Path(".")
+    if path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text} is a directory")
+    if not folder.is_dir():
+        raise argparse.ArgumentTypeError(f"folder {folder} does not exist")
+    if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise argparse.ArgumentTypeError(f"cannot write {text}")
+    return path
+
+
+def finite(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{text} is not a finite number")
+    return value
+
+
+def gravity(text: str) -> float:
+    """A number in m/s^2 or a preset name (moon, mars, ceres, earth)."""
+    return GRAVITY_PRESETS[text.lower()] if text.lower() in GRAVITY_PRESETS else finite(text)
+
+
+def parser() -> Parser:
+    top = Parser(prog="hopper-sim", description=__doc__)
+    commands = top.add_subparsers(dest="command", required=True, parser_class=Parser)
+    defaults = Gains()
+
+    def common(p: argparse.ArgumentParser) -> None:
+        p.add_argument("--hops", type=int, default=7, help="hops to complete (default 7)")
+        p.add_argument("--terrain", choices=("crater", "flat"), default="crater")
+        p.add_argument("--gravity", type=gravity, default=GRAVITY_PRESETS["moon"],
+                       help="m/s^2 or moon|mars|ceres|earth (default moon, 1.625)")
+        p.add_argument("--kp", type=finite, default=defaults.kp, help=f"N m/rad (default {defaults.kp:g})")
+        p.add_argument("--ki", type=finite, default=defaults.ki, help=f"N m/(rad s) (default {defaults.ki:g})")
+        p.add_argument("--kd", type=finite, default=defaults.kd, help=f"N m s/rad (default {defaults.kd:g})")
+        p.add_argument("--json", type=writable_file, metavar="PATH", help="write the results as JSON")
+
+    run = commands.add_parser("run", help="simulate one robot until N hops or a fall")
+    common(run)
+    run.add_argument("--seed", type=int, default=0, help="terrain seed (default 0)")
+    run.add_argument("--no-wheel", action="store_true", help="zero wheel torque, wheel free to spin")
+    run.add_argument("--rrd", type=writable_file, metavar="PATH", help="record a rerun .rrd session")
+    run.add_argument("--rerun-viewer", choices=("spawn", "serve", "off"), default="off",
+                     help="also watch live in a rerun viewer (default off)")
+
+    compare = commands.add_parser("compare", help="wheel on vs off over seeds 0..K-1")
+    common(compare)
+    compare.add_argument("--seeds", type=int, default=10, help="number of seeds (default 10)")
+    compare.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
+    return top
+
+
+def make_config(args: argparse.Namespace, seed: int, wheel: bool) -> SimConfig:
+    return SimConfig(
+        seed=seed, terrain=args.terrain, gravity=args.gravity, wheel=wheel,
+        gains=Gains(kp=args.kp, ki=args.ki, kd=args.kd),
+    )
+
+
+def simulate(config: SimConfig, hops: int, rrd: Path | None = None, viewer: str = "off") -> dict[str, Any]:
+    """Run one episode (optionally recorded) and return its JSON-ready result."""
+    from hopper.sim import Simulation  # keeps `--help` and argument errors fast
+
+    sim = Simulation(config)
+    telemetry = None
+    if rrd is not None or viewer != "off":
+        from hopper.telemetry import Telemetry
+
+        telemetry = Telemetry(sim, path=rrd, viewer=viewer)
+        sim.listeners.append(telemetry)
+    start = time.perf_counter()
+    try:
+        sim.run(hops)
+    finally:  # Ctrl-C or SIGTERM still leave a valid recording
+        if telemetry is not None:
+            telemetry.close()
+    return {
+        "seed": config.seed,
+        "wheel": config.wheel,
+        "fell": sim.fallen,
+        "sim_time_s": sim.time,
+        "wall_time_s": time.perf_counter() - start,
+        "hops": [hop.as_dict() for hop in sim.hops],
+    }
+
+
+def hop_table(hops: list[dict[str, Any]]) -> str:
+    lines = ["hop " + " ".join(f"{h:>9}" for h in HOP_COLUMNS.values())]
+    for hop in hops:
+        row = " ".join(f"{hop[k]:9.3f}" if abs(hop[k]) < 100 else f"{hop[k]:9.1f}" for k in HOP_COLUMNS)
+        lines.append(f"{hop['index']:>3}{'*' if not hop['completed'] else ' '}{row}")
+    return "\n".join(lines)
+
+
+def summary(result: dict[str, Any]) -> str:
+    done = [h for h in result["hops"] if h["completed"]]
+    wheel = "on" if result["wheel"] else "off (zero torque, free to spin)"
+    lines = [
+        f"seed {result['seed']}, wheel {wheel}: {len(done)} hops"
+        + (", FELL" if result["fell"] else "")
+        + f"; {result['sim_time_s']:.2f} s simulated in {result['wall_time_s']:.2f} s wall"
+        + f" ({result['sim_time_s'] / max(result['wall_time_s'], 1e-9):.0f}x real time)"
+    ]
+    if done:
+        def stat(key: str) -> float:
+            return max(h[key] for h in done)
+
+        mean_distance = statistics.fmean(h["distance_m"] for h in done)
+        lines.append(
+            f"mean distance {mean_distance:.3f} m/hop; worst: peak pitch {stat('peak_pitch_deg'):.2f} deg, "
+            f"landing pitch {stat('landing_pitch_deg'):.2f} deg, saturation {stat('saturation_time_s'):.3f} s/hop, "
+            f"wheel {stat('peak_wheel_rpm'):.0f} rpm"
+        )
+    if any(not h["completed"] for h in result["hops"]):
+        lines.append("* the flight that ended in the fall")
+    return "\n".join(lines)
+
+
+def peak_deviation(result: dict[str, Any]) -> float:
+    """Largest mid-air pitch deviation of a run (deg), the fall's flight included."""
+    return max((h["peak_pitch_deg"] for h in result["hops"]), default=0.0)
+
+
+def command_run(args: argparse.Namespace) -> int:
+    config = make_config(args, args.seed, wheel=not args.no_wheel)
+    result = simulate(config, args.hops, args.rrd, args.rerun_viewer)
+    print(hop_table(result["hops"]))
+    print(summary(result))
+    if args.rrd:
+        print(f"recording: {args.rrd}")
+    if args.json:
+        args.json.write_text(json.dumps(result, indent=2))
+    return 0
+
+
+def _interrupt(signum: int, frame: object) -> NoReturn:
+    raise KeyboardInterrupt  # SIGTERM unwinds like Ctrl-C, so recordings are closed
+
+
+def _compare_one(job: tuple[SimConfig, int]) -> dict[str, Any]:
+    return simulate(*job)
+
+
+def command_compare(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    if args.seeds < 1:
+        fail("--seeds must be at least 1")
+    jobs = [(make_config(args, seed, wheel), args.hops) for seed in range(args.seeds) for wheel in (True, False)]
+    workers = max(1, min(args.workers, len(jobs)))
+    with multiprocessing.get_context("spawn").Pool(workers) as pool:
+        results = list(tqdm(pool.imap(_compare_one, jobs), total=len(jobs), desc="runs", unit="run", file=sys.stderr))
+    rows, reductions = [], []
+    print(f"{'seed':>4} {'on: hops':>9} {'peak deg':>9} {'off: hops':>10} {'peak deg':>9} {'reduction':>10}")
+    for on, off in zip(results[::2], results[1::2]):
+        peak_on, peak_off = peak_deviation(on), peak_deviation(off)
+        reduction = 100.0 * (peak_off - peak_on) / peak_off if peak_off > 0 else 0.0
+        reductions.append(reduction)
+        rows.append({"seed": on["seed"], "peak_on_deg": peak_on, "peak_off_deg": peak_off, "reduction_pct": reduction})
+
+        def hops(r: dict[str, Any]) -> str:
+            return f"{sum(h['completed'] for h in r['hops'])}{' fell' if r['fell'] else ''}"
+
+        print(f"{on['seed']:>4} {hops(on):>9} {peak_on:9.2f} {hops(off):>10} {peak_off:9.2f} {reduction:9.1f}%")
+    median = statistics.median(reductions)
+    print(f"median reduction of the peak mid-air pitch deviation, wheel on vs off: {median:.1f}% "
+          f"(over {len(reductions)} seeds; wheel off = zero torque, wheel free to spin)")
+    if args.json:
+        args.json.write_text(json.dumps(
+            {"median_peak_reduction_pct": median, "seeds": rows, "runs": results}, indent=2))
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parser().parse_args(argv)
+    signal.signal(signal.SIGTERM, _interrupt)
+    if args.hops < 1:
+        fail("--hops must be at least 1")
+    try:
+        make_config(args, 0, True)  # validate gains and gravity before any work
+        return command_run(args) if args.command == "run" else command_compare(args)
+    except (InvalidConfig, ValueError) as exc:
+        fail(str(exc))
+    except KeyboardInterrupt:
+        print("hopper-sim: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
