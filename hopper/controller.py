@@ -316,34 +316,42 @@ def stance(
     fz = TOTAL_MASS * p[P_GRAVITY] * max(1.0 + az / p[P_GRAVITY], MIN_SUPPORT)
     fx = TOTAL_MASS * ax
 
-    # Wheel: spin down (desaturate) on the ground; the legs take its reaction.
-    wheel = 0.0
-    if p[P_WHEEL_ON] > 0.5:
-        wheel = wheel_torque_bound(wheel_speed, -WHEEL_INERTIA * wheel_speed / DESAT_TIME)
-    moment = wheel - KP_STANCE * pitch - KD_STANCE * rate  # the torso takes -wheel from the motor
+    # Priorities: the pitch moment, then the horizontal force, then spinning the wheel down.
+    # The torso's moment is what the feet give (sum of rz fx - rx fz) minus the wheel torque.
+    wheel_on = p[P_WHEEL_ON] > 0.5
+    wheel = wheel_torque_bound(wheel_speed, -WHEEL_INERTIA * wheel_speed / DESAT_TIME) if wheel_on else 0.0
+    moment = -KP_STANCE * pitch - KD_STANCE * rate  # wanted on the torso
 
     mu = p[P_FRICTION]
     rax, rbx = hip_x + pxl, hip_x + pxr
     if both and abs(rax - rbx) > 0.05:
-        # Two feet: split fz so that sum(rz fx - rx fz) = moment. Pitch first: keep fx within
-        # what the split can balance (all weight on one foot at the ends), with a margin.
+        # Two feet: split fz so that the feet give moment + wheel. The split can balance fx only
+        # between the two extremes of all the weight on one foot; beyond them (with a margin)
+        # the wheel takes the rest of the moment while it can when balancing, else fx yields
+        # (a push that spun the wheel up would start the flight with the wheel half full).
         rz2 = 2 * hip_z + pzl + pzr
-        fx_a, fx_b = 2 * (moment + rax * fz) / rz2, 2 * (moment + rbx * fz) / rz2
+        fx_a, fx_b = 2 * (moment + wheel + rax * fz) / rz2, 2 * (moment + wheel + rbx * fz) / rz2
         low, high = min(fx_a, fx_b), max(fx_a, fx_b)
         margin = 0.1 * (high - low)
-        fx = min(max(fx, low + margin), high - margin) / 2
-        fz_l = min(max((rz2 * fx - moment - rbx * fz) / (rax - rbx), 0.0), fz)
+        if not low + margin <= fx <= high - margin:
+            if wheel_on and (phase == LANDING or phase == STANCE):  # balance, not the push's thrust
+                at_low = fx < low + margin
+                edge_x = rax if (fx_a < fx_b) == at_low else rbx  # the foot carrying all the weight
+                wheel = wheel_torque_bound(wheel_speed, rz2 * fx / 2 - edge_x * fz - moment)
+                fx = 2 * (moment + wheel + edge_x * fz) / rz2
+            else:
+                fx = min(max(fx, low + margin), high - margin)
+        fx /= 2
+        fz_l = min(max((rz2 * fx - moment - wheel - rbx * fz) / (rax - rbx), 0.0), fz)
         fz_r = fz - fz_l
         ctrl[1], ctrl[2] = push_torques(pxl, pzl, jxl, jzl, clamp(fx, mu * fz_l), fz_l)  # friction cone
         ctrl[3], ctrl[4] = push_torques(pxr, pzr, jxr, jzr, clamp(fx, mu * fz_r), fz_r)
     else:
         # One support point. With the wheel, the legs keep the CoM over the foot and the wheel
-        # makes up the pitch moment they leave (its torque on the torso is -wheel); without it,
-        # the pitch moment has to come from the horizontal force alone.
-        if p[P_WHEEL_ON] > 0.5:
+        # makes up the pitch moment they leave; without it, the moment has to come from fx alone.
+        if wheel_on:
             fx = clamp(fx, mu * fz)
-            legs_moment = (hip_z - height) * fx + offset_x * fz
-            wheel = wheel_torque_bound(wheel_speed, legs_moment - (moment - wheel))
+            wheel = wheel_torque_bound(wheel_speed, (hip_z - height) * fx + offset_x * fz - moment)
         else:
             fx = (moment + offset_x * fz) / (hip_z - height)
         if both:

@@ -144,7 +144,7 @@ class Simulation:
                 self._emit("error", message=f"{type(exc).__name__}: {exc}")
 
     # -- events ----------------------------------------------------------------------------
-    def _emit(self, kind: str, **data: Any) -> Event:
+    def _emit(self, kind: str, /, **data: Any) -> Event:
         event = Event(self.time, kind, data)
         self.events.append(event)
         for listener in self.listeners:

@@ -1,0 +1,128 @@
+"""The whole simulation: hopping, determinism, commands, disturbances, recovery."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from hopper.config import Gains, SimConfig
+from hopper.phases import Phase
+from hopper.sim import Simulation
+
+
+def test_hops_forward_upright_on_flat_ground(flat_sim: Simulation) -> None:
+    hops = flat_sim.run(3)
+    assert len(hops) == 3 and not flat_sim.fallen
+    for hop in hops:
+        assert 0.6 < hop.distance_m < 1.0
+        assert hop.landing_pitch_deg < 3.5
+        assert hop.saturation_time_s < 0.9
+        # Apex of the hop close to the commanded v_z^2 / 2g (0.25 m minus the push's shortfall).
+        assert 0.15 < hop.apex_height_m < 0.3
+        assert hop.flight_time_s == pytest.approx(2 * math.sqrt(2 * hop.apex_height_m / 1.625), rel=0.15)
+
+
+def test_same_seed_same_trajectory() -> None:
+    config = SimConfig(seed=5, gains=Gains(kp=500, ki=10, kd=25))
+    a, b = Simulation(config), Simulation(config)
+    for _ in range(4000):
+        a.step()
+        b.step()
+        assert np.array_equal(a.data.qpos, b.data.qpos)
+    assert a.hops == b.hops
+    c = Simulation(SimConfig(seed=6, gains=config.gains))
+    for _ in range(4000):
+        c.step()
+    assert not np.array_equal(a.data.qpos, c.data.qpos)  # another terrain, another path
+
+
+def test_wheel_off_lets_the_pitch_run_away() -> None:
+    on = Simulation(SimConfig(terrain="flat"))
+    off = Simulation(SimConfig(terrain="flat", wheel=False))
+    on.run(1)
+    off.run(1)
+    assert on.hops[0].peak_pitch_deg < 5.0
+    assert off.hops[0].peak_pitch_deg > 3 * on.hops[0].peak_pitch_deg
+    assert off.data.joint("wheel").qvel[0] != 0.0 or off.hops[0].peak_wheel_rpm >= 0  # wheel free, not locked
+
+
+def test_gain_change_applies_on_the_next_tick(flat_sim: Simulation) -> None:
+    flat_sim.submit(lambda s: s.set_gains(Gains(kp=123.0, ki=1.0, kd=9.0)))
+    assert flat_sim.controller.params[0] != 123.0  # queued, not applied from this thread
+    flat_sim.step()
+    assert flat_sim.gains.kp == 123.0 and flat_sim.controller.params[0] == 123.0
+    assert flat_sim.events[-1].kind == "gains" and flat_sim.events[-1].data == {"kp": 123.0, "ki": 1.0, "kd": 9.0}
+
+
+def test_impulses_change_the_velocities_they_should(flat_sim: Simulation) -> None:
+    for _ in range(100):
+        flat_sim.step()
+    rate = flat_sim.data.joint("pitch").qvel[0]
+    flat_sim.disturb("pitch_kick", 0.5)
+    assert flat_sim.data.joint("pitch").qvel[0] - rate > 0.3  # rad/s from 0.5 N m s on ~0.5-1 kg m^2
+    vx = flat_sim.data.joint("root_x").qvel[0]
+    flat_sim.disturb("push_backward", 4.0)
+    assert flat_sim.data.joint("root_x").qvel[0] - vx == pytest.approx(-4.0 / 8.2, rel=0.25)
+    assert [(e.kind, e.data["kind"], e.data["magnitude"]) for e in flat_sim.events[-2:]] == [
+        ("disturbance", "pitch_kick", 0.5),
+        ("disturbance", "push_backward", 4.0),
+    ]
+
+
+def test_a_torque_pulse_waits_for_the_flight(flat_sim: Simulation) -> None:
+    flat_sim.disturb("torque_pulse", 5.0)  # on the ground: armed for the next flight
+    assert flat_sim.events[-1].kind == "disturbance_armed"
+    while not any(e.kind == "disturbance" for e in flat_sim.events):
+        flat_sim.step()
+        assert flat_sim.time < 5
+    assert flat_sim.phase is Phase.FLIGHT
+    assert flat_sim.data.xfrc_applied[flat_sim.model.body("torso").id, 4] == 5.0
+    start = flat_sim.time
+    while flat_sim.data.xfrc_applied[flat_sim.model.body("torso").id, 4] != 0.0:
+        flat_sim.step()
+    assert flat_sim.time - start == pytest.approx(0.1, abs=0.002)
+    flat_sim.run(2)
+    assert not flat_sim.fallen  # the wheel rejects it
+
+
+@pytest.mark.parametrize("kind, magnitude", [("pitch_kick", float("nan")), ("push_forward", 1e6), ("spin", 1.0)])
+def test_bad_disturbances_are_refused(flat_sim: Simulation, kind: str, magnitude: float) -> None:
+    with pytest.raises(ValueError):
+        flat_sim.disturb(kind, magnitude)  # type: ignore[arg-type]
+
+
+def test_a_failing_command_is_reported_and_the_loop_goes_on(flat_sim: Simulation) -> None:
+    flat_sim.submit(lambda s: s.disturb("pitch_kick", float("inf")))
+    flat_sim.step()
+    flat_sim.step()
+    assert flat_sim.events[-1].kind == "error" and "pitch_kick" in flat_sim.events[-1].data["message"]
+
+
+def test_divergence_resets_with_an_event(flat_sim: Simulation) -> None:
+    for _ in range(10):
+        flat_sim.step()
+    flat_sim.data.qvel[0] = np.nan
+    for _ in range(60):
+        flat_sim.step()
+    assert any(e.kind == "diverged" for e in flat_sim.events)
+    assert np.isfinite(flat_sim.data.qpos).all() and np.isfinite(flat_sim.data.qvel).all()
+
+
+def test_terrain_hot_swap_keeps_the_model(flat_sim: Simulation) -> None:
+    model = flat_sim.model
+    flat_sim.set_terrain("crater", 7)
+    assert flat_sim.model is model
+    assert np.ptp(model.hfield_data) > 0.5 and flat_sim.heights.min() < -0.03
+    assert flat_sim.events[-1].kind == "reset"
+    flat_sim.run(1)
+    assert len(flat_sim.hops) == 1
+
+
+def test_gravity_change_changes_the_hop() -> None:
+    sim = Simulation(SimConfig(terrain="flat"))
+    sim.set_gravity(3.72)  # Mars
+    sim.run(1)
+    assert sim.model.opt.gravity[2] == -3.72
+    assert sim.hops[0].flight_time_s < 0.9  # 1.12 s on the Moon for the same apex
