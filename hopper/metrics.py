@@ -40,9 +40,9 @@ class MetricsTracker:
     """The hop in progress: the control kernel accumulates into `acc` every tick (cheap), and
     liftoff / touchdown turn it into a HopMetrics."""
 
-    def __init__(self, x0: float = 0.0) -> None:
+    def __init__(self, acc: np.ndarray | None = None, x0: float = 0.0) -> None:
         self.hops: list[HopMetrics] = []
-        self.acc = np.zeros(N_ACC)
+        self.acc = np.zeros(N_ACC) if acc is None else acc  # shared with the control kernel
         self.reset(x0)
 
     def reset(self, x0: float, time: float = 0.0) -> None:

@@ -70,15 +70,17 @@ class Simulation:
         self.data = mujoco.MjData(self.model)
         self.physics = Physics(self.model, self.data)
         x0, _, z0 = self.model.body("torso").pos.tolist()
-        self.controller = HopController(config.gains, config.gait, config.gravity, config.wheel, x0, z0)
-        self.metrics = MetricsTracker()
+        self.controller = HopController(
+            config.gains, config.gait, config.gravity, config.wheel, x0, z0, self.model.opt.timestep
+        )
+        self.metrics = MetricsTracker(self.controller.acc)
         self.events: list[Event] = []
         self.listeners: list[Listener] = []
         self._commands: collections.deque[Callable[[Simulation], None]] = collections.deque()
         # MjData's array properties build a new numpy view per access: keep one of each.
         d = self.data
         self._qpos, self._qvel, self._sensors, self._ctrl = d.qpos, d.qvel, d.sensordata, d.ctrl
-        self._acc, self._dt = self.metrics.acc, self.model.opt.timestep
+        self._mem, self._dt = self.controller.mem, self.model.opt.timestep
         self._torso = self.model.body("torso").id
         self._ticks = 0
         self.reset(reason="start")
@@ -105,16 +107,17 @@ class Simulation:
         return self.controller.phase is Phase.FALLEN
 
     # -- stepping --------------------------------------------------------------------------
-    def step(self) -> None:
-        """One control tick: apply queued commands, control (kernel), mj_step, notify listeners."""
+    def step(self) -> int:
+        """One control tick: apply queued commands, control (kernel), mj_step, notify listeners.
+
+        Returns the tick's event bits (hopper.controller.EV_*), 0 on most ticks.
+        """
         if self._commands:
             self._drain()
-        c = self.controller
-        events = control_tick(self._qpos, self._qvel, self._sensors, self.data.time, self._dt,
-                              c.params, c.state, self._acc, self._ctrl)
+        events = control_tick(self._qpos, self._qvel, self._sensors, self._ctrl, self._mem)
         if events:
             self._controller_events(events)
-        if self._pulse_at <= self.data.time:
+        if self._pulse_at != math.inf and self._pulse_at <= self.data.time:
             self._pulse_event()
         mujoco.mj_step(self.model, self.data)
         self._ticks += 1
@@ -122,12 +125,18 @@ class Simulation:
             self._check_health()
         for listener in self.listeners:
             listener.tick(self)
+        return events
 
     def run(self, hops: int, max_time: float | None = None) -> list[HopMetrics]:
         """Step until `hops` hops are done, the robot falls, or `max_time` (s) of simulation."""
         limit = self.time + (max_time if max_time is not None else 6.0 * hops + 5.0)
-        while len(self.hops) < hops and not self.fallen and self.time < limit:
-            self.step()
+        ticks_left = round((limit - self.time) / self._dt)
+        step, done = self.step, EV_TOUCHDOWN | EV_FALL
+        while len(self.hops) < hops and not self.fallen and ticks_left > 0:
+            while ticks_left > 0:  # the stop conditions only change on a touchdown or a fall
+                ticks_left -= 1
+                if step() & done:
+                    break
         return self.hops
 
     def submit(self, command: Callable[[Simulation], None]) -> None:
