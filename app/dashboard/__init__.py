@@ -1,0 +1,1 @@
+"""Live browser dashboard (viser) for the lunar hopper simulation."""

@@ -1,0 +1,51 @@
+"""The dashboard's own web assets, read from the repository's static/ folder."""
+
+from __future__ import annotations
+
+import base64
+import dataclasses
+import functools
+import json
+from pathlib import Path
+
+STATIC_DIR = Path(__file__).resolve().parents[2] / "static"
+
+
+@dataclasses.dataclass(frozen=True)
+class Theme:
+    """Colours and panel sizes from static/theme.json."""
+
+    dark_mode: bool = True
+    brand_color: tuple[int, int, int] = (255, 176, 59)
+    control_width: str = "medium"
+    left_panel_width: int = 400
+    right_panel_width: int = 330
+
+
+def _read(name: str) -> str:
+    path = STATIC_DIR / name
+    if not path.is_file():
+        raise FileNotFoundError(f"missing dashboard asset {path}")
+    return path.read_text(encoding="utf-8")
+
+
+@functools.cache
+def help_markdown() -> str:
+    return _read("help.md")
+
+
+@functools.cache
+def stylesheet() -> str:
+    return _read("dashboard.css")
+
+
+@functools.cache
+def logo_data_uri() -> str:
+    """The SVG logo as a data: URI, so it needs no extra HTTP route."""
+    return "data:image/svg+xml;base64," + base64.b64encode(_read("logo.svg").encode()).decode()
+
+
+@functools.cache
+def theme() -> Theme:
+    raw = json.loads(_read("theme.json"))
+    return Theme(**{**raw, "brand_color": tuple(raw.get("brand_color", Theme.brand_color))})

@@ -1,0 +1,65 @@
+"""The dashboard's command-line configuration, validated on construction."""
+
+from __future__ import annotations
+
+import dataclasses
+import ipaddress
+from pathlib import Path
+from typing import Literal
+
+from app.dashboard.pacing import MAX_SPEED, MIN_SPEED
+from hopper.config import Gains, InvalidConfig, SimConfig
+
+_DEFAULT_GAINS = Gains()
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class DashboardConfig:
+    """Live dashboard for the lunar reaction-wheel hopper: simulate in real time and tune it in a browser."""
+
+    host: str = "127.0.0.1"
+    """Address to serve on (loopback by default)."""
+    port: int = 8080
+    """Port to serve on; refused if already in use."""
+    seed: int = 0
+    """Terrain seed."""
+    terrain: Literal["crater", "flat"] = "crater"
+    """Terrain kind."""
+    kp: float = _DEFAULT_GAINS.kp
+    """Wheel PID proportional gain, N m/rad."""
+    ki: float = _DEFAULT_GAINS.ki
+    """Wheel PID integral gain, N m/(rad s)."""
+    kd: float = _DEFAULT_GAINS.kd
+    """Wheel PID derivative gain, N m s/rad."""
+    speed: float = 1.0
+    """Simulation speed, x real time."""
+    rrd: Path | None = None
+    """Record the whole session to this .rrd file from the start."""
+    rerun_viewer: Literal["spawn", "serve", "off"] = "off"
+    """Stream the recording to a rerun viewer: spawn one, serve one on loopback, or neither."""
+    sessions_dir: Path = Path("sessions")
+    """Folder for recordings started with the Record button."""
+
+    def __post_init__(self) -> None:
+        try:
+            ipaddress.ip_address(self.host)
+        except ValueError:
+            if self.host != "localhost":
+                raise InvalidConfig(f"host must be an IP address or 'localhost', got {self.host!r}") from None
+        if not isinstance(self.port, int) or not 1 <= self.port <= 65535:
+            raise InvalidConfig(f"port must be an integer in [1, 65535], got {self.port!r}")
+        if not MIN_SPEED <= self.speed <= MAX_SPEED:
+            raise InvalidConfig(f"speed must be in [{MIN_SPEED:g}, {MAX_SPEED:g}] x real time, got {self.speed!r}")
+        self.sim_config()  # validates seed, terrain and gains with the core's own messages
+        if self.rrd is not None and self.rrd.suffix != ".rrd":
+            raise InvalidConfig(f"--rrd must name a .rrd file, got {str(self.rrd)!r}")
+        if self.sessions_dir.exists() and not self.sessions_dir.is_dir():
+            raise InvalidConfig(f"sessions-dir {str(self.sessions_dir)!r} exists and is not a folder")
+
+    @property
+    def gains(self) -> Gains:
+        return Gains(kp=self.kp, ki=self.ki, kd=self.kd)
+
+    def sim_config(self) -> SimConfig:
+        """The simulation this dashboard starts with."""
+        return SimConfig(seed=self.seed, terrain=self.terrain, gains=self.gains)

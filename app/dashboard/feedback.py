@@ -1,0 +1,88 @@
+"""Telling users what happened: notifications, value checks for browser input, and guarded callbacks."""
+
+from __future__ import annotations
+
+import functools
+import logging
+import math
+from collections.abc import Callable
+from typing import Any, Literal
+
+import viser
+
+log = logging.getLogger(__name__)
+
+Level = Literal["info", "warning", "error"]
+_COLORS: dict[Level, Any] = {"info": "blue", "warning": "yellow", "error": "red"}
+_SECONDS: dict[Level, float] = {"info": 4.0, "warning": 6.0, "error": 8.0}
+
+
+class Refused(ValueError):
+    """A value from a browser that cannot be used at all (non-finite, wrong type)."""
+
+
+def notify(client: viser.ClientHandle | None, title: str, body: str, level: Level = "info") -> None:
+    """Show a notification to one client; never raises (the client may have just left)."""
+    if client is None:
+        return
+    try:
+        client.add_notification(title, body, color=_COLORS[level], auto_close_seconds=_SECONDS[level])
+    except Exception:  # a disconnecting client must not break the caller
+        log.debug("notification to client %s failed", getattr(client, "client_id", "?"), exc_info=True)
+
+
+def notify_all(server: viser.ViserServer, title: str, body: str, level: Level = "info") -> None:
+    """Show a notification to every connected client."""
+    for client in server.get_clients().values():
+        notify(client, title, body, level)
+
+
+def checked(name: str, value: object, low: float, high: float, unit: str = "") -> tuple[float, str | None]:
+    """A browser value as a float in [low, high]: clamped with a message, or Refused if unusable.
+
+    Returns (value, message); message is None when the value was already in range.
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise Refused(f"{name} must be a number, got {value!r}")
+    if not math.isfinite(value):
+        raise Refused(f"{name} must be finite, got {value!r}; kept the previous value")
+    if low <= value <= high:
+        return float(value), None
+    clamped = min(max(float(value), low), high)
+    suffix = f" {unit}" if unit else ""
+    return clamped, f"{name} {value:g}{suffix} is outside [{low:g}, {high:g}]{suffix}; clamped to {clamped:g}{suffix}"
+
+
+def keep_in_range(handle: viser.GuiNumberHandle, name: str, low: float, high: float, unit: str = "") -> None:
+    """Police a number input: out-of-range values are clamped and non-finite ones restored, with a notice."""
+    last = [handle.value]
+
+    def on_update(event: viser.GuiEvent) -> None:
+        try:
+            value, message = checked(name, handle.value, low, high, unit)
+        except Refused as exc:
+            handle.value = last[0]
+            notify(event.client, "Value refused", str(exc), "warning")
+            return
+        if message:
+            notify(event.client, "Value clamped", message, "warning")
+            handle.value = type(last[0])(value)
+        last[0] = handle.value
+
+    handle.on_update(guarded(on_update))
+
+
+def guarded(callback: Callable[[viser.GuiEvent], None]) -> Callable[[viser.GuiEvent], None]:
+    """Wrap a GUI callback: exceptions are logged and shown to the client, never raised into viser."""
+
+    @functools.wraps(callback)
+    def wrapper(event: viser.GuiEvent) -> None:
+        try:
+            callback(event)
+        except Refused as exc:
+            notify(event.client, "Value refused", str(exc), "warning")
+        except Exception as exc:
+            log.exception("GUI callback %s failed", callback.__name__)
+            notify(event.client, "Something went wrong", f"{type(exc).__name__}: {exc}", "error")
+
+    return wrapper

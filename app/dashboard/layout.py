@@ -1,0 +1,100 @@
+"""Where the panels go: controls docked right, live plots, hops and events docked left."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import viser
+
+from app.dashboard import assets
+from app.dashboard.panels import PanelContext
+from app.dashboard.panels.disturbances import DisturbancesPanel, build_disturbances_panel
+from app.dashboard.panels.events import EventLog, build_event_log
+from app.dashboard.panels.gains import GainsPanel, build_gains_panel
+from app.dashboard.panels.help import build_help_button
+from app.dashboard.panels.hops import HopTable, build_hop_table
+from app.dashboard.panels.record import RecordPanel, build_record_panel
+from app.dashboard.panels.simulation import SimulationPanel, build_simulation_panel
+from app.dashboard.panels.status import StatusPanel, build_status_panel
+from app.dashboard.panels.terrain import TerrainPanel, build_terrain_panel
+from app.dashboard.panels.view import ViewPanel, build_view_panel
+from app.dashboard.plots import LivePlots
+from app.dashboard.recording import Recorder
+from app.dashboard.scene import CameraFollow, RobotView, Trail
+from hopper.config import Gains
+
+
+@dataclasses.dataclass
+class Layout:
+    """Every panel's handles, for the loop to update and for tests to drive."""
+
+    status: StatusPanel
+    simulation: SimulationPanel
+    gains: GainsPanel
+    disturbances: DisturbancesPanel
+    terrain: TerrainPanel
+    view: ViewPanel
+    record: RecordPanel
+    plots: LivePlots
+    hops: HopTable
+    events: EventLog
+
+
+def configure_theme(server: viser.ViserServer) -> None:
+    """Colours from static/theme.json; the stylesheet rides along in an invisible HTML element."""
+    theme = assets.theme()
+    server.gui.configure_theme(
+        dark_mode=theme.dark_mode,
+        brand_color=theme.brand_color,
+        control_width=theme.control_width,  # type: ignore[arg-type]
+        show_logo=False,
+        show_share_button=False,
+    )
+    server.gui.set_panel_label(None)
+
+
+def build_layout(
+    server: viser.ViserServer,
+    ctx: PanelContext,
+    *,
+    gains: Gains,
+    seed: int,
+    terrain: str,
+    gravity: float,
+    speed: float,
+    recorder: Recorder,
+    camera: CameraFollow,
+    trail: Trail,
+    robot: RobotView,
+) -> Layout:
+    configure_theme(server)
+    gui, theme = server.gui, assets.theme()
+    gui.add_html(f"<style>{assets.stylesheet()}</style>")
+    gui.add_html(f"<div class='hd-logo'><img src='{assets.logo_data_uri()}' alt='lunar hopper' height='44'></div>")
+    status = build_status_panel(gui)
+    with gui.add_folder("Simulation"):
+        simulation = build_simulation_panel(gui, ctx, speed)
+    tabs = gui.add_tab_group()
+    with tabs.add_tab("Gains", viser.Icon.ADJUSTMENTS):
+        gains_panel = build_gains_panel(gui, ctx, gains)
+    with tabs.add_tab("Disturb", viser.Icon.BOLT):
+        disturbances = build_disturbances_panel(gui, ctx)
+    with tabs.add_tab("World", viser.Icon.PLANET):
+        terrain_panel = build_terrain_panel(gui, ctx, seed, terrain, gravity)
+        view = build_view_panel(gui, camera, trail, robot)
+    with tabs.add_tab("Record", viser.Icon.PLAYER_RECORD):
+        record = build_record_panel(gui, recorder)
+    build_help_button(gui, assets.help_markdown())
+    server.gui.main_panel.dock_right()
+    server.gui.main_panel.set_width(theme.right_panel_width)
+
+    live = gui.add_panel()
+    with live.add_tab("Live", viser.Icon.CHART_LINE):
+        plots = LivePlots(gui)
+        with gui.add_folder("Hops"):
+            hops = build_hop_table(gui)
+        with gui.add_folder("Events"):
+            events = build_event_log(gui)
+    live.dock_left()
+    live.set_width(theme.left_panel_width)
+    return Layout(status, simulation, gains_panel, disturbances, terrain_panel, view, record, plots, hops, events)

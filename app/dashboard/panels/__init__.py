@@ -1,0 +1,34 @@
+"""GUI panels, one small builder each; every builder returns its handles and a reset to defaults."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from typing import Protocol
+
+import viser
+
+from hopper.sim import Simulation
+
+Command = Callable[[Simulation], None]
+
+
+class LoopControls(Protocol):
+    """What the panels may ask of the simulation loop (never MjData itself)."""
+
+    stay_fallen: bool
+
+    def set_paused(self, paused: bool) -> None: ...
+
+    def request_steps(self, count: int) -> None: ...
+
+    def set_speed(self, speed: float) -> None: ...
+
+
+@dataclasses.dataclass(frozen=True)
+class PanelContext:
+    """Shared by the builders: the server, the command queue and the loop's controls."""
+
+    server: viser.ViserServer
+    submit: Callable[[Command], None]
+    loop: LoopControls

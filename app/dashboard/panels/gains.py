@@ -1,0 +1,82 @@
+"""Gains panel: the wheel PID's Kp, Ki, Kd (slider plus numeric entry) and wheel on/off."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import viser
+
+from app.dashboard.feedback import Refused, checked, guarded, notify
+from app.dashboard.panels import PanelContext
+from hopper.config import Gains
+
+# Slider ranges: inside the core's limits (Gains.MAX_*), wide enough to reach a visibly unstable loop.
+KP_RANGE = (0.0, 2000.0)  # N m/rad
+KI_RANGE = (0.0, 500.0)  # N m/(rad s)
+KD_RANGE = (0.0, 100.0)  # N m s/rad
+
+
+@dataclasses.dataclass
+class GainsPanel:
+    kp: viser.GuiSliderHandle[float]
+    ki: viser.GuiSliderHandle[float]
+    kd: viser.GuiSliderHandle[float]
+    wheel: viser.GuiCheckboxHandle
+    reset_button: viser.GuiButtonHandle
+    defaults: Gains
+    applied: Gains
+
+    def reset(self) -> None:
+        """Back to the gains the dashboard started with, wheel on."""
+        self.kp.value, self.ki.value, self.kd.value = self.defaults.kp, self.defaults.ki, self.defaults.kd
+        self.wheel.value = True
+
+
+def build_gains_panel(gui: viser.GuiApi, ctx: PanelContext, initial: Gains, wheel: bool = True) -> GainsPanel:
+    """Sliders apply at the next control tick; a bad value is clamped or refused with a notification."""
+
+    def slider(label: str, bounds: tuple[float, float], step: float, value: float, hint: str) -> viser.GuiSliderHandle:
+        low, high = bounds
+        marks = ((low, f"{low:g}"), (value, f"{value:g}"), (high, f"{high:g}"))
+        return gui.add_slider(label, low, high, step, min(max(value, low), high), marks=marks, hint=hint)
+
+    panel = GainsPanel(
+        kp=slider("Kp", KP_RANGE, 5.0, initial.kp, "Proportional gain, N m/rad"),
+        ki=slider("Ki", KI_RANGE, 1.0, initial.ki, "Integral gain, N m/(rad s); reset at each liftoff"),
+        kd=slider("Kd", KD_RANGE, 0.5, initial.kd, "Derivative gain on the measured rate, N m s/rad"),
+        wheel=gui.add_checkbox("Wheel on", wheel, hint="Off: zero wheel torque, the wheel spins freely"),
+        reset_button=gui.add_button("Default gains", icon=viser.Icon.RESTORE, color="dark"),
+        defaults=initial,
+        applied=initial,
+    )
+    ranges = {"Kp": (panel.kp, KP_RANGE, "N m/rad"), "Ki": (panel.ki, KI_RANGE, ""), "Kd": (panel.kd, KD_RANGE, "")}
+
+    @guarded
+    def on_gain(event: viser.GuiEvent) -> None:
+        values = {}
+        for name, (handle, (low, high), unit) in ranges.items():
+            try:
+                value, message = checked(name, handle.value, low, high, unit)
+            except Refused:
+                handle.value = getattr(panel.applied, name.lower())  # restore the last applied gain
+                raise
+            if message:
+                notify(event.client, "Gain clamped", message, "warning")
+                handle.value = value
+            values[name.lower()] = value
+        gains = Gains(**values)  # the core's own validation, before anything is queued
+        if gains == panel.applied:
+            return
+        panel.applied = gains
+        ctx.submit(lambda sim: sim.set_gains(gains))
+
+    @guarded
+    def on_wheel(_: viser.GuiEvent) -> None:
+        enabled = bool(panel.wheel.value)
+        ctx.submit(lambda sim: sim.set_wheel(enabled))
+
+    for handle in (panel.kp, panel.ki, panel.kd):
+        handle.on_update(on_gain)
+    panel.wheel.on_update(on_wheel)
+    panel.reset_button.on_click(guarded(lambda _: panel.reset()))
+    return panel

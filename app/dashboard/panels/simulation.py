@@ -1,0 +1,82 @@
+"""Simulation panel: pause/resume, single steps, reset, speed, and what to do after a fall."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import viser
+
+from app.dashboard.feedback import Refused, checked, guarded, notify
+from app.dashboard.pacing import MAX_SPEED, MIN_SPEED
+from app.dashboard.panels import LoopControls, PanelContext
+
+STEPS = {"+1 ms": 1, "+10 ms": 10, "+100 ms": 100}  # control ticks of 1 ms
+
+
+@dataclasses.dataclass
+class SimulationPanel:
+    loop: LoopControls
+    pause: viser.GuiButtonHandle
+    resume: viser.GuiButtonHandle
+    step: viser.GuiButtonGroupHandle
+    reset_robot: viser.GuiButtonHandle
+    speed: viser.GuiSliderHandle[float]
+    stay_fallen: viser.GuiCheckboxHandle
+    reset_button: viser.GuiButtonHandle
+    applied_speed: float = 1.0
+
+    def set_paused(self, paused: bool) -> None:
+        self.loop.set_paused(paused)
+        self.pause.visible, self.resume.visible = not paused, paused
+        self.step.disabled = not paused
+
+    def reset(self) -> None:
+        """Defaults: running at 1x, auto reset after a fall."""
+        self.speed.value = 1.0
+        self.stay_fallen.value = False
+        self.set_paused(False)
+
+
+def build_simulation_panel(gui: viser.GuiApi, ctx: PanelContext, speed: float = 1.0) -> SimulationPanel:
+    """Buttons act on the loop (pause, steps, speed) or queue a reset command for the simulation."""
+    panel = SimulationPanel(
+        loop=ctx.loop,
+        pause=gui.add_button("Pause", icon=viser.Icon.PLAYER_PAUSE),
+        resume=gui.add_button("Resume", icon=viser.Icon.PLAYER_PLAY, color="green", visible=False),
+        step=gui.add_button_group("Step", tuple(STEPS), hint="Single 1 ms control ticks, while paused", disabled=True),
+        reset_robot=gui.add_button(
+            "Reset robot", icon=viser.Icon.REFRESH, color="gray", hint="Stand the robot at the start"
+        ),
+        speed=gui.add_slider(
+            "Speed ×", MIN_SPEED, MAX_SPEED, 0.1, speed, marks=((0.1, "0.1"), (1.0, "1"), (2.0, "2"), (4.0, "4"))
+        ),
+        stay_fallen=gui.add_checkbox("Stay fallen", False, hint="After a fall, keep the robot down for inspection"),
+        reset_button=gui.add_button("Defaults", icon=viser.Icon.RESTORE, color="dark", hint="1x speed, auto reset"),
+        applied_speed=speed,
+    )
+    panel.pause.on_click(guarded(lambda _: panel.set_paused(True)))
+    panel.resume.on_click(guarded(lambda _: panel.set_paused(False)))
+    panel.step.on_click(guarded(lambda _: ctx.loop.request_steps(STEPS.get(panel.step.value, 0))))
+    panel.reset_robot.on_click(guarded(lambda _: ctx.submit(lambda sim: sim.reset(reason="user"))))
+    panel.reset_button.on_click(guarded(lambda _: panel.reset()))
+
+    @guarded
+    def on_speed(event: viser.GuiEvent) -> None:
+        try:
+            value, message = checked("Speed", panel.speed.value, MIN_SPEED, MAX_SPEED, "x")
+        except Refused:
+            panel.speed.value = panel.applied_speed
+            raise
+        if message:
+            notify(event.client, "Speed clamped", message, "warning")
+            panel.speed.value = value
+        panel.applied_speed = value
+        ctx.loop.set_speed(value)
+
+    @guarded
+    def on_stay(_: viser.GuiEvent) -> None:
+        ctx.loop.stay_fallen = bool(panel.stay_fallen.value)
+
+    panel.speed.on_update(on_speed)
+    panel.stay_fallen.on_update(on_stay)
+    return panel

@@ -1,0 +1,61 @@
+"""Status strip: phase, simulation time, real-time factor (and a warning when behind), hops, wheel."""
+
+from __future__ import annotations
+
+import dataclasses
+import html
+
+import viser
+
+
+@dataclasses.dataclass(frozen=True)
+class Status:
+    """One snapshot of what the status strip shows (plain values, taken on the loop thread)."""
+
+    phase: str
+    time: float  # s of simulation
+    rtf: float  # simulated s per wall s
+    speed: float  # asked, x real time
+    paused: bool
+    behind: bool
+    hops: int
+    pitch_deg: float
+    wheel_rpm: float
+    saturation: float  # 0..1
+    gravity: float  # m/s^2
+    recording: bool
+
+
+def status_html(s: Status) -> str:
+    if s.paused:
+        rtf = "<b class='hd-paused'>paused</b>"
+    elif s.behind:
+        rtf = f"<b class='hd-behind' title='the machine cannot keep up'>{s.rtf:.2f}× of {s.speed:g}× — behind</b>"
+    else:
+        rtf = f"{s.rtf:.2f}× <span class='hd-dim'>(asked {s.speed:g}×)</span>"
+    rec = " <b class='hd-rec'>● REC</b>" if s.recording else ""
+    phase = html.escape(s.phase)
+    return (
+        "<div class='hd-status'>"
+        f"<div><span class='hd-phase hd-{phase}'>{phase}</span>{rec}</div>"
+        "<table>"
+        f"<tr><td>time</td><td>{s.time:8.2f} s</td><td>real time</td><td>{rtf}</td></tr>"
+        f"<tr><td>pitch</td><td>{s.pitch_deg:+6.1f}°</td><td>hops</td><td>{s.hops}</td></tr>"
+        f"<tr><td>wheel</td><td>{s.wheel_rpm:+5.0f} rpm</td><td>limit</td><td>{s.saturation * 100:3.0f} %</td></tr>"
+        f"<tr><td>gravity</td><td>{s.gravity:g} m/s²</td><td></td><td></td></tr>"
+        "</table></div>"
+    )
+
+
+@dataclasses.dataclass
+class StatusPanel:
+    html: viser.GuiHtmlHandle
+
+    def show(self, status: Status) -> None:
+        content = status_html(status)
+        if content != self.html.content:
+            self.html.content = content
+
+
+def build_status_panel(gui: viser.GuiApi) -> StatusPanel:
+    return StatusPanel(html=gui.add_html("<div class='hd-status'>starting…</div>"))

@@ -1,0 +1,93 @@
+"""Terrain panel: crater seed, regenerate, flat ground, and gravity presets."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import viser
+
+from app.dashboard.feedback import Refused, checked, guarded, keep_in_range
+from app.dashboard.panels import PanelContext
+from hopper.config import GRAVITY_PRESETS, MOON_GRAVITY
+
+MAX_SEED = 2**31 - 1
+
+
+def _preset_name(gravity: float) -> str:
+    for name, value in GRAVITY_PRESETS.items():
+        if abs(value - gravity) < 1e-9:
+            return name.capitalize()
+    return "Moon"
+
+
+@dataclasses.dataclass
+class TerrainPanel:
+    ctx: PanelContext
+    seed: viser.GuiNumberHandle[int]
+    flat: viser.GuiCheckboxHandle
+    regenerate: viser.GuiButtonHandle
+    next_seed: viser.GuiButtonHandle
+    gravity: viser.GuiDropdownHandle[str]
+    reset_button: viser.GuiButtonHandle
+    default_seed: int
+    default_flat: bool
+
+    def apply_terrain(self) -> None:
+        """Queue a terrain rebuild from the panel's seed and flat choice (restarts the robot)."""
+        try:
+            value, _ = checked("Seed", self.seed.value, 0, MAX_SEED)
+        except Refused:
+            self.seed.value = self.default_seed
+            raise
+        seed, kind = int(value), "flat" if self.flat.value else "crater"
+        self.ctx.submit(lambda sim: sim.set_terrain(kind, seed))
+
+    def apply_gravity(self) -> None:
+        name = str(self.gravity.value).lower()
+        if name not in GRAVITY_PRESETS:  # only preset names may reach the core
+            raise Refused(f"unknown gravity preset {self.gravity.value!r}")
+        gravity = GRAVITY_PRESETS[name]
+        self.ctx.submit(lambda sim: sim.set_gravity(gravity))
+
+    def reset(self) -> None:
+        """Back to the starting terrain on the Moon (one rebuild)."""
+        self.gravity.value = "Moon"
+        self.seed.value = self.default_seed
+        if self.flat.value != self.default_flat:
+            self.flat.value = self.default_flat  # its callback rebuilds
+        else:
+            self.apply_terrain()
+
+
+def build_terrain_panel(
+    gui: viser.GuiApi, ctx: PanelContext, seed: int, kind: str, gravity: float = MOON_GRAVITY
+) -> TerrainPanel:
+    """Rebuilding hot-swaps the heightfield and restarts the robot; gravity applies at the next tick."""
+    panel = TerrainPanel(
+        ctx=ctx,
+        seed=gui.add_number("Seed", seed, min=0, max=MAX_SEED, step=1),
+        flat=gui.add_checkbox("Flat ground", kind == "flat"),
+        regenerate=gui.add_button("Regenerate", icon=viser.Icon.REFRESH, hint="Rebuild the terrain, restart the robot"),
+        next_seed=gui.add_button("Next seed", icon=viser.Icon.PLAYER_TRACK_NEXT, hint="Seed + 1, then regenerate"),
+        gravity=gui.add_dropdown(
+            "Gravity",
+            tuple(name.capitalize() for name in GRAVITY_PRESETS),
+            initial_value=_preset_name(gravity),
+            hint=", ".join(f"{n.capitalize()} {g:g} m/s²" for n, g in GRAVITY_PRESETS.items()),
+        ),
+        reset_button=gui.add_button("Default terrain and gravity", icon=viser.Icon.RESTORE, color="dark"),
+        default_seed=seed,
+        default_flat=kind == "flat",
+    )
+    keep_in_range(panel.seed, "Seed", 0, MAX_SEED)
+
+    def next_seed() -> None:
+        panel.seed.value = min(int(panel.seed.value) + 1, MAX_SEED)
+        panel.apply_terrain()
+
+    panel.regenerate.on_click(guarded(lambda _: panel.apply_terrain()))
+    panel.next_seed.on_click(guarded(lambda _: next_seed()))
+    panel.flat.on_update(guarded(lambda _: panel.apply_terrain()))
+    panel.gravity.on_update(guarded(lambda _: panel.apply_gravity()))
+    panel.reset_button.on_click(guarded(lambda _: panel.reset()))
+    return panel

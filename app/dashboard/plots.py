@@ -1,0 +1,112 @@
+"""Live uPlot charts of pitch, wheel speed and wheel torque over a rolling window of simulation time."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import viser
+import viser.uplot as uplot
+
+from hopper.config import WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT
+from hopper.metrics import RAD_S_TO_RPM
+
+PLOT_WINDOW_S = 10.0  # s of simulation shown
+PLOT_SAMPLE_S = 0.025  # s of simulation between samples: 8 a period of the wn = 30 rad/s pitch loop
+PLOT_PUBLISH_S = 1 / 15  # s of wall time between chart updates (each re-sends the window: ~11 KB)
+_N = int(round(PLOT_WINDOW_S / PLOT_SAMPLE_S))
+# Columns of the ring buffer.
+_T, _PITCH, _RPM, _TORQUE, _COMMAND = range(5)
+
+
+class RollingWindow:
+    """A fixed-size ring of rows (time, values...) in float32, read back oldest first."""
+
+    def __init__(self, rows: int, columns: int) -> None:
+        self._data = np.zeros((rows, columns), dtype=np.float32)
+        self._next = 0
+        self._full = False
+
+    def append(self, row: tuple[float, ...]) -> None:
+        self._data[self._next] = row
+        self._next = (self._next + 1) % len(self._data)
+        self._full = self._full or self._next == 0
+
+    def clear(self) -> None:
+        self._next, self._full = 0, False
+
+    def columns(self) -> np.ndarray:
+        """Shape (columns, n), oldest sample first (contiguous rows, ready to send)."""
+        rows = (
+            np.concatenate([self._data[self._next :], self._data[: self._next]])
+            if self._full
+            else self._data[: self._next]
+        )
+        return np.ascontiguousarray(rows.T)
+
+    def __len__(self) -> int:
+        return len(self._data) if self._full else self._next
+
+
+def _series(label: str, color: str, width: float = 1.5, dash: tuple[float, ...] | None = None) -> uplot.Series:
+    series: uplot.Series = {"label": label, "stroke": color, "width": width}
+    if dash:
+        series["dash"] = dash
+    return series
+
+
+def _chart(
+    gui: viser.GuiApi, title: str, series: tuple[uplot.Series, ...], y_range: tuple[float, float] | None
+) -> viser.GuiUplotHandle:
+    empty = tuple(np.zeros(1, dtype=np.float32) for _ in series)
+    scales: dict[str, uplot.Scale] = {"x": {"time": False, "auto": True}}
+    if y_range is not None:
+        scales["y"] = {"range": y_range}
+    return gui.add_uplot(
+        empty,
+        series,
+        title=title,
+        scales=scales,
+        legend={"show": True, "live": True},
+        cursor={"drag": {"x": False, "y": False}},
+        height=130,
+        padding=(4, 12, 0, 0),
+    )
+
+
+class LivePlots:
+    """Pitch, wheel RPM and wheel torque (applied and asked) over the last PLOT_WINDOW_S."""
+
+    def __init__(self, gui: viser.GuiApi) -> None:
+        self.window = RollingWindow(_N, 5)
+        self._last_publish = -math.inf
+        self._dirty = False
+        rpm_limit = WHEEL_NO_LOAD_SPEED * RAD_S_TO_RPM * 1.05
+        self.pitch = _chart(gui, "Pitch", (_series("t s", ""), _series("pitch °", "#ffb03b")), None)
+        self.rpm = _chart(gui, "Wheel speed", (_series("t s", ""), _series("rpm", "#5aa9ff")), (-rpm_limit, rpm_limit))
+        limit = WHEEL_TORQUE_LIMIT * 1.08
+        self.torque = _chart(
+            gui,
+            "Wheel torque",
+            (_series("t s", ""), _series("applied N m", "#f25f5c"), _series("asked N m", "#cfd6dd", 1.0, (4, 3))),
+            (-limit, limit),
+        )
+
+    def sample(self, time: float, pitch: float, wheel_speed: float, torque: float, command: float) -> None:
+        """Add one sample (SI units); the caller keeps one every PLOT_SAMPLE_S of simulation time."""
+        self.window.append((time, math.degrees(pitch), wheel_speed * RAD_S_TO_RPM, torque, command))
+        self._dirty = True
+
+    def clear(self) -> None:
+        self.window.clear()
+        self._dirty = True
+
+    def publish(self, now: float) -> None:
+        """Send the window to the charts if it changed, at most every PLOT_PUBLISH_S of wall time `now`."""
+        if not self._dirty or len(self.window) < 2 or now - self._last_publish < PLOT_PUBLISH_S:
+            return
+        self._dirty, self._last_publish = False, now
+        c = self.window.columns()
+        self.pitch.data = (c[_T], c[_PITCH])
+        self.rpm.data = (c[_T], c[_RPM])
+        self.torque.data = (c[_T], c[_TORQUE], c[_COMMAND])

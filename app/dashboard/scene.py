@@ -1,0 +1,241 @@
+"""The 3D scene: terrain and robot meshes sent once, then only poses, a trail and a following camera."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import mujoco
+import numpy as np
+import trimesh
+import viser
+
+from hopper.config import WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT
+from hopper.meshes import BodyMesh, body_meshes, body_poses, terrain_mesh
+from terrain import CraterParams
+
+TRAIL_SAMPLE_S = 0.05  # s of simulation between trail points
+TRAIL_CHUNK = 20  # points per line-segment node; only the newest chunk is re-sent
+TRAIL_CHUNKS = 15  # nodes kept: 15 s of trail
+TRAIL_COLOR = (255, 176, 59)
+SATURATION_COLORS = ((70, 200, 120), (245, 190, 40), (235, 60, 50))  # free, half, saturated
+CAMERA_OFFSET = np.array([0.0, -4.4, 1.9])  # m from the look-at point: side view from 23 deg above
+LOOK_OFFSET = np.array([0.3, 0.0, -0.3])  # m from the torso: a little ahead (it hops toward +x) and down
+CAMERA_FOV = math.radians(45.0)  # vertical; about 4 m of height in view at the default distance
+ENVIRONMENT_INTENSITY = 0.25
+GROUND_COLOR = (58, 58, 62)
+GROUND_Z = -0.01  # m, just under the strip's level start pad
+TERRAIN_DIM = 0.72  # factor on the terrain's hillshaded colours
+HOME_HOLD_S = 1.0  # s a newly homed camera is held, until the browser reports the new view
+FOLLOW_TAU_X, FOLLOW_TAU_Z = 0.25, 1.5  # s, camera smoothing; slow in z so hops do not bob it
+
+
+def add_terrain(scene: viser.SceneApi, heights: np.ndarray, craters: CraterParams) -> viser.GlbHandle:
+    """Send the terrain mesh (replacing any previous one of the same name)."""
+    mesh = terrain_mesh(heights, craters)
+    # viser's default environment light is bright: dim the regolith so the robot stands out.
+    colors = np.asarray(mesh.visual.vertex_colors).copy()
+    colors[:, :3] = (colors[:, :3] * TERRAIN_DIM).astype(np.uint8)
+    mesh.visual.vertex_colors = colors
+    return scene.add_mesh_trimesh("/terrain", mesh, cast_shadow=False)
+
+
+def configure_lighting(scene: viser.SceneApi) -> None:
+    """A dim environment so the hillshaded craters read: viser's default studio light flattens them."""
+    scene.configure_environment_map("warehouse", environment_intensity=ENVIRONMENT_INTENSITY)
+    scene.configure_default_lights(enabled=True, cast_shadow=True)
+
+
+def add_ground(scene: viser.SceneApi, craters: CraterParams) -> viser.MeshHandle:
+    """Plain regolith either side of the simulated strip, so the strip does not float in a void."""
+    x0, x1, half, far = craters.x0 - 20.0, craters.x0 + craters.length + 20.0, craters.width / 2, 25.0
+    vertices = np.array(
+        [[x0, -far, 0], [x1, -far, 0], [x1, -half, 0], [x0, -half, 0],
+         [x0, half, 0], [x1, half, 0], [x1, far, 0], [x0, far, 0]],
+        dtype=np.float32,
+    )  # fmt: skip
+    vertices[:, 2] = GROUND_Z
+    faces = np.array([[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]], dtype=np.uint32)
+    return scene.add_mesh_simple("/ground", vertices, faces, color=GROUND_COLOR, cast_shadow=False)
+
+
+def saturation(wheel_torque: float, wheel_speed: float) -> float:
+    """How close the wheel is to its limits, 0..1: the larger of torque/limit and speed/no-load speed."""
+    return min(max(abs(wheel_torque) / WHEEL_TORQUE_LIMIT, abs(wheel_speed) / WHEEL_NO_LOAD_SPEED), 1.0)
+
+
+def saturation_color(level: float) -> tuple[int, int, int]:
+    """Green when free, amber at half, red at the limit (linear between)."""
+    low, mid, high = (np.array(c, dtype=float) for c in SATURATION_COLORS)
+    rgb = low + (mid - low) * (level / 0.5) if level < 0.5 else mid + (high - mid) * min((level - 0.5) / 0.45, 1.0)
+    return tuple(int(round(v)) for v in rgb)  # type: ignore[return-value]
+
+
+def _add_body(scene: viser.SceneApi, body: BodyMesh) -> viser.SceneNodeHandle:
+    """Single-colour bodies go as plain meshes (with their alpha); multi-colour ones as GLB vertex colours."""
+    colors = body.colors
+    if (colors == colors[0]).all():
+        r, g, b, a = (int(c) for c in colors[0])
+        return scene.add_mesh_simple(
+            f"/robot/{body.name}",
+            body.vertices,
+            body.faces,
+            color=(r, g, b),
+            opacity=None if a == 255 else a / 255,
+            flat_shading=len(body.vertices) <= 24,  # boxes: flat faces, not smeared normals
+            side="double" if a < 255 else "front",
+            cast_shadow=a == 255,
+        )
+    return scene.add_mesh_trimesh(f"/robot/{body.name}", body.mesh)
+
+
+class RobotView:
+    """The robot's bodies, a wheel-saturation ring on the torso and a phase label above it."""
+
+    def __init__(self, scene: viser.SceneApi, model: mujoco.MjModel) -> None:
+        self._meshes = body_meshes(model)
+        self._handles = [_add_body(scene, body) for body in self._meshes]
+        # The ring sits around the wheel rim on the camera side of the torso and takes the torso's
+        # pose, so it shows the limit without spinning; only its colour is ever re-sent.
+        ring = trimesh.creation.annulus(r_min=0.158, r_max=0.178, height=0.02, sections=48)
+        ring.apply_transform(trimesh.transformations.rotation_matrix(math.pi / 2, [1, 0, 0]))
+        self._level = -1.0
+        self.ring = scene.add_mesh_simple(
+            "/robot/torso/saturation",
+            np.asarray(ring.vertices, np.float32),
+            np.asarray(ring.faces, np.uint32),
+            color=SATURATION_COLORS[0],
+            position=(0.0, -0.07, 0.0),
+            cast_shadow=False,
+        )
+        self.label = scene.add_label(
+            "/robot_label", "stance", position=(0.0, 0.0, 1.6), anchor="bottom-center", font_screen_scale=0.9
+        )
+        self.show_label = True
+
+    def update(self, model: mujoco.MjModel, data: mujoco.MjData, level: float, phase: str) -> None:
+        """Send this frame's poses (call inside server.atomic(), from the simulation loop)."""
+        positions, quats = body_poses(model, data, self._meshes)
+        for handle, p, q in zip(self._handles, positions, quats, strict=True):
+            handle.position = p
+            handle.wxyz = q
+        quantized = round(level * 20) / 20  # re-send the colour only when it visibly changes
+        if quantized != self._level:
+            self._level = quantized
+            self.ring.color = saturation_color(quantized)
+        torso = positions[0]
+        self.label.position = (torso[0], 0.0, torso[2] + 0.42)
+        if self.label.text != phase:
+            self.label.text = phase
+        self.label.visible = self.show_label
+
+
+class Trail:
+    """The torso's recent path as line-segment chunks; full chunks are never re-sent, old ones recycled."""
+
+    def __init__(self, scene: viser.SceneApi) -> None:
+        self._scene = scene
+        self._handles: dict[int, viser.LineSegmentsHandle] = {}
+        self._points: list[tuple[float, float, float]] = []
+        self._chunk = 0
+        self._next_time = 0.0
+        self._dirty = False
+        self._shown = True
+        self.visible = True  # asked from any thread; applied by publish() on the loop thread
+
+    def sample(self, time: float, x: float, z: float) -> None:
+        """Offer the torso position at simulation `time`; kept every TRAIL_SAMPLE_S."""
+        if time < self._next_time:
+            return
+        self._next_time = time + TRAIL_SAMPLE_S
+        self._points.append((x, 0.0, z))
+        self._dirty = True
+
+    def publish(self) -> None:
+        """Re-send the open chunk if it grew; start a new chunk when it is full."""
+        if self.visible != self._shown:
+            self._shown = self.visible
+            for handle in self._handles.values():
+                handle.visible = self._shown
+        if not self._dirty or len(self._points) < 2:
+            return
+        self._dirty = False
+        points = np.asarray(self._points, dtype=np.float32)
+        slot = self._chunk % TRAIL_CHUNKS
+        self._handles[slot] = self._scene.add_line_segments(
+            f"/trail/{slot}",
+            np.stack([points[:-1], points[1:]], axis=1),
+            TRAIL_COLOR,
+            thickness=0.012,
+            visible=self._shown,
+        )
+        if len(self._points) > TRAIL_CHUNK:
+            self._chunk += 1
+            self._points = self._points[-1:]  # the next chunk starts where this one ends
+
+    def clear(self) -> None:
+        """Forget the path (after a reset or a new terrain)."""
+        for handle in self._handles.values():
+            handle.remove()
+        self._handles.clear()
+        self._points, self._chunk, self._next_time, self._dirty = [], 0, 0.0, False
+
+
+class CameraFollow:
+    """Keeps every client's camera aimed at the (smoothed) robot while preserving the user's orbit.
+
+    Each update re-aims from the client's own last report: look_at goes to the target and the
+    camera keeps its offset from look_at (the orbit). Re-aiming, rather than adding deltas, cannot
+    drift when a report crosses an update in flight. A client just homed is held at the home pose
+    for HOME_HOLD_S, because its first reports still carry the browser's default view.
+    """
+
+    def __init__(self, x: float, z: float) -> None:
+        self.enabled = True
+        self.x, self.z = x, z
+        self._homing: dict[int, float] = {}  # client id -> wall time the home hold ends
+        self._initial_x = math.inf
+
+    @property
+    def look_at(self) -> np.ndarray:
+        return np.array([self.x, 0.0, self.z]) + LOOK_OFFSET
+
+    def home(self, client: viser.ClientHandle) -> None:
+        """Put a client's camera at the default side view of the robot (and hold it there briefly)."""
+        self._homing[client.client_id] = time.monotonic() + HOME_HOLD_S
+        client.camera.fov = CAMERA_FOV
+        self._aim(client, CAMERA_OFFSET)
+
+    def _aim(self, client: viser.ClientHandle, orbit: np.ndarray) -> None:
+        look = self.look_at
+        client.camera.position = look + orbit  # shifts look_at by the same offset...
+        client.camera.look_at = look  # ...so this only corrects a stale look_at
+
+    def set_initial(self, server: viser.ViserServer) -> None:
+        """Where new clients start (and where the viewer's own "reset view" goes), if it moved."""
+        if abs(self.x - self._initial_x) < 0.25:
+            return
+        self._initial_x = self.x
+        look = self.look_at
+        initial = server.initial_camera
+        initial.fov, initial.up = CAMERA_FOV, (0.0, 0.0, 1.0)
+        initial.position, initial.look_at = look + CAMERA_OFFSET, look
+
+    def update(self, clients: dict[int, viser.ClientHandle], x: float, z: float, dt: float) -> None:
+        """Move the target toward the robot at (x, z) (m) and re-aim the cameras."""
+        self.x += (x - self.x) * (1.0 - math.exp(-dt / FOLLOW_TAU_X))
+        self.z += (z - self.z) * (1.0 - math.exp(-dt / FOLLOW_TAU_Z))
+        now = time.monotonic()
+        self._homing = {cid: until for cid, until in self._homing.items() if cid in clients and until > now}
+        look = self.look_at
+        for cid, client in clients.items():
+            if not self.enabled and cid not in self._homing:
+                continue
+            try:
+                camera = client.camera
+                if cid in self._homing:
+                    self._aim(client, CAMERA_OFFSET)
+                elif float(np.abs(camera.look_at - look).max()) > 5e-4:
+                    self._aim(client, camera.position - camera.look_at)
+            except (AssertionError, ValueError):  # no camera report yet, or a degenerate pose
+                continue

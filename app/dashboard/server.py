@@ -1,0 +1,304 @@
+"""The dashboard: a viser server and the one thread that steps the simulation and publishes it.
+
+Browser callbacks run on viser's thread pool and only queue commands (`sim.submit`) or set loop
+flags; the loop thread alone touches MjData: it steps against a wall-clock budget, then sends
+poses (inside `server.atomic()`), plots, the status and event-driven updates.
+"""
+
+from __future__ import annotations
+
+import collections
+import logging
+import math
+import socket
+import threading
+import time
+
+import viser
+
+from app.dashboard.config import DashboardConfig
+from app.dashboard.feedback import notify_all
+from app.dashboard.layout import Layout, build_layout
+from app.dashboard.pacing import Pacer
+from app.dashboard.panels import PanelContext
+from app.dashboard.panels.status import Status
+from app.dashboard.plots import PLOT_SAMPLE_S
+from app.dashboard.recording import Recorder
+from app.dashboard.scene import (
+    CameraFollow,
+    RobotView,
+    Trail,
+    add_ground,
+    add_terrain,
+    configure_lighting,
+    saturation,
+)
+from hopper.metrics import RAD_S_TO_RPM
+from hopper.sim import Event, Simulation
+
+log = logging.getLogger(__name__)
+
+FRAME_S = 1 / 30  # s of wall time between pose updates
+MAX_SLEEP_S = 0.005  # s; the loop wakes at least this often to step (5 steps a wake at 1x)
+STATUS_S = 0.2  # s between status-strip updates
+FALL_RESET_S = 2.0  # s of (running) wall time a fallen robot stays down before the auto reset
+
+
+class PortInUse(OSError):
+    """The requested port is taken (viser itself would silently pick the next one)."""
+
+
+def ensure_port_free(host: str, port: int) -> None:
+    """Raise PortInUse with a one-line message if (host, port) cannot be bound."""
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as probe:
+        # Same option the server's own listener uses, so a lingering TIME_WAIT does not count as "in use".
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            probe.bind((host, port))
+        except OSError as exc:
+            raise PortInUse(f"cannot serve on {host}:{port}: {exc.strerror or exc}") from None
+
+
+class Dashboard:
+    """Owns the simulation, the viser server and the loop thread. Use `start()`/`stop()` or `with`."""
+
+    def __init__(self, config: DashboardConfig, *, verbose: bool = True) -> None:
+        ensure_port_free(config.host, config.port)  # before the slow part: fail fast
+        self.config = config
+        self.sim = Simulation(config.sim_config())
+        self.pacer = Pacer(self.sim.model.opt.timestep, config.speed)
+        self.stay_fallen = False
+        self._single_steps = 0
+        self._single_lock = threading.Lock()
+        self._events: collections.deque[Event] = collections.deque()
+        self._stopping = threading.Event()
+        self._stopped = False
+        self._fallen_since: float | None = None
+        self._next_sample = 0.0
+        self.frames = 0  # pose frames published, for tests and the benchmark
+
+        self.recorder = Recorder(self.sim.submit, config.sessions_dir)
+        if config.rrd is not None or config.rerun_viewer != "off":  # fails here, before any server starts
+            self.recorder.start_now(self.sim, config.rrd, config.rerun_viewer, name="hopper-dashboard")
+        try:
+            self.server = viser.ViserServer(host=config.host, port=config.port, verbose=verbose)
+        except BaseException:
+            self.recorder.close_now(self.sim)
+            raise
+        try:
+            if self.server.get_port() != config.port:  # lost a race for the port after the check
+                raise PortInUse(f"cannot serve on {config.host}:{config.port}: port taken while starting")
+            self._build()
+        except BaseException:
+            self.server.stop()
+            self.recorder.close_now(self.sim)
+            raise
+        self._thread = threading.Thread(target=self._run, name="sim-loop", daemon=True)
+
+    def _build(self) -> None:
+        sim, config = self.sim, self.config
+        configure_lighting(self.server.scene)
+        add_ground(self.server.scene, sim.config.craters)
+        self.terrain = add_terrain(self.server.scene, sim.heights, sim.config.craters)
+        self.robot = RobotView(self.server.scene, sim.model)
+        self.trail = Trail(self.server.scene)
+        self.camera = CameraFollow(sim.physics.x, sim.physics.z)
+        self.camera.set_initial(self.server)
+        self.layout: Layout = build_layout(
+            self.server,
+            PanelContext(self.server, sim.submit, self),
+            gains=sim.gains,
+            seed=config.seed,
+            terrain=config.terrain,
+            gravity=sim.config.gravity,
+            speed=config.speed,
+            recorder=self.recorder,
+            camera=self.camera,
+            trail=self.trail,
+            robot=self.robot,
+        )
+        self.recorder.listeners.append(self._recording_changed)
+        self.server.on_client_connect(self._client_connected)
+        sim.listeners.append(self)
+
+    @property
+    def url(self) -> str:
+        return f"http://{self.config.host}:{self.server.get_port()}"
+
+    # -- lifecycle -------------------------------------------------------------------------
+    def start(self) -> Dashboard:
+        """Start the loop thread."""
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        """Stop the loop, finalize any recording, stop the server (frees the port). Idempotent."""
+        if self._stopped:
+            return
+        self._stopped = True
+        self._stopping.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=5.0)
+        try:
+            self.recorder.close_now(self.sim)
+        finally:
+            self.server.stop()
+
+    def __enter__(self) -> Dashboard:
+        return self.start()
+
+    def __exit__(self, *_: object) -> None:
+        self.stop()
+
+    def wait(self, timeout: float | None = None) -> bool:
+        """Block until stop() is called (or `timeout` s); True if stopped."""
+        return self._stopping.wait(timeout)
+
+    # -- LoopControls (called from viser's threads: flags only) ------------------------------
+    def set_paused(self, paused: bool) -> None:
+        self.pacer.paused = paused
+        self.pacer.restart_window()
+
+    def request_steps(self, count: int) -> None:
+        with self._single_lock:
+            self._single_steps += max(int(count), 0)
+
+    def set_speed(self, speed: float) -> None:
+        self.pacer.set_speed(speed)
+        self.pacer.restart_window()
+
+    # -- Listener (called on the loop thread by sim.step) -------------------------------------
+    def tick(self, sim: Simulation) -> None:
+        # Cheap on most ticks: the core refreshes sim.physics only at events, so read it here only
+        # when a plot sample is due.
+        if sim.data.time < self._next_sample:
+            return
+        self._next_sample = sim.data.time + PLOT_SAMPLE_S
+        s = sim.physics
+        s.refresh()
+        self.layout.plots.sample(s.time, s.pitch, s.wheel_speed, s.wheel_torque, sim.controller.wheel_command)
+        self.trail.sample(s.time, s.x, s.z)
+
+    def event(self, sim: Simulation, event: Event) -> None:
+        self._events.append(event)
+
+    # -- the loop --------------------------------------------------------------------------
+    def _run(self) -> None:
+        next_frame = last_status = time.perf_counter()
+        last_frame = next_frame
+        while not self._stopping.is_set():
+            now = time.perf_counter()
+            budgeted = self.pacer.due(now)
+            if self.pacer.paused:
+                self._apply_commands()
+            with self._single_lock:
+                extra, self._single_steps = self._single_steps, 0
+            self._step(budgeted + extra)
+            self.pacer.done(budgeted, now, extra)
+            self._after_fall(now)
+            if now >= next_frame:
+                try:
+                    self._publish(now, now - last_frame, now - last_status >= STATUS_S)
+                except Exception:
+                    log.exception("publishing a frame failed")
+                if now - last_status >= STATUS_S:
+                    last_status = now
+                last_frame = now
+                next_frame = max(next_frame + FRAME_S, now - FRAME_S)  # catch up one frame at most
+            self._stopping.wait(max(0.0, min(next_frame - time.perf_counter(), MAX_SLEEP_S)))
+
+    def _apply_commands(self) -> None:
+        """While paused, apply queued commands without stepping (a reset or new gains show at once).
+
+        The core drains its queue only inside step(); `apply_pending` is the public name asked of it.
+        """
+        drain = getattr(self.sim, "apply_pending", None) or self.sim._drain
+        try:
+            drain()
+        except Exception:
+            log.exception("applying commands while paused failed")
+
+    def _step(self, count: int) -> None:
+        try:
+            for _ in range(count):
+                self.sim.step()
+        except Exception as exc:  # a bug below must not stop the dashboard: report, reset, go on
+            log.exception("simulation step failed")
+            notify_all(self.server, "Simulation error", f"{type(exc).__name__}: {exc}; the robot was reset", "error")
+            self.sim.reset(reason="error")
+
+    def _after_fall(self, now: float) -> None:
+        if not self.sim.fallen or self.stay_fallen or self.pacer.paused:
+            self._fallen_since = None
+            return
+        if self._fallen_since is None:
+            self._fallen_since = now
+        elif now - self._fallen_since >= FALL_RESET_S:
+            self._fallen_since = None
+            self.sim.reset(reason="after fall")
+
+    def _publish(self, now: float, dt: float, with_status: bool) -> None:
+        sim, s = self.sim, self.sim.physics
+        s.refresh()
+        while self._events:
+            self._handle(self._events.popleft())
+        level = saturation(s.wheel_torque, s.wheel_speed)
+        with self.server.atomic():
+            self.robot.update(sim.model, sim.data, level, sim.phase.label)
+        self.trail.publish()
+        self.layout.plots.publish(now)
+        self.camera.update(self.server.get_clients(), s.x, s.z, dt)
+        self.frames += 1
+        if with_status:
+            self.camera.set_initial(self.server)
+            self.layout.status.show(
+                Status(
+                    phase=sim.phase.label,
+                    time=s.time,
+                    rtf=self.pacer.real_time_factor(),
+                    speed=self.pacer.speed,
+                    paused=self.pacer.paused,
+                    behind=self.pacer.behind,
+                    hops=sum(h.completed for h in sim.hops),
+                    pitch_deg=math.degrees(s.pitch),
+                    wheel_rpm=s.wheel_speed * RAD_S_TO_RPM,
+                    saturation=level,
+                    gravity=-float(sim.model.opt.gravity[2]),  # set_gravity changes the model, not the config
+                    recording=self.recorder.active,
+                )
+            )
+
+    def _handle(self, event: Event) -> None:
+        """React to one simulation event (on the loop thread)."""
+        layout, kind, data = self.layout, event.kind, event.data
+        layout.events.add(event)
+        if kind in ("touchdown", "fall") and data.get("hop") is not None:
+            layout.hops.add(data["hop"])
+        if kind == "fall":
+            then = "stays down (Stay fallen is ticked)" if self.stay_fallen else f"resets in {FALL_RESET_S:g} s"
+            body = f"pitch {data.get('pitch_deg', 0.0):+.0f}° at t = {event.time:.2f} s; it {then}"
+            notify_all(self.server, "The robot fell", body, "warning")
+        elif kind == "diverged":
+            notify_all(self.server, "Simulation diverged", f"{data.get('reason', '')}: the robot was reset", "warning")
+        elif kind == "error":
+            notify_all(self.server, "Command failed", str(data.get("message", "")), "error")
+        elif kind == "terrain":
+            self.terrain = add_terrain(self.server.scene, self.sim.heights, self.sim.config.craters)
+        elif kind == "reset":
+            self._next_sample = 0.0
+            layout.plots.clear()
+            layout.hops.clear()
+            self.trail.clear()
+
+    def _client_connected(self, client: viser.ClientHandle) -> None:
+        try:
+            self.camera.home(client)
+        except Exception:  # the client may already be gone
+            log.debug("could not place the camera of client %s", client.client_id, exc_info=True)
+
+    def _recording_changed(self, state: str, path: object, message: str) -> None:
+        if state == "saved" and path is not None:
+            notify_all(self.server, "Recording saved", str(path))
+        elif state == "failed":
+            notify_all(self.server, "Recording failed", message, "error")
