@@ -63,7 +63,12 @@ def finite(text: str) -> float:
 
 def gravity(text: str) -> float:
     """A number in m/s^2 or a preset name (moon, mars, ceres, earth)."""
-    return GRAVITY_PRESETS[text.lower()] if text.lower() in GRAVITY_PRESETS else finite(text)
+    if text.lower() in GRAVITY_PRESETS:
+        return GRAVITY_PRESETS[text.lower()]
+    try:
+        return finite(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is neither m/s^2 nor one of {', '.join(GRAVITY_PRESETS)}") from None
 
 
 def parser() -> Parser:
@@ -74,8 +79,12 @@ def parser() -> Parser:
     def common(p: argparse.ArgumentParser) -> None:
         p.add_argument("--hops", type=int, default=7, help="hops to complete (default 7)")
         p.add_argument("--terrain", choices=("crater", "flat"), default="crater")
-        p.add_argument("--gravity", type=gravity, default=GRAVITY_PRESETS["moon"],
-                       help="m/s^2 or moon|mars|ceres|earth (default moon, 1.625)")
+        p.add_argument(
+            "--gravity",
+            type=gravity,
+            default=GRAVITY_PRESETS["moon"],
+            help="m/s^2 or moon|mars|ceres|earth (default moon, 1.625)",
+        )
         p.add_argument("--kp", type=finite, default=defaults.kp, help=f"N m/rad (default {defaults.kp:g})")
         p.add_argument("--ki", type=finite, default=defaults.ki, help=f"N m/(rad s) (default {defaults.ki:g})")
         p.add_argument("--kd", type=finite, default=defaults.kd, help=f"N m s/rad (default {defaults.kd:g})")
@@ -86,8 +95,12 @@ def parser() -> Parser:
     run.add_argument("--seed", type=int, default=0, help="terrain seed (default 0)")
     run.add_argument("--no-wheel", action="store_true", help="zero wheel torque, wheel free to spin")
     run.add_argument("--rrd", type=writable_file, metavar="PATH", help="record a rerun .rrd session")
-    run.add_argument("--rerun-viewer", choices=("spawn", "serve", "off"), default="off",
-                     help="also watch live in a rerun viewer (default off)")
+    run.add_argument(
+        "--rerun-viewer",
+        choices=("spawn", "serve", "off"),
+        default="off",
+        help="also watch live in a rerun viewer (default off)",
+    )
 
     compare = commands.add_parser("compare", help="wheel on vs off over seeds 0..K-1")
     common(compare)
@@ -98,7 +111,10 @@ def parser() -> Parser:
 
 def make_config(args: argparse.Namespace, seed: int, wheel: bool) -> SimConfig:
     return SimConfig(
-        seed=seed, terrain=args.terrain, gravity=args.gravity, wheel=wheel,
+        seed=seed,
+        terrain=args.terrain,
+        gravity=args.gravity,
+        wheel=wheel,
         gains=Gains(kp=args.kp, ki=args.ki, kd=args.kd),
     )
 
@@ -148,6 +164,7 @@ def summary(result: dict[str, Any]) -> str:
         + f" ({result['sim_time_s'] / max(result['wall_time_s'], 1e-9):.0f}x real time)"
     ]
     if done:
+
         def stat(key: str) -> float:
             return max(h[key] for h in done)
 
@@ -198,7 +215,7 @@ def command_compare(args: argparse.Namespace) -> int:
         results = list(tqdm(pool.imap(_compare_one, jobs), total=len(jobs), desc="runs", unit="run", file=sys.stderr))
     rows, reductions = [], []
     print(f"{'seed':>4} {'on: hops':>9} {'peak deg':>9} {'off: hops':>10} {'peak deg':>9} {'reduction':>10}")
-    for on, off in zip(results[::2], results[1::2]):
+    for on, off in zip(results[::2], results[1::2], strict=False):
         peak_on, peak_off = peak_deviation(on), peak_deviation(off)
         reduction = 100.0 * (peak_off - peak_on) / peak_off if peak_off > 0 else 0.0
         reductions.append(reduction)
@@ -209,11 +226,14 @@ def command_compare(args: argparse.Namespace) -> int:
 
         print(f"{on['seed']:>4} {hops(on):>9} {peak_on:9.2f} {hops(off):>10} {peak_off:9.2f} {reduction:9.1f}%")
     median = statistics.median(reductions)
-    print(f"median reduction of the peak mid-air pitch deviation, wheel on vs off: {median:.1f}% "
-          f"(over {len(reductions)} seeds; wheel off = zero torque, wheel free to spin)")
+    print(
+        f"median reduction of the peak mid-air pitch deviation, wheel on vs off: {median:.1f}% "
+        f"(over {len(reductions)} seeds; wheel off = zero torque, wheel free to spin)"
+    )
     if args.json:
-        args.json.write_text(json.dumps(
-            {"median_peak_reduction_pct": median, "seeds": rows, "runs": results}, indent=2))
+        args.json.write_text(
+            json.dumps({"median_peak_reduction_pct": median, "seeds": rows, "runs": results}, indent=2)
+        )
     return 0
 
 

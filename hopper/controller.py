@@ -43,7 +43,7 @@ from hopper.model import (
     S_GYRO_Y,
     S_WHEEL_TORQUE,
 )
-from hopper.phases import CONTACT_OFF_N, CONTACT_ON_N, DEBOUNCE_S, Phase
+from hopper.phases import CONTACT_OFF_N, CONTACT_ON_N, DEBOUNCE_OFF_S, DEBOUNCE_ON_S, Phase
 
 L1, L2 = THIGH_LENGTH, SHANK_LENGTH
 WHEEL_DAMPING = WHEEL_TORQUE_LIMIT / WHEEL_NO_LOAD_SPEED  # N m s/rad, back-EMF slope at the wheel
@@ -61,6 +61,7 @@ KD_STANCE = 2 * STANCE_PITCH_ZETA * STANCE_PITCH_WN * STANCE_PITCH_INERTIA
 LANDING_DAMPING = 6.0  # 1/s, vertical velocity damping while absorbing the impact
 DESAT_TIME = 0.25  # s, time constant of the stance wheel spin-down
 MIN_SUPPORT = 0.4  # fraction of the weight the stance legs always carry
+REACH_FORCE = 0.2  # fraction of the weight a free leg may push with while it reaches for the ground
 PUSH_MAX_ACCEL = 8.0  # m/s^2, cap on the push-off acceleration
 PUSH_X_GAIN = 6.0  # 1/s, horizontal velocity tracking during the push
 # Flight: the legs swing as a virtual leg (length, angle) with PD gains about the hip.
@@ -76,11 +77,45 @@ LIFTOFF_CONFIRM_S = 0.01  # both feet off this long before the flight counts
 LANDING, STANCE, CROUCH, PUSH, FLIGHT, FALLEN = (int(p) for p in Phase)
 
 # Parameter slots (written from Python when gains or gait change).
-(P_KP, P_KI, P_KD, P_GRAVITY, P_WHEEL_ON, P_VZ_LIFTOFF, P_FORWARD_SPEED, P_STAND, P_CROUCH, P_PUSH,
- P_FLIGHT_LENGTH, P_SPREAD, P_PLACEMENT, P_LEAN, P_STANCE_TIME, P_FRICTION, P_X0, P_Z0, P_DT, N_PARAMS) = range(20)
+(
+    P_KP,
+    P_KI,
+    P_KD,
+    P_GRAVITY,
+    P_WHEEL_ON,
+    P_VZ_LIFTOFF,
+    P_FORWARD_SPEED,
+    P_STAND,
+    P_CROUCH,
+    P_PUSH,
+    P_FLIGHT_LENGTH,
+    P_SPREAD,
+    P_PLACEMENT,
+    P_LEAN,
+    P_STANCE_TIME,
+    P_FRICTION,
+    P_X0,
+    P_Z0,
+    P_DT,
+    N_PARAMS,
+) = range(20)
 # State slots (the kernel's memory between ticks).
-(K_PHASE, K_PHASE_START, K_PUSH_DONE, K_INTEGRAL, K_SATURATED, K_CONTACT_L, K_PENDING_L, K_CONTACT_R,
- K_PENDING_R, K_WHEEL_COMMAND, K_PREV_VZ, K_LAST_CONTACT, K_CLOCK, N_STATE) = range(14)
+(
+    K_PHASE,
+    K_PHASE_START,
+    K_PUSH_DONE,
+    K_INTEGRAL,
+    K_SATURATED,
+    K_CONTACT_L,
+    K_PENDING_L,
+    K_CONTACT_R,
+    K_PENDING_R,
+    K_WHEEL_COMMAND,
+    K_PREV_VZ,
+    K_LAST_CONTACT,
+    K_CLOCK,
+    N_STATE,
+) = range(14)
 # Metric accumulators for the hop in progress (hopper.metrics reads and clears them).
 (A_SATURATION, A_PEAK_PITCH, A_RATE_SQ, A_FLIGHT_TICKS, A_APEX_Z, A_PEAK_WHEEL, N_ACC) = range(7)
 MEM_STATE, MEM_ACC = N_PARAMS, N_PARAMS + N_STATE  # offsets in the kernel's one memory array
@@ -114,9 +149,17 @@ def push_torques(px: float, pz: float, jx: float, jz: float, fx: float, fz: floa
 
 @njit(cache=True)
 def swing_torques(
-    px: float, pz: float, knee: float, hip_rate: float, knee_rate: float, length: float, foot_x: float
+    px: float,
+    pz: float,
+    knee: float,
+    hip_rate: float,
+    knee_rate: float,
+    length: float,
+    foot_x: float,
+    max_force: float = 1e9,
 ) -> tuple[float, float]:
-    """PD on the virtual leg toward a foot `foot_x` ahead of the hip, `length` from it.
+    """PD on the virtual leg toward a foot `foot_x` ahead of the hip, `length` from it, with the
+    leg's axial force capped at `max_force` (N).
 
     The virtual leg (hip to foot) has length 2 L cos(knee / 2) and bisects the knee, so its angle
     and length decouple into a hip torque and a knee force. Damping acts on the joint rates so
@@ -125,7 +168,7 @@ def swing_torques(
     angle = -math.asin(clamp(foot_x / length, 0.9))  # world angle, + = foot behind the hip
     dl_dknee = -L1 * math.sin(knee / 2)
     torque = SWING_K * (angle - math.atan2(-px, -pz)) - SWING_D * (hip_rate + knee_rate / 2)
-    force = LENGTH_K * (length - math.hypot(px, pz)) - LENGTH_D * dl_dknee * knee_rate
+    force = clamp(LENGTH_K * (length - math.hypot(px, pz)) - LENGTH_D * dl_dknee * knee_rate, max_force)
     return clamp(torque, LEG_TORQUE_LIMIT), clamp(torque / 2 + force * dl_dknee, LEG_TORQUE_LIMIT)
 
 
@@ -167,14 +210,15 @@ def wheel_pid(pitch: float, rate: float, wheel_speed: float, dt: float, p: np.nd
 @njit(cache=True)
 def debounce(force: float, time: float, k: np.ndarray, on_slot: int, pending_slot: int) -> bool:
     """One foot's contact with hysteresis (on above CONTACT_ON_N, off below CONTACT_OFF_N) and
-    a DEBOUNCE_S hold before a change is believed. pending < 0 means no change pending."""
+    a hold of DEBOUNCE_ON_S / DEBOUNCE_OFF_S before a change is believed. pending < 0 means no
+    change is pending."""
     on = k[on_slot] > 0.5
     changing = force < CONTACT_OFF_N if on else force > CONTACT_ON_N
     if not changing:
         k[pending_slot] = -1.0
     elif k[pending_slot] < 0.0:
         k[pending_slot] = time
-    elif time - k[pending_slot] >= DEBOUNCE_S - 1e-9:
+    elif time - k[pending_slot] >= (DEBOUNCE_OFF_S if on else DEBOUNCE_ON_S) - 1e-9:
         on = not on
         k[on_slot] = 1.0 if on else 0.0
         k[pending_slot] = -1.0
@@ -261,8 +305,31 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
         if phase == FLIGHT:
             wheel = wheel_pid(pitch, rate, wheel_speed, dt, p, k)
     else:
-        wheel = stance(pitch, rate, vx, vz, wheel_speed, phase, height, offset_x, on_l, on_r,
-                       pxl, pzl, jxl, jzl, pxr, pzr, jxr, jzr, qpos, qvel, p, k, ctrl)
+        wheel = stance(
+            pitch,
+            rate,
+            vx,
+            vz,
+            wheel_speed,
+            phase,
+            height,
+            offset_x,
+            on_l,
+            on_r,
+            pxl,
+            pzl,
+            jxl,
+            jzl,
+            pxr,
+            pzr,
+            jxr,
+            jzr,
+            qpos,
+            qvel,
+            p,
+            k,
+            ctrl,
+        )
     if p[P_WHEEL_ON] < 0.5:
         wheel = 0.0
     k[K_WHEEL_COMMAND] = wheel
@@ -287,10 +354,29 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
 
 @njit(cache=True)
 def stance(
-    pitch: float, rate: float, vx: float, vz: float, wheel_speed: float, phase: int, height: float,
-    offset_x: float, on_l: bool, on_r: bool, pxl: float, pzl: float, jxl: float, jzl: float,
-    pxr: float, pzr: float, jxr: float, jzr: float,
-    qpos: np.ndarray, qvel: np.ndarray, p: np.ndarray, k: np.ndarray, ctrl: np.ndarray,
+    pitch: float,
+    rate: float,
+    vx: float,
+    vz: float,
+    wheel_speed: float,
+    phase: int,
+    height: float,
+    offset_x: float,
+    on_l: bool,
+    on_r: bool,
+    pxl: float,
+    pzl: float,
+    jxl: float,
+    jzl: float,
+    pxr: float,
+    pzr: float,
+    jxr: float,
+    jzr: float,
+    qpos: np.ndarray,
+    qvel: np.ndarray,
+    p: np.ndarray,
+    k: np.ndarray,
+    ctrl: np.ndarray,
 ) -> float:
     """Virtual model control of the torso through the feet on the ground. Returns wheel torque.
 
@@ -341,7 +427,7 @@ def stance(
         low, high = min(fx_a, fx_b), max(fx_a, fx_b)
         margin = 0.1 * (high - low)
         if not low + margin <= fx <= high - margin:
-            if wheel_on and (phase == LANDING or phase == STANCE):  # balance, not the push's thrust
+            if wheel_on and (phase in (LANDING, STANCE)):  # balance, not the push's thrust
                 at_low = fx < low + margin
                 edge_x = rax if (fx_a < fx_b) == at_low else rbx  # the foot carrying all the weight
                 wheel = wheel_torque_bound(wheel_speed, rz2 * fx / 2 - edge_x * fz - moment)
@@ -365,23 +451,37 @@ def stance(
             ctrl[1], ctrl[2] = push_torques(pxl, pzl, jxl, jzl, clamp(fx / 2, mu * fz / 2), fz / 2)
             ctrl[3], ctrl[4] = push_torques(pxr, pzr, jxr, jzr, clamp(fx / 2, mu * fz / 2), fz / 2)
         else:
-            # The free foot reaches a little past the stance leg to find the ground.
-            reach = min(p[P_PUSH], p[P_STAND] + 0.1)
+            # The free foot reaches a little below the stance foot to find the ground, gently: a
+            # leg that keeps extending into the ground launches the robot in lunar gravity.
             half = 0.5 * p[P_SPREAD]
+            reach = min(math.hypot(height + 0.05, half), p[P_PUSH])
+            gentle = REACH_FORCE * TOTAL_MASS * p[P_GRAVITY]
             if on_l:
                 ctrl[1], ctrl[2] = push_torques(pxl, pzl, jxl, jzl, clamp(fx, mu * fz), fz)
-                ctrl[3], ctrl[4] = swing_torques(pxr, pzr, qpos[Q_KNEE_R], qvel[Q_HIP_R], qvel[Q_KNEE_R], reach, -half)
+                ctrl[3], ctrl[4] = swing_torques(
+                    pxr, pzr, qpos[Q_KNEE_R], qvel[Q_HIP_R], qvel[Q_KNEE_R], reach, -half, gentle
+                )
             else:
                 ctrl[3], ctrl[4] = push_torques(pxr, pzr, jxr, jzr, clamp(fx, mu * fz), fz)
-                ctrl[1], ctrl[2] = swing_torques(pxl, pzl, qpos[Q_KNEE_L], qvel[Q_HIP_L], qvel[Q_KNEE_L], reach, half)
+                ctrl[1], ctrl[2] = swing_torques(
+                    pxl, pzl, qpos[Q_KNEE_L], qvel[Q_HIP_L], qvel[Q_KNEE_L], reach, half, gentle
+                )
     return wheel
 
 
 class HopController:
     """The Python face of the kernel: parameters, phase, events. Gains may change between ticks."""
 
-    def __init__(self, gains: Gains, gait: GaitParams, gravity: float, wheel: bool = True,
-                 x0: float = 0.0, z0: float = 0.0, dt: float = 0.001) -> None:
+    def __init__(
+        self,
+        gains: Gains,
+        gait: GaitParams,
+        gravity: float,
+        wheel: bool = True,
+        x0: float = 0.0,
+        z0: float = 0.0,
+        dt: float = 0.001,
+    ) -> None:
         self.mem = np.zeros(N_MEM)  # the kernel's memory; the three views below name its parts
         self.params, self.state, self.acc = self.mem[:N_PARAMS], self.mem[MEM_STATE:MEM_ACC], self.mem[MEM_ACC:]
         self.gains, self.gait, self.gravity, self.wheel_enabled = gains, gait, gravity, wheel

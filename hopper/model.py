@@ -95,8 +95,16 @@ class Physics:
         self.time: float = self.data.time
         x, z, self.pitch, self.wheel_angle, self.hip_L, self.knee_L, self.hip_R, self.knee_R = self._qpos.tolist()
         self.x, self.z = x + self._x0, z + self._z0  # torso CoM, world frame
-        (self.vx, self.vz, _, self.wheel_speed,  # wheel angle and speed are relative to the torso
-         self.hip_L_rate, self.knee_L_rate, self.hip_R_rate, self.knee_R_rate) = self._qvel.tolist()
+        (
+            self.vx,
+            self.vz,
+            _,
+            self.wheel_speed,  # wheel angle and speed are relative to the torso
+            self.hip_L_rate,
+            self.knee_L_rate,
+            self.hip_R_rate,
+            self.knee_R_rate,
+        ) = self._qvel.tolist()
         # IMU pitch rate is the gyro's body-y axis; foot forces are touch-sensor normal forces (N).
         _, _, self.pitch_rate, _, _, self.foot_force_L, self.foot_force_R, torque = self._sensors.tolist()
         self.wheel_torque = torque * self.wheel_gear  # N m at the wheel, as applied

@@ -1,4 +1,4 @@
-"""The hop cycle's phases and the debounced foot contact detector that drives them."""
+"""The hop cycle's phases and the foot contact thresholds that drive them."""
 
 from __future__ import annotations
 
@@ -26,29 +26,7 @@ GROUND_PHASES = frozenset({Phase.LANDING, Phase.STANCE, Phase.CROUCH, Phase.PUSH
 # thresholds of tens of newtons would never fire (PHYSICS.md).
 CONTACT_ON_N = 1.0  # N, normal force that starts a contact
 CONTACT_OFF_N = 0.2  # N, below this the contact ends (hysteresis)
-DEBOUNCE_S = 0.002  # s a new state must hold before it is believed
-
-
-class ContactDetector:
-    """One foot's contact state with hysteresis and debounce."""
-
-    __slots__ = ("on", "_pending_since")
-
-    def __init__(self) -> None:
-        self.on = False
-        self._pending_since: float | None = None
-
-    def update(self, force: float, time: float) -> bool:
-        """Feed the normal force (N) at `time` (s); returns the debounced contact state."""
-        changing = force < CONTACT_OFF_N if self.on else force > CONTACT_ON_N
-        if not changing:
-            self._pending_since = None
-        elif self._pending_since is None:
-            self._pending_since = time
-        elif time - self._pending_since >= DEBOUNCE_S - 1e-9:
-            self.on = not self.on
-            self._pending_since = None
-        return self.on
-
-    def reset(self, on: bool = False) -> None:
-        self.on, self._pending_since = on, None
+DEBOUNCE_ON_S = 0.002  # s a touch must hold before it is believed
+# A foot reaching for uneven ground taps it several times before it settles: leaving takes
+# longer to believe than arriving, or the stance controller would flicker between supports.
+DEBOUNCE_OFF_S = 0.015  # s

@@ -7,26 +7,26 @@ Usage from a CLI (Ctrl-C and SIGTERM both leave a finalised file that `rerun rrd
     with Telemetry(sim, path=path, viewer="off") as telemetry:
         sim.run(hops)
 
-Layout of a recording. Timelines: `sim_time` (duration; the simulation time, kept monotonic across
-resets) and `hop` (sequence; hops completed in this recording, so it keeps counting after a reset).
+Timelines: `sim_time` (duration: the simulation time, kept monotonic across resets) and `hop`
+(sequence: hops completed in this recording; it keeps counting after a reset). Entities:
 
-- `signals`: one row per control tick, one struct component `signals` with the float32 fields of
-  SIGNALS. One struct instead of one entity per channel because every entity row costs a row id, a
-  time and an offset (~14 B after compression) plus ~1 kB per chunk: 14 separate channels would
-  take ~14 MB per simulated minute, the struct ~4.5 MB. The blueprint plots the fields through
-  component mappings (selector `.pitch_deg` etc.).
-- `limits/wheel_torque`: +-WHEEL_TORQUE_LIMIT as reference lines, two rows per batch.
-- `phase`: StateChange on every phase change. `events`: TextLog per simulation event.
-- `hops/<metric>`: Scalars per HopMetrics field at each touchdown (and at a fall in flight), on
-  both timelines.
-- `world/terrain`, `world/robot/<body>`: static meshes; `Transform3D` body poses every
-  POSE_EVERY_TICKS; `world/trail`: the torso path, one strip per batch.
+- `signals`: one row per control tick holding one struct component `signals` with the fields of
+  SIGNALS (pitch, rate, wheel speed and torque in float32; leg angles, leg torques and foot forces
+  in float16, 0.05 % relative resolution). One struct rather than an entity per channel because
+  each entity row costs a row id, a time and an offset (~14 B compressed) and each chunk ~1 kB of
+  schema: fourteen float32 entities take ~14 MB per simulated minute, this struct ~3 MB. The
+  blueprint plots the fields through component mappings (selector `.pitch_deg` and so on).
+- `limits/wheel_torque`: +-WHEEL_TORQUE_LIMIT reference lines, one row per batch.
+- `phase` (StateChange), `events` (TextLog, plus a `kind` string), `hops` (one row per touchdown
+  or fall in flight with a float64 component per HopMetrics field, on both timelines).
+- `world/terrain` and `world/robot/<body>` static meshes in named frames; `world/tf` the bodies'
+  poses (Transform3D with `child_frame`) every POSE_EVERY_TICKS; `world/trail` the torso path.
 
-Row timing: a row describes the state at the start of its tick, exactly what MuJoCo's forward pass
-of that tick saw: sensors (pitch, rate, wheel speed, foot forces), actuator forces (the torques
-applied this tick) and body poses are read from MjData after mj_step (they are not advanced by the
-integrator), and joint angles from qpos read one tick earlier (qpos is advanced). Telemetry reads
-MjData itself rather than `sim.physics`, which the simulation no longer refreshes every tick.
+Rows describe the state at the start of their tick, as MuJoCo's forward pass of that tick saw it:
+sensors, actuator forces (the torques applied this tick) and body poses are read from MjData after
+mj_step (the integrator does not advance them), joint angles from qpos read one tick earlier (it
+does). Telemetry reads MjData rather than `sim.physics`, which the simulation no longer refreshes
+every tick. Everything is buffered and sent every `batch_ticks` with rr.send_columns.
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ import sys
 import threading
 import time
 import weakref
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from types import TracebackType
 from typing import TYPE_CHECKING, Any, Literal
@@ -58,7 +58,7 @@ import rerun.blueprint as rrb
 from rerun.blueprint.encodings import ComponentSourceKind, VisualizerComponentMapping
 
 from hopper.config import WHEEL_TORQUE_LIMIT
-from hopper.meshes import body_meshes, body_poses, terrain_mesh
+from hopper.meshes import body_meshes, terrain_mesh
 from hopper.model import LEG_JOINTS
 
 if TYPE_CHECKING:
@@ -69,22 +69,15 @@ log = logging.getLogger(__name__)
 APPLICATION_ID = "hopper"
 TIME = "sim_time"
 HOP = "hop"
-BATCH_TICKS = 500  # ticks per send: 0.5 s of simulation, ~2 us of sending per tick amortised
+BATCH_TICKS = 1000  # ticks per send (1 s simulated): fewer chunks, each ~1 kB of schema
 POSE_EVERY_TICKS = 20  # 50 Hz body poses
 RAD_S_TO_RPM = 60.0 / (2.0 * math.pi)
-SIGNALS = (
-    "pitch_deg",
-    "pitch_rate_deg_s",
-    "wheel_rpm",
-    "wheel_torque_nm",
-    *(f"{j}_deg" for j in LEG_JOINTS),
-    *(f"{j}_torque_nm" for j in LEG_JOINTS),
-    "foot_L_n",
-    "foot_R_n",
-)
-SIGNALS_COMPONENT = "signals"
+SIGNALS_F32 = ("pitch_deg", "pitch_rate_deg_s", "wheel_rpm", "wheel_torque_nm")
+SIGNALS_F16 = (*(f"{j}_deg" for j in LEG_JOINTS), *(f"{j}_torque_nm" for j in LEG_JOINTS), "foot_L_n", "foot_R_n")
+SIGNALS = SIGNALS_F32 + SIGNALS_F16
 EVENT_LEVELS = {"fall": "ERROR", "error": "ERROR", "diverged": "WARN", "disturbance": "WARN"}
-VIEWER_WAIT_S = 10.0  # s to wait for a viewer process to listen
+VIEWER_WAIT_S = 10.0  # s for a viewer process to start listening
+BLUE, ORANGE, GREEN, RED, PURPLE = (31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189)
 
 
 class TelemetryError(RuntimeError):
@@ -102,7 +95,7 @@ def check_writable(path: str | Path) -> Path:
     if not p.parent.is_dir():
         raise ValueError(f"cannot write recording {str(p)!r}: directory {str(p.parent)!r} does not exist")
     existed = p.exists()
-    try:  # really open it: permission bits lie for root, read-only mounts and ACLs
+    try:  # really open it: permission bits say little for root, read-only mounts or ACLs
         with open(p, "ab"):
             pass
     except OSError as exc:
@@ -113,15 +106,13 @@ def check_writable(path: str | Path) -> Path:
 
 
 def session_path(folder: str | Path, prefix: str = "hopper") -> Path:
-    """A new timestamped path `folder/prefix-YYYYmmdd-HHMMSS.rrd` (folder created, never an existing file)."""
+    """A new path `folder/prefix-YYYYmmdd-HHMMSS.rrd` (folder created; never an existing file)."""
     directory = Path(folder).expanduser()
     directory.mkdir(parents=True, exist_ok=True)
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
-    path = directory / f"{prefix}-{stamp}.rrd"
-    n = 2
+    path, n = directory / f"{prefix}-{stamp}.rrd", 2
     while path.exists():
-        path = directory / f"{prefix}-{stamp}-{n}.rrd"
-        n += 1
+        path, n = directory / f"{prefix}-{stamp}-{n}.rrd", n + 1
     return path
 
 
@@ -130,10 +121,10 @@ def exit_on_sigterm() -> None:
     """Make SIGTERM raise SystemExit(143) in the main thread, so `with`/`finally` close recordings.
 
     Python's default SIGTERM action kills the process without unwinding; Ctrl-C (SIGINT) already
-    raises KeyboardInterrupt. Call from the main thread, before the simulation starts.
+    raises KeyboardInterrupt. Call from the main thread before the simulation starts.
     """
 
-    def handler(signum: int, frame: Any) -> None:
+    def handler(signum: int, frame: object) -> None:
         raise SystemExit(128 + signum)
 
     signal.signal(signal.SIGTERM, handler)
@@ -141,36 +132,36 @@ def exit_on_sigterm() -> None:
 
 @contextlib.contextmanager
 def _deferred_signals() -> Iterator[None]:
-    """Hold SIGINT and SIGTERM while a batch is sent or the file finalised, then re-deliver them.
+    """Hold SIGINT and SIGTERM while a batch is sent or the file finalised, then deliver them.
 
     An interrupt in the middle of a send would lose or duplicate part of a batch. Only the main
-    thread can install handlers; elsewhere (and under a foreign handler) this does nothing.
+    thread can install handlers; in other threads this does nothing.
     """
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     pending: list[int] = []
-    saved = {}
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        saved[sig] = signal.signal(sig, lambda signum, frame: pending.append(signum))
+    saved = {
+        sig: signal.signal(sig, lambda signum, _: pending.append(signum)) for sig in (signal.SIGINT, signal.SIGTERM)
+    }
     try:
         yield
     finally:
         for sig, handler in saved.items():
             signal.signal(sig, handler)
-        for sig in pending[:1]:
-            signal.raise_signal(sig)
+        if pending:
+            signal.raise_signal(pending[0])
 
 
 # -- viewers -------------------------------------------------------------------------------------
 def _rerun_executable() -> str:
-    """The rerun CLI shipped with rerun-sdk (same version as the SDK), else one on PATH."""
+    """The rerun CLI shipped with rerun-sdk (the SDK's own version), else one on PATH."""
     import rerun_cli
 
     bundled = Path(rerun_cli.__file__).parent / ("rerun.exe" if sys.platform == "win32" else "rerun")
     found = str(bundled) if bundled.exists() else shutil.which("rerun")
     if found is None:
-        raise TelemetryError("the rerun CLI is not installed (it comes with the rerun-sdk package)")
+        raise TelemetryError("the rerun CLI is missing (it comes with the rerun-sdk package)")
     return found
 
 
@@ -190,6 +181,7 @@ def _wait_for_port(port: int, process: subprocess.Popen[bytes], what: str) -> No
                 return
         time.sleep(0.05)
     process.terminate()
+    process.wait()
     raise TelemetryError(f"{what} did not listen on 127.0.0.1:{port} within {VIEWER_WAIT_S:g} s")
 
 
@@ -199,12 +191,14 @@ def _has_display() -> bool:
 
 # -- arrow columns -------------------------------------------------------------------------------
 class _Column:
-    """A ready-made component column for rr.send_columns (the archetype helpers cost ~100 us each)."""
+    """A ready-made component column for rr.send_columns: one `per_row` slice of `values` a row.
 
-    def __init__(self, descriptor: rr.ComponentDescriptor, values: pa.Array, lengths: int = 1) -> None:
-        self.descriptor = descriptor
-        offsets = np.arange(0, len(values) + 1, lengths, dtype=np.int32)
-        self.array = pa.ListArray.from_arrays(offsets, values)
+    The archetypes' .columns() helpers convert element by element in Python, ~100x slower.
+    """
+
+    def __init__(self, descriptor: rr.ComponentDescriptor | str, values: pa.Array, per_row: int = 1) -> None:
+        self.descriptor = rr.ComponentDescriptor(descriptor) if isinstance(descriptor, str) else descriptor
+        self.array = pa.ListArray.from_arrays(np.arange(0, len(values) + 1, per_row, dtype=np.int32), values)
 
     def component_descriptor(self) -> rr.ComponentDescriptor:
         return self.descriptor
@@ -214,33 +208,39 @@ class _Column:
 
 
 def _vectors(values: np.ndarray) -> pa.Array:
-    """(n, k) floats as Arrow fixed-size lists of float32, rerun's Vec3D/Quaternion layout."""
-    n, k = values.shape
+    """(n, k) floats as Arrow fixed-size lists of float32: rerun's Vec3D and Quaternion layout."""
+    k = values.shape[-1]
     flat = pa.array(np.ascontiguousarray(values, dtype=np.float32).ravel())
     return pa.FixedSizeListArray.from_arrays(flat, type=pa.list_(pa.field("item", pa.float32(), False), k))
 
 
-def _durations(ns: np.ndarray) -> rr.TimeColumn:
-    return rr.TimeColumn(TIME, duration=ns.astype("timedelta64[ns]"))
+def _times(ns: np.ndarray | list[int], hops: np.ndarray | list[int] | None = None) -> list[rr.TimeColumn]:
+    columns = [rr.TimeColumn(TIME, duration=np.asarray(ns, dtype=np.int64).astype("timedelta64[ns]"))]
+    if hops is not None:
+        columns.append(rr.TimeColumn(HOP, sequence=hops))
+    return columns
 
 
 _TRANSLATION = rr.Transform3D.descriptor_translation()
 _QUATERNION = rr.Transform3D.descriptor_quaternion()
+_CHILD_FRAME = rr.Transform3D.descriptor_child_frame()
 _STRIPS = rr.LineStrips3D.descriptor_strips()
 _SCALARS = rr.Scalars.descriptor_scalars()
-_SIGNALS = rr.ComponentDescriptor(SIGNALS_COMPONENT)
+_TEXT = rr.TextLog.descriptor_text()
+_LEVEL = rr.TextLog.descriptor_level()
+_STATE = rr.StateChange.descriptor_state()
 
 
 # -- blueprint -----------------------------------------------------------------------------------
-def _signal_lines(*fields: tuple[str, str, tuple[int, int, int]]) -> list[Any]:
-    """One line visualizer per (struct field, legend name, colour) of the `signals` entity."""
+def _lines(*fields: tuple[str, str, tuple[int, int, int]]) -> list[Any]:
+    """One line visualizer per (struct field of `signals`, legend name, colour)."""
     return [
-        rr.SeriesLines(names=name, colors=[color], widths=1.5).visualizer(
+        rr.SeriesLines(names=name, colors=[color]).visualizer(
             mappings=[
                 VisualizerComponentMapping(
                     target=str(_SCALARS.component),
                     source_kind=ComponentSourceKind.SourceComponent,
-                    source_component=SIGNALS_COMPONENT,
+                    source_component="signals",
                     selector=f".{field}",
                 )
             ]
@@ -249,27 +249,21 @@ def _signal_lines(*fields: tuple[str, str, tuple[int, int, int]]) -> list[Any]:
     ]
 
 
-def _signal_view(name: str, *fields: tuple[str, str, tuple[int, int, int]], extra: str | None = None) -> rrb.View:
+def _plot(name: str, *fields: tuple[str, str, tuple[int, int, int]], extra: str | None = None) -> rrb.View:
     contents = ["/signals", extra] if extra else ["/signals"]
-    return rrb.TimeSeriesView(
-        name=name, origin="/", contents=contents, overrides={"/signals": _signal_lines(*fields)}, plot_legend=True
-    )
-
-
-BLUE, ORANGE, GREEN, RED, PURPLE = (31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189)
+    return rrb.TimeSeriesView(name=name, origin="/", contents=contents, overrides={"/signals": _lines(*fields)})
 
 
 def default_blueprint() -> rrb.Blueprint:
-    """3D view and hop table on the left; pitch, wheel speed, torque and phases on the right."""
-    legs = [(f"{j}_deg", j, c) for j, c in zip(LEG_JOINTS, (BLUE, ORANGE, GREEN, RED), strict=True)]
-    leg_torques = [(f"{j}_torque_nm", j, c) for j, c in zip(LEG_JOINTS, (BLUE, ORANGE, GREEN, RED), strict=True)]
-    world = rrb.Spatial3DView(
+    """Robot and hop table on the left; pitch, wheel speed and torque, more plots, phases, events."""
+    colors = (BLUE, ORANGE, GREEN, RED)
+    robot = rrb.Spatial3DView(
         name="robot",
         origin="/world",
-        # A side view from -y that follows the torso; the trail shows all history up to the cursor.
+        # From the -y side, following the torso; the trail shows everything up to the time cursor.
         eye_controls=rrb.EyeControls3D(
-            position=(0.0, -4.0, 1.2),
-            look_target=(0.0, 0.0, 0.6),
+            position=(0.0, -3.5, 1.2),
+            look_target=(0.0, 0.0, 0.7),
             eye_up=(0, 0, 1),
             tracking_entity="/world/robot/torso",
         ),
@@ -277,33 +271,28 @@ def default_blueprint() -> rrb.Blueprint:
             TIME, start=rrb.TimeRangeBoundary.infinite(), end=rrb.TimeRangeBoundary.cursor_relative()
         ),
     )
+    hops = rrb.DataframeView(name="hop metrics", origin="/hops", query=rrb.archetypes.DataframeQuery(timeline=HOP))
     return rrb.Blueprint(
         rrb.Horizontal(
+            rrb.Vertical(robot, hops, row_shares=[3, 2]),
             rrb.Vertical(
-                world,
+                _plot("pitch (deg)", ("pitch_deg", "pitch", BLUE)),
+                _plot("wheel speed (rpm)", ("wheel_rpm", "wheel", PURPLE)),
+                _plot("wheel torque (N m)", ("wheel_torque_nm", "torque", ORANGE), extra="/limits/wheel_torque"),
                 rrb.Tabs(
-                    rrb.DataframeView(
-                        name="hop metrics", origin="/hops", query=rrb.archetypes.DataframeQuery(timeline=HOP)
+                    _plot("pitch rate (deg/s)", ("pitch_rate_deg_s", "pitch rate", GREEN)),
+                    _plot("leg angles (deg)", *[(f"{j}_deg", j, c) for j, c in zip(LEG_JOINTS, colors, strict=True)]),
+                    _plot(
+                        "leg torques (N m)",
+                        *[(f"{j}_torque_nm", j, c) for j, c in zip(LEG_JOINTS, colors, strict=True)],
                     ),
-                    rrb.TextLogView(name="events", origin="/events"),
-                ),
-                row_shares=[3, 2],
-            ),
-            rrb.Vertical(
-                _signal_view("pitch (deg)", ("pitch_deg", "pitch", BLUE)),
-                _signal_view("wheel speed (rpm)", ("wheel_rpm", "wheel", PURPLE)),
-                _signal_view("wheel torque (N m)", ("wheel_torque_nm", "torque", ORANGE), extra="/limits/wheel_torque"),
-                rrb.Tabs(
-                    _signal_view("pitch rate (deg/s)", ("pitch_rate_deg_s", "pitch rate", GREEN)),
-                    _signal_view("leg angles (deg)", *legs),
-                    _signal_view("leg torques (N m)", *leg_torques),
-                    _signal_view("foot forces (N)", ("foot_L_n", "left", BLUE), ("foot_R_n", "right", RED)),
+                    _plot("foot forces (N)", ("foot_L_n", "left", BLUE), ("foot_R_n", "right", RED)),
                 ),
                 rrb.StateTimelineView(name="phase", origin="/phase"),
                 row_shares=[3, 3, 3, 3, 1],
             ),
-            rrb.TextLogView(name="event log", origin="/events"),
-            column_shares=[5, 5, 2],
+            rrb.TextLogView(name="events", origin="/events"),
+            column_shares=[5, 5, 3],
         ),
         collapse_panels=True,
     )
@@ -320,9 +309,9 @@ def _close_all() -> None:  # a forgotten close() must not cost the file its foot
 
 
 class Telemetry:
-    """Records one Simulation to rerun; attaches itself to `sim.listeners` until `close()`.
+    """Records one Simulation to rerun; adds itself to `sim.listeners` until `close()`.
 
-    tick() only appends three lists per tick (~1 us); every BATCH_TICKS the batch is converted
+    tick() appends three flat lists (~1.5 us); every `batch_ticks` ticks the batch is converted
     with numpy and sent with rr.send_columns. Call close() (or use `with`) from the thread that
     steps the simulation, or while it is not stepping (e.g. through `sim.submit`).
     """
@@ -344,31 +333,40 @@ class Telemetry:
             raise ValueError(f"batch_ticks must be a positive multiple of {POSE_EVERY_TICKS}, got {batch_ticks}")
         self.sim = sim
         self.path = check_writable(path) if path is not None else None
-        self.viewer_url: str | None = None  # web viewer address with viewer="serve"
+        self.viewer_url: str | None = None  # the web viewer's address with viewer="serve"
         self._batch = batch_ticks
         self._lock = threading.Lock()
         self._closed = False
         self._web: subprocess.Popen[bytes] | None = None
+        self._warned = False
 
-        model, data = sim.model, sim.data
+        data = sim.data
         self._data = data
+        # Cached views: MjData's array properties build a new numpy object on every access.
         self._sensordata, self._force, self._qpos = data.sensordata, data.actuator_force, data.qpos
-        self._dt_ns = round(model.opt.timestep * 1e9)
-        self._meshes = body_meshes(model)
+        self._xpos, self._xquat = data.xpos.reshape(-1), data.xquat.reshape(-1)
+        self._dt_ns = round(sim.model.opt.timestep * 1e9)
+        self._meshes = body_meshes(sim.model)
         self._layout(sim)
-        self._sens_rows: list[list[float]] = []
-        self._force_rows: list[list[float]] = []
-        self._qpos_rows: list[list[float]] = []
-        self._poses: list[tuple[int, np.ndarray, np.ndarray]] = []  # (row, xpos (n, 3), xquat wxyz (n, 4))
-        self._carry_qpos = self._qpos.tolist()  # state at the next row's time (see module docstring)
-        self._offset_ns = 0  # sim_time minus data.time, grows at each reset
+        self._n = 0  # ticks buffered
+        self._sens: list[float] = []
+        self._forces: list[float] = []
+        self._qpos_rows: list[float] = []
+        self._pose_rows: list[int] = []
+        self._pose_xpos: list[float] = []
+        self._pose_xquat: list[float] = []
+        self._events: list[tuple[int, int, str, str, str]] = []  # (time ns, hop, kind, level, text)
+        self._phases: list[tuple[int, int, str]] = []  # (time ns, hop, label)
+        self._hop_rows: list[tuple[int, int, dict[str, float | int | bool]]] = []
+        self._carry_qpos = self._qpos.tolist()  # qpos at the next row's time (module docstring)
+        self._offset_ns = 0  # sim_time minus data.time; grows at each reset
         self._next_ns = self._data_ns()  # sim_time of the next row
-        self._last_torso: np.ndarray | None = None
+        self._last_torso: list[float] | None = None
         self._hops = 0
         self._phase_key: object = None
         self._phase_probe = self._make_phase_probe(sim)
 
-        self.rec = rr.RecordingStream(APPLICATION_ID, send_properties=True)
+        self.rec = rr.RecordingStream(APPLICATION_ID)
         self.rec.set_log_tick_enabled(False)  # only our two timelines
         self.rec.set_log_time_enabled(False)
         try:
@@ -378,49 +376,56 @@ class Telemetry:
             raise
         self.rec.send_recording_name(recording_name or f"hopper {sim.config.terrain} seed {sim.config.seed}")
         self._log_static(sim)
-        self._set_time(self._next_ns)
-        self._log_limits(np.array([self._next_ns]))
-        self._check_phase()
+        self._check_phase(self._next_ns)
         sim.listeners.append(self)
         _open.add(self)
 
     # -- setup -----------------------------------------------------------------------------
     def _layout(self, sim: Simulation) -> None:
-        """Column indices into MjData's arrays, looked up by name so model reordering is harmless."""
+        """Indices into MjData's arrays, looked up by name so that reordering the model is harmless."""
         m = sim.model
-        s = {name: int(m.sensor(name).adr[0]) for name in ("imu_pitch", "imu_gyro", "wheel_speed", "foot_L", "foot_R")}
-        self._i_pitch, self._i_rate, self._i_wheel = s["imu_pitch"], s["imu_gyro"] + 1, s["wheel_speed"]
-        self._i_feet = [s["foot_L"], s["foot_R"]]
-        self._i_wheel_force = int(m.actuator("wheel").id)
-        self._wheel_gear = float(m.actuator("wheel").gear[0])
+        sensor = {n: int(m.sensor(n).adr[0]) for n in ("imu_pitch", "imu_gyro", "wheel_speed", "foot_L", "foot_R")}
+        self._nsens, self._nu, self._nq = m.nsensordata, m.nu, m.nq
+        self._i_pitch, self._i_rate, self._i_wheel = sensor["imu_pitch"], sensor["imu_gyro"] + 1, sensor["wheel_speed"]
+        self._i_feet = [sensor["foot_L"], sensor["foot_R"]]
+        self._i_wheel_force, self._wheel_gear = int(m.actuator("wheel").id), float(m.actuator("wheel").gear[0])
         self._i_leg_force = [int(m.actuator(j).id) for j in LEG_JOINTS]
         self._i_leg_qpos = [int(m.joint(j).qposadr[0]) for j in LEG_JOINTS]
-        self._i_torso = next(i for i, mesh in enumerate(self._meshes) if mesh.name == "torso")
+        self._body_ids = [mesh.body_id for mesh in self._meshes]
+        self._torso = self._body_ids[[mesh.name for mesh in self._meshes].index("torso")]
+        self._nbody = m.nbody
 
     def _sinks(self, viewer: str) -> list[Any]:
         sinks: list[Any] = [rr.FileSink(str(self.path))] if self.path is not None else []
-        exe = _rerun_executable() if viewer != "off" else ""
         if viewer == "spawn":
             if not _has_display():
                 raise TelemetryError("viewer='spawn' needs a display (DISPLAY is not set); use viewer='serve'")
             port = _free_port()
             process = subprocess.Popen(
-                [exe, "--bind", "127.0.0.1", "--port", str(port), "--expect-data-soon"],
+                [_rerun_executable(), "--bind", "127.0.0.1", "--port", str(port), "--expect-data-soon"],
                 stdin=subprocess.DEVNULL,
                 stdout=subprocess.DEVNULL,
                 stderr=subprocess.DEVNULL,
-                start_new_session=True,  # the viewer outlives the run, and Ctrl-C here
+                start_new_session=True,  # the window outlives the run and ignores our Ctrl-C
             )
             _wait_for_port(port, process, "the rerun viewer")
             sinks.append(rr.GrpcSink(f"rerun+http://127.0.0.1:{port}/proxy"))
         elif viewer == "serve":
-            # rr.serve_web_viewer binds 0.0.0.0; the CLI's web server takes --bind. The gRPC server
-            # lives in this process (bound to loopback); the CLI only serves the viewer's assets.
+            # rr.serve_web_viewer binds 0.0.0.0, the CLI's web server takes --bind: the gRPC server
+            # lives in this process on loopback, the CLI only serves the viewer's files.
             server = rr.GrpcServerSink(bind_ip="127.0.0.1", port=_free_port())
             sinks.append(server)
             web_port = _free_port()
             self._web = subprocess.Popen(
-                [exe, "--serve-web", "--bind", "127.0.0.1", "--web-viewer-port", str(web_port), server.uri],
+                [
+                    _rerun_executable(),
+                    "--serve-web",
+                    "--bind",
+                    "127.0.0.1",
+                    "--web-viewer-port",
+                    str(web_port),
+                    server.uri,
+                ],
                 stdin=subprocess.DEVNULL,
                 stdout=subprocess.DEVNULL,
                 stderr=subprocess.DEVNULL,
@@ -434,180 +439,195 @@ class Telemetry:
         rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         terrain = terrain_mesh(sim.heights, sim.config.craters)
         rec.log("world/terrain", _mesh3d(terrain.vertices, terrain.faces, terrain.visual.vertex_colors), static=True)
-        for mesh in self._meshes:
-            rec.log(f"world/robot/{mesh.name}", _mesh3d(mesh.vertices, mesh.faces, mesh.colors), static=True)
-        rec.log(
-            "limits/wheel_torque",
-            rr.SeriesLines(names=["+limit", "-limit"], colors=[RED, RED], widths=1.0),
-            static=True,
-        )
+        for mesh in self._meshes:  # each body mesh lives in its own frame, posed by world/tf
+            rec.log(
+                f"world/robot/{mesh.name}",
+                _mesh3d(mesh.vertices, mesh.faces, mesh.colors),
+                rr.CoordinateFrame(mesh.name),
+                static=True,
+            )
+        rec.log("limits/wheel_torque", rr.SeriesLines(names=["+limit", "-limit"], colors=[RED, RED]), static=True)
         c = sim.config
         rec.send_property(
             "config",
-            rr.AnyValues(
-                terrain=c.terrain,
-                seed=c.seed,
-                gravity=c.gravity,
-                kp=c.gains.kp,
-                ki=c.gains.ki,
-                kd=c.gains.kd,
-                wheel=c.wheel,
-                timestep=c.timestep,
-            ),
+            rr.AnyValues(terrain=c.terrain, seed=c.seed, gravity=c.gravity, wheel=c.wheel, timestep=c.timestep),
         )
+        self._send_limits([self._next_ns])
 
     @staticmethod
-    def _make_phase_probe(sim: Simulation) -> Any:
-        """A cheap callable whose value changes when the phase does (sim.phase costs ~2 us)."""
+    def _make_phase_probe(sim: Simulation) -> Callable[[], object]:
+        """A cheap callable whose value changes with the phase (`sim.phase` costs ~2 us a call)."""
         from hopper import controller
 
         state, slot = getattr(sim.controller, "state", None), getattr(controller, "K_PHASE", None)
         if isinstance(state, np.ndarray) and isinstance(slot, int):
-            return lambda: state[slot]  # the kernel's phase slot, ~0.1 us
+            return lambda: state[slot]  # the control kernel's phase slot, ~0.1 us
         return lambda: sim.phase
 
     # -- Listener --------------------------------------------------------------------------
     def tick(self, sim: Simulation) -> None:
-        """Buffer one tick; the hot path: three tolist() and appends."""
-        self._sens_rows.append(self._sensordata.tolist())
-        self._force_rows.append(self._force.tolist())
-        self._qpos_rows.append(self._qpos.tolist())
+        """Buffer one tick. The hot path: three tolist() and extends, a phase probe, a counter."""
+        self._sens += self._sensordata.tolist()
+        self._forces += self._force.tolist()
+        self._qpos_rows += self._qpos.tolist()
+        n = self._n = self._n + 1
         if self._phase_probe() != self._phase_key:
-            self._check_phase(len(self._sens_rows) - 1)
-        n = len(self._sens_rows)
+            self._check_phase(self._next_ns + (n - 1) * self._dt_ns)
         if n % POSE_EVERY_TICKS == 0:
-            xpos, xquat = body_poses(sim.model, self._data, self._meshes)
-            self._poses.append((n - 1, xpos, xquat))
+            self._pose_rows.append(n - 1)
+            self._pose_xpos += self._xpos.tolist()
+            self._pose_xquat += self._xquat.tolist()
             if n >= self._batch:
-                self.flush(finalize=False)
+                self.flush(wait=False)
 
     def event(self, sim: Simulation, event: Event) -> None:
-        """Log an event as text (and a hop's metrics at touchdown); a reset restarts the rows."""
+        """Buffer an event's text (and a finished hop's metrics); a reset sends the ticks before it."""
         if self._closed:
             return
         if event.kind == "reset":
-            self.flush(finalize=False)  # rows before the reset keep their times
+            self.flush(wait=False)  # rows before the reset keep their times
             self._offset_ns = self._next_ns - self._data_ns()
             self._carry_qpos = self._qpos.tolist()
+            self._last_torso = None
         t_ns = round(event.time * 1e9) + self._offset_ns
         hop = event.data.get("hop")
         if hop is not None:
             self._hops += 1
-        self._set_time(t_ns)
-        self.rec.log(
-            "events",
-            rr.TextLog(_describe(event), level=EVENT_LEVELS.get(event.kind, "INFO")),
-            rr.AnyValues(kind=event.kind),
-        )
-        if hop is not None:
-            for name, value in hop.as_dict().items():
-                self.rec.log(f"hops/{name}", rr.Scalars(float(value)))
-        if event.kind in ("reset", "liftoff", "touchdown", "fall"):
-            self._check_phase(row=None, t_ns=t_ns)
+            self._hop_rows.append((t_ns, self._hops, hop.as_dict()))
+        self._events.append((t_ns, self._hops, event.kind, EVENT_LEVELS.get(event.kind, "INFO"), _describe(event)))
+        self._check_phase(t_ns)
 
-    # -- phases ----------------------------------------------------------------------------
-    def _check_phase(self, row: int | None = None, t_ns: int | None = None) -> None:
+    def _check_phase(self, t_ns: int) -> None:
         key = self._phase_probe()
-        if key == self._phase_key:
-            return
-        self._phase_key = key
-        if t_ns is None:
-            t_ns = self._next_ns + (row or 0) * self._dt_ns
-        self._set_time(t_ns)
-        self.rec.log("phase", rr.StateChange(state=self.sim.phase.label))
+        if key != self._phase_key:
+            self._phase_key = key
+            self._phases.append((t_ns, self._hops, self.sim.phase.label))
 
     # -- sending ---------------------------------------------------------------------------
-    def flush(self, finalize: bool = True) -> None:
-        """Send the buffered ticks now (`finalize`: also wait until the sinks have written them)."""
+    def flush(self, wait: bool = True) -> None:
+        """Send everything buffered now; `wait` until the sinks have written it."""
         with self._lock, _deferred_signals():
             if self._closed:
                 return
-            self._send_batch()
-            if finalize:
+            self._send()
+            if wait:
                 self.rec.flush()
 
-    def _send_batch(self) -> None:
-        sens, force, qpos, poses = self._sens_rows, self._force_rows, self._qpos_rows, self._poses
-        n = min(len(sens), len(force), len(qpos))  # an interrupt may land between the appends
-        if n == 0:
-            return
-        self._sens_rows, self._force_rows, self._qpos_rows, self._poses = [], [], [], []
-        times = self._next_ns + np.arange(n, dtype=np.int64) * self._dt_ns
-        self._next_ns += n * self._dt_ns
-        s = np.array(sens[:n])
-        f = np.array(force[:n])
-        q = np.array([self._carry_qpos, *qpos[: n - 1]])
-        self._carry_qpos = qpos[n - 1]
+    def _send(self) -> None:
+        n = min(
+            self._n, len(self._sens) // self._nsens, len(self._forces) // self._nu, len(self._qpos_rows) // self._nq
+        )
+        sens, forces, qpos = self._sens, self._forces, self._qpos_rows
+        rows, xpos, xquat = self._pose_rows, self._pose_xpos, self._pose_xquat
+        events, phases, hop_rows = self._events, self._phases, self._hop_rows
+        # Swap before sending: an exception mid-send must not make the next flush send it twice.
+        self._sens, self._forces, self._qpos_rows, self._n = [], [], [], 0
+        self._pose_rows, self._pose_xpos, self._pose_xquat = [], [], []
+        self._events, self._phases, self._hop_rows = [], [], []
+        if n:
+            times = self._next_ns + np.arange(n, dtype=np.int64) * self._dt_ns
+            self._next_ns += n * self._dt_ns
+            self._send_signals(times, sens, forces, qpos, n)
+            self._send_limits(times[-1:])
+            k = sum(1 for r in rows if r < n)  # an interrupt may leave a pose without its tick
+            if k:
+                self._send_poses(times[rows[:k]], xpos, xquat, k)
+        if events:
+            t, h, kinds, levels, texts = zip(*events, strict=True)
+            columns = [
+                _Column(_TEXT, pa.array(texts)),
+                _Column(_LEVEL, pa.array(levels)),
+                _Column("kind", pa.array(kinds)),
+            ]
+            rr.send_columns("events", _times(t, h), columns, recording=self.rec)
+        if phases:
+            t, h, labels = zip(*phases, strict=True)
+            rr.send_columns("phase", _times(t, h), [_Column(_STATE, pa.array(labels))], recording=self.rec)
+        if hop_rows:
+            t, h, metrics = zip(*hop_rows, strict=True)
+            columns = [
+                _Column(
+                    rr.ComponentDescriptor(name, archetype="hopper.HopMetrics"),
+                    pa.array([float(m[name]) for m in metrics]),
+                )
+                for name in metrics[0]
+            ]
+            rr.send_columns("hops", _times(t, h), columns, recording=self.rec)
+        expected = self._data_ns() + self._offset_ns
+        if n and expected != self._next_ns and not self._closed:
+            # Steps without tick() (or a time jump): re-anchor rather than drift, and say so once.
+            if not self._warned:
+                log.warning(
+                    "telemetry missed %d ticks; re-anchoring sim_time", (expected - self._next_ns) // self._dt_ns
+                )
+                self._warned = True
+            self._next_ns = expected
+
+    def _send_signals(
+        self, times: np.ndarray, sens: list[float], forces: list[float], qpos: list[float], n: int
+    ) -> None:
+        s = np.array(sens[: n * self._nsens]).reshape(n, self._nsens)
+        f = np.array(forces[: n * self._nu]).reshape(n, self._nu)
+        q = np.array(self._carry_qpos + qpos[: (n - 1) * self._nq]).reshape(n, self._nq)
+        self._carry_qpos = qpos[(n - 1) * self._nq : n * self._nq]
         columns = {
             "pitch_deg": np.degrees(s[:, self._i_pitch]),
             "pitch_rate_deg_s": np.degrees(s[:, self._i_rate]),
             "wheel_rpm": s[:, self._i_wheel] * RAD_S_TO_RPM,
             "wheel_torque_nm": f[:, self._i_wheel_force] * self._wheel_gear,
+            "foot_L_n": s[:, self._i_feet[0]],
+            "foot_R_n": s[:, self._i_feet[1]],
         }
         for j, qi, fi in zip(LEG_JOINTS, self._i_leg_qpos, self._i_leg_force, strict=True):
-            columns[f"{j}_deg"] = np.degrees(q[:, qi])
-            columns[f"{j}_torque_nm"] = f[:, fi]
-        columns["foot_L_n"], columns["foot_R_n"] = s[:, self._i_feet[0]], s[:, self._i_feet[1]]
-        struct = pa.StructArray.from_arrays(
-            [pa.array(columns[name].astype(np.float32)) for name in SIGNALS], names=list(SIGNALS)
-        )
-        rr.send_columns("signals", [_durations(times)], [_Column(_SIGNALS, struct)], recording=self.rec)
-        self._log_limits(times[[0, -1]])
-        poses = [p for p in poses if p[0] < n]
-        if poses:
-            pose_times = _durations(times[[p[0] for p in poses]])
-            xpos = np.stack([p[1] for p in poses])  # (k, bodies, 3)
-            xquat = np.stack([p[2] for p in poses])[..., [1, 2, 3, 0]]  # wxyz -> rerun's xyzw
-            for b, mesh in enumerate(self._meshes):
-                rr.send_columns(
-                    f"world/robot/{mesh.name}",
-                    [pose_times],
-                    [_Column(_TRANSLATION, _vectors(xpos[:, b])), _Column(_QUATERNION, _vectors(xquat[:, b]))],
-                    recording=self.rec,
-                )
-            torso = xpos[:, self._i_torso]
-            trail = torso if self._last_torso is None else np.vstack([self._last_torso, torso])
-            self._last_torso = torso[-1]
-            strip = pa.ListArray.from_arrays(pa.array([0, len(trail)], pa.int32()), _vectors(trail))
-            rr.send_columns(
-                "world/trail", [_durations(times[[poses[-1][0]]])], [_Column(_STRIPS, strip)], recording=self.rec
-            )
-        expected = self._data_ns() + self._offset_ns
-        if expected != self._next_ns and not self._closed:
-            # Steps happened without tick() (or time jumped): re-anchor rather than drift.
-            log.warning("telemetry lost %d ticks; re-synchronising sim_time", (expected - self._next_ns) // self._dt_ns)
-            self._next_ns = expected
+            columns[f"{j}_deg"], columns[f"{j}_torque_nm"] = np.degrees(q[:, qi]), f[:, fi]
+        arrays = [pa.array(columns[k].astype(np.float32)) for k in SIGNALS_F32]
+        arrays += [pa.array(columns[k].astype(np.float16)) for k in SIGNALS_F16]
+        struct = pa.StructArray.from_arrays(arrays, names=list(SIGNALS))
+        rr.send_columns("signals", _times(times), [_Column("signals", struct)], recording=self.rec)
 
-    def _log_limits(self, times: np.ndarray) -> None:
-        limits = np.tile([WHEEL_TORQUE_LIMIT, -WHEEL_TORQUE_LIMIT], len(times))
-        rr.send_columns(
-            "limits/wheel_torque",
-            [_durations(times)],
-            [_Column(_SCALARS, pa.array(limits), lengths=2)],
+    def _send_poses(self, times: np.ndarray, xpos: list[float], xquat: list[float], k: int) -> None:
+        ids = self._body_ids
+        p = np.array(xpos[: k * self._nbody * 3]).reshape(k, self._nbody, 3)
+        q = np.array(xquat[: k * self._nbody * 4]).reshape(k, self._nbody, 4)[:, ids][..., [1, 2, 3, 0]]  # wxyz -> xyzw
+        nb = len(ids)
+        frames = pa.array([mesh.name for mesh in self._meshes] * k)
+        rr.send_columns(  # one row per body and sample: one chunk for all bodies
+            "world/tf",
+            _times(np.repeat(times, nb)),
+            [
+                _Column(_TRANSLATION, _vectors(p[:, ids].reshape(-1, 3))),
+                _Column(_QUATERNION, _vectors(q.reshape(-1, 4))),
+                _Column(_CHILD_FRAME, frames),
+            ],
             recording=self.rec,
         )
+        torso = p[:, self._torso]
+        trail = torso if self._last_torso is None else np.vstack([self._last_torso, torso])
+        self._last_torso = torso[-1].tolist()
+        strip = pa.ListArray.from_arrays(pa.array([0, len(trail)], pa.int32()), _vectors(trail))
+        rr.send_columns("world/trail", _times(times[-1:]), [_Column(_STRIPS, strip)], recording=self.rec)
 
-    def _set_time(self, t_ns: int) -> None:
-        self.rec.set_time(TIME, duration=np.timedelta64(t_ns, "ns"))
-        self.rec.set_time(HOP, sequence=self._hops)
+    def _send_limits(self, times: np.ndarray | list[int]) -> None:
+        limits = pa.array(np.tile([WHEEL_TORQUE_LIMIT, -WHEEL_TORQUE_LIMIT], len(times)))
+        rr.send_columns("limits/wheel_torque", _times(times), [_Column(_SCALARS, limits, 2)], recording=self.rec)
 
     def _data_ns(self) -> int:
         return round(self._data.time * 1e9)
 
     # -- closing ---------------------------------------------------------------------------
     def close(self) -> None:
-        """Send what is buffered, finalise the file (footer) and stop viewers; idempotent."""
+        """Send what is buffered, finalise the file (its footer) and stop viewers; idempotent."""
         with self._lock, _deferred_signals():
             if self._closed:
                 return
             with contextlib.suppress(ValueError):
                 self.sim.listeners.remove(self)
+            self._closed = True
             try:
-                self._closed = True
-                self._send_batch()
+                self._send()
                 self.rec.flush()
             finally:
-                self.rec.disconnect()  # writes the .rrd footer and stops the gRPC server
+                self.rec.disconnect()  # writes the .rrd footer, stops the gRPC server
                 self._stop_web()
                 _open.discard(self)
 
@@ -643,19 +663,15 @@ def _mesh3d(vertices: Any, faces: Any, colors: Any) -> rr.Mesh3D:
 
 
 def _describe(event: Event) -> str:
-    """One line for the event log, e.g. 'touchdown: hop 3, distance 0.95 m, peak pitch 4.2 deg'."""
+    """One line for the event log, e.g. 'touchdown: hop 3, distance 0.950 m, ...'."""
     data = event.data
     if event.kind in ("touchdown", "fall") and data.get("hop") is not None:
         h = data["hop"]
-        head = f"{event.kind}: hop {h.index}" + ("" if h.completed else " (fell)")
         return (
-            f"{head}, distance {h.distance_m:.3f} m, apex {h.apex_height_m:.3f} m, flight {h.flight_time_s:.3f} s, "
-            f"peak pitch {h.peak_pitch_deg:.2f} deg, landing {h.landing_pitch_deg:.2f} deg, "
-            f"saturation {h.saturation_time_s:.3f} s, peak wheel {h.peak_wheel_rpm:.0f} rpm"
+            f"{event.kind}: hop {h.index}{'' if h.completed else ' (fell)'}, distance {h.distance_m:.3f} m, "
+            f"apex {h.apex_height_m:.3f} m, flight {h.flight_time_s:.3f} s, peak pitch {h.peak_pitch_deg:.2f} deg, "
+            f"landing pitch {h.landing_pitch_deg:.2f} deg, saturation {h.saturation_time_s:.3f} s, "
+            f"peak wheel {h.peak_wheel_rpm:.0f} rpm"
         )
-    parts = [f"{k}={_fmt(v)}" for k, v in data.items() if k != "hop"]
+    parts = [f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in data.items() if k != "hop"]
     return f"{event.kind}: {', '.join(parts)}" if parts else event.kind
-
-
-def _fmt(value: object) -> str:
-    return f"{value:.4g}" if isinstance(value, float) else str(value)

@@ -23,7 +23,7 @@ class CraterParams:
     width: float = 2.0  # m; the robot is planar, the strip only needs to hold both feet
     x0: float = -2.0  # m; world x of the strip's -x edge
     cell: float = 0.05  # m; grid spacing, no smaller than the 4 cm foot radius
-    density: float = 0.35  # craters per m^2
+    density: float = 1.0  # craters per m^2
     diameter_range: tuple[float, float] = (0.3, 2.0)  # m
     depth_ratio_range: tuple[float, float] = (0.08, 0.2)  # depth / diameter
     rim_ratio_range: tuple[float, float] = (0.02, 0.04)  # rim height / diameter
@@ -111,8 +111,12 @@ def generate(params: CraterParams, rng: np.random.Generator) -> np.ndarray:
         depth = diameter * rng.uniform(*params.depth_ratio_range)
         rim = diameter * rng.uniform(*params.rim_ratio_range)
         # Only the crater's footprint (rho < 2) is evaluated.
-        ix = slice(max(0, int((cx - 2 * radius - xs[0]) / params.cell)), int((cx + 2 * radius - xs[0]) / params.cell) + 2)
-        iy = slice(max(0, int((cy - 2 * radius - ys[0]) / params.cell)), int((cy + 2 * radius - ys[0]) / params.cell) + 2)
+        ix = slice(
+            max(0, int((cx - 2 * radius - xs[0]) / params.cell)), int((cx + 2 * radius - xs[0]) / params.cell) + 2
+        )
+        iy = slice(
+            max(0, int((cy - 2 * radius - ys[0]) / params.cell)), int((cy + 2 * radius - ys[0]) / params.cell) + 2
+        )
         rho = np.hypot(xs[None, ix] - cx, ys[iy, None] - cy) / radius
         heights[iy, ix] += crater_profile(rho, depth, rim)
 

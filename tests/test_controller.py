@@ -42,9 +42,12 @@ def test_wheel_ctrl_inverts_the_motor_model() -> None:
 def test_contact_debounce_and_hysteresis() -> None:
     k = np.zeros(c.N_STATE)
     k[c.K_PENDING_L] = -1.0
-    seen = [c.debounce(f, i * 0.001, k, c.K_CONTACT_L, c.K_PENDING_L) for i, f in enumerate([5, 5, 5, 0.5, 0.1, 5, 0.1, 0.1, 0.1])]
-    # On after 2 ms of force; 0.5 N is above the off threshold; one low sample is not enough to leave.
-    assert seen == [False, False, True, True, True, True, True, True, False]
+    forces = [5, 5, 5, 0.5] + [0.1] * 10 + [5] + [0.1] * 16
+    seen = [c.debounce(f, i * 0.001, k, c.K_CONTACT_L, c.K_PENDING_L) for i, f in enumerate(forces)]
+    assert seen[:3] == [False, False, True]  # on after 2 ms above 1 N
+    assert seen[3] is True  # 0.5 N is above the 0.2 N off threshold
+    assert all(seen[4:15])  # a 10 ms gap, then a tap: the foot is still down
+    assert seen[15:29] == [True] * 14 and seen[30] is False  # off after 15 ms below 0.2 N
 
 
 def test_leg_jacobian_matches_finite_differences() -> None:

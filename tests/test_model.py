@@ -23,7 +23,9 @@ def test_masses_match_table_one() -> None:
     model = mujoco.MjModel.from_xml_path(str(MODEL_PATH))
     assert model.body_subtreemass[model.body("torso").id] == pytest.approx(8.2)
     masses = {n: model.body(n).mass[0] for n in ("torso", "wheel", "thigh_L", "shank_L", "thigh_R", "shank_R")}
-    assert masses == pytest.approx({"torso": 4.0, "wheel": 3.0, "thigh_L": 0.4, "shank_L": 0.2, "thigh_R": 0.4, "shank_R": 0.2})
+    assert masses == pytest.approx(
+        {"torso": 4.0, "wheel": 3.0, "thigh_L": 0.4, "shank_L": 0.2, "thigh_R": 0.4, "shank_R": 0.2}
+    )
     # Wheel: 3 kg disc of radius 0.15 m about its spin axis (the largest principal moment).
     assert model.body("wheel").inertia.max() == pytest.approx(0.5 * 3.0 * 0.15**2)
 

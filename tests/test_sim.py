@@ -21,7 +21,9 @@ def test_hops_forward_upright_on_flat_ground(flat_sim: Simulation) -> None:
         assert hop.saturation_time_s < 0.9
         # Apex of the hop close to the commanded v_z^2 / 2g (0.25 m minus the push's shortfall).
         assert 0.15 < hop.apex_height_m < 0.3
-        assert hop.flight_time_s == pytest.approx(2 * math.sqrt(2 * hop.apex_height_m / 1.625), rel=0.15)
+        # Up to the apex and down again, landing up to 0.15 m lower (legs reach down to land).
+        rise, fall = math.sqrt(2 * hop.apex_height_m / 1.625), math.sqrt(2 * (hop.apex_height_m + 0.15) / 1.625)
+        assert 2 * rise <= hop.flight_time_s <= rise + fall
 
 
 def test_same_seed_same_trajectory() -> None:

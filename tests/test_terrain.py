@@ -23,7 +23,10 @@ def test_strip_holds_twenty_hops_with_a_level_start() -> None:
     heights = generate(params, np.random.default_rng(0))
     assert heights.shape == params.shape
     assert params.length >= 20 * 0.8 + abs(params.x0)
-    start = slice(round((0.0 - params.x0 - params.clear_radius) / params.cell), round((params.clear_radius - params.x0) / params.cell))
+    start = slice(
+        round((0.0 - params.x0 - params.clear_radius) / params.cell),
+        round((params.clear_radius - params.x0) / params.cell),
+    )
     assert np.abs(heights[:, start]).max() < 1e-9  # the robot starts on level ground
     assert heights.min() < -0.03  # and there are real craters further on
 
@@ -48,7 +51,13 @@ def test_size_frequency_follows_inverse_square() -> None:
 
 @pytest.mark.parametrize(
     "kwargs",
-    [{"cell": 0.0}, {"density": -1.0}, {"diameter_range": (2.0, 1.0)}, {"length": float("nan")}, {"depth_ratio_range": (0.1, 0.9)}],
+    [
+        {"cell": 0.0},
+        {"density": -1.0},
+        {"diameter_range": (2.0, 1.0)},
+        {"length": float("nan")},
+        {"depth_ratio_range": (0.1, 0.9)},
+    ],
 )
 def test_invalid_parameters_raise_clear_errors(kwargs: dict) -> None:
     with pytest.raises(ValueError, match="invalid crater parameter"):

@@ -1,0 +1,73 @@
+"""`hopper-sim` as a user runs it: real processes, real files, one-line errors."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+HOP_KEYS = {
+    "distance_m",
+    "apex_height_m",
+    "flight_time_s",
+    "peak_pitch_deg",
+    "rms_pitch_rate_deg_s",
+    "landing_pitch_deg",
+    "saturation_time_s",
+    "peak_wheel_rpm",
+}
+
+
+def hopper_sim(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "app.sim_cli", *args], capture_output=True, text=True, timeout=300)
+
+
+def test_run_prints_a_table_and_writes_json(tmp_path) -> None:
+    out = tmp_path / "run.json"
+    result = hopper_sim("run", "--hops", "2", "--seed", "3", "--json", str(out))
+    assert result.returncode == 0, result.stderr
+    assert "peak deg" in result.stdout and "seed 3, wheel on: 2 hops" in result.stdout
+    data = json.loads(out.read_text())
+    assert {"seed", "wheel", "fell", "sim_time_s", "wall_time_s", "hops"} <= data.keys()
+    assert data["seed"] == 3 and data["wheel"] is True and data["fell"] is False
+    assert len(data["hops"]) == 2 and all(hop.keys() >= HOP_KEYS for hop in data["hops"])
+    assert 0.6 < data["hops"][1]["distance_m"] < 1.0
+
+
+def test_wheel_off_run_reports_the_fall_and_its_flight(tmp_path) -> None:
+    out = tmp_path / "off.json"
+    result = hopper_sim("run", "--hops", "3", "--no-wheel", "--terrain", "flat", "--json", str(out))
+    assert result.returncode == 0, result.stderr
+    data = json.loads(out.read_text())
+    assert data["fell"] is True and data["wheel"] is False
+    assert data["hops"][-1]["completed"] is False and data["hops"][-1]["peak_pitch_deg"] > 30
+
+
+def test_compare_reports_the_median_reduction(tmp_path) -> None:
+    out = tmp_path / "compare.json"
+    result = hopper_sim("compare", "--seeds", "2", "--hops", "1", "--json", str(out))
+    assert result.returncode == 0, result.stderr
+    data = json.loads(out.read_text())
+    assert data["median_peak_reduction_pct"] > 65
+    assert len(data["runs"]) == 4 and {r["wheel"] for r in data["runs"]} == {True, False}
+    assert "median reduction" in result.stdout
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["run", "--kp", "-5"], "kp must be a finite number"),
+        (["run", "--kd", "nan"], "not a finite number"),
+        (["run", "--terrain", "moon"], "invalid choice"),
+        (["run", "--json", "/nonexistent/dir/out.json"], "does not exist"),
+        (["run", "--gravity", "pluto"], "neither m/s^2 nor one of moon, mars, ceres, earth"),
+        (["compare", "--seeds", "0"], "--seeds must be at least 1"),
+    ],
+)
+def test_bad_arguments_fail_in_one_line(args: list[str], message: str) -> None:
+    result = hopper_sim(*args)
+    assert result.returncode == 2
+    assert result.stderr.count("\n") == 1 and message in result.stderr
+    assert "Traceback" not in result.stderr
