@@ -39,7 +39,6 @@ class Recorder:
         self.path: Path | None = None
         self.viewer_url: str | None = None  # a web viewer's address, with viewer="serve"
         self.listeners: list[Callable[[str, Path | None, str], None]] = []
-        self._closing: list[threading.Thread] = []
 
     @property
     def active(self) -> bool:
@@ -95,18 +94,15 @@ class Recorder:
         self._changed("recording")
 
     def stop(self) -> None:
-        """Queue detaching the recording; the file is finalized off the simulation thread."""
+        """Queue closing the recording: Telemetry.close() runs on the simulation thread, as it asks."""
 
         def detach(sim: Simulation) -> None:
             telemetry, self._telemetry = self._telemetry, None
             if telemetry is None:
                 return
-            telemetry.flush(finalize=False)  # sends what it buffered while the loop may read MjData
             if telemetry in sim.listeners:
                 sim.listeners.remove(telemetry)
-            closer = threading.Thread(target=self._close, args=(telemetry,), name="recording-close", daemon=True)
-            self._closing.append(closer)
-            closer.start()
+            self._close(telemetry)  # flushes and writes the footer: a short stall the pacer catches up
 
         self._submit(detach)
 
@@ -119,10 +115,8 @@ class Recorder:
             return
         self._changed("saved")
 
-    def close_now(self, sim: Simulation, timeout: float = 30.0) -> None:
-        """Detach and finalize at once, and wait for earlier stops; only once the loop has stopped."""
-        for closer in self._closing:
-            closer.join(timeout)
+    def close_now(self, sim: Simulation) -> None:
+        """Detach and finalize at once; only while the simulation loop is not running (shutdown)."""
         telemetry, self._telemetry = self._telemetry, None
         if telemetry is None:
             return

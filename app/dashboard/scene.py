@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 
 import mujoco
 import numpy as np
@@ -13,6 +14,10 @@ import viser
 from hopper.config import WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT
 from hopper.meshes import BodyMesh, body_meshes, body_poses, terrain_mesh
 from terrain import CraterParams
+
+# A client can leave between listing the clients and moving its camera; viser then warns that the
+# message will never be delivered, which is exactly right and not worth a warning per frame.
+warnings.filterwarnings("ignore", message=r"Queued a SetCamera\w+ on a closed connection")
 
 TRAIL_SAMPLE_S = 0.05  # s of simulation between trail points
 TRAIL_CHUNK = 20  # points per line-segment node; only the newest chunk is re-sent

@@ -1,0 +1,382 @@
+"""The dashboard server as users and browsers meet it: start/stop, bad input, robustness, recording.
+
+Browsers are stood in for by `ProbeClient`, which speaks viser's real websocket protocol.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from app.dashboard.config import DashboardConfig
+from app.dashboard.pacing import MAX_LAG_S, Pacer
+from app.dashboard.panels.events import describe
+from app.dashboard.panels.hops import hop_table_html
+from app.dashboard.probe import ProbeClient
+from app.dashboard.server import Dashboard, PortInUse
+from hopper.metrics import HopMetrics
+from hopper.sim import Event
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def port_is_free(port: int) -> bool:
+    with socket.socket() as s:  # a plain bind, no SO_REUSEADDR: what any other program would do
+        try:
+            s.bind(("127.0.0.1", port))
+        except OSError:
+            return False
+    return True
+
+
+def wait_until(predicate, timeout: float = 10.0) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.05)
+    return False
+
+
+@pytest.fixture
+def dashboard(tmp_path: Path):
+    d = Dashboard(DashboardConfig(port=free_port(), sessions_dir=tmp_path / "sessions"), verbose=False).start()
+    yield d
+    d.stop()
+
+
+@pytest.fixture
+def client(dashboard: Dashboard):
+    c = ProbeClient(dashboard.url)
+    assert c.wait_for(lambda p: len(p.gui) > 20 and p.pose_frames > 0), "the probe never saw the page"
+    yield c
+    c.close()
+
+
+def titles(client: ProbeClient) -> list[str]:
+    return [n.get("title", "") for n in client.notifications]
+
+
+# -- lifecycle -------------------------------------------------------------------------------------
+def test_start_stop_frees_the_port(tmp_path: Path) -> None:
+    port = free_port()
+    d = Dashboard(DashboardConfig(port=port, sessions_dir=tmp_path), verbose=False).start()
+    assert wait_until(lambda: d.frames > 10 and d.sim.time > 0.2)
+    assert not port_is_free(port)
+    d.stop()
+    assert port_is_free(port), "port still bound after stop()"
+    assert not d._thread.is_alive()
+    d.stop()  # idempotent
+
+
+def test_stop_with_a_browser_connected_frees_the_port_for_a_restart(tmp_path: Path) -> None:
+    port = free_port()
+    d = Dashboard(DashboardConfig(port=port, sessions_dir=tmp_path), verbose=False).start()
+    probe = ProbeClient(d.url)
+    assert probe.wait_for(lambda p: p.pose_frames > 5)
+    d.stop()
+    assert wait_until(lambda: probe.closed, timeout=5.0), "the browser's connection outlived the server"
+    with pytest.raises(ConnectionRefusedError):  # nothing listens any more
+        socket.create_connection(("127.0.0.1", port), timeout=2.0).close()
+    # The server-side end of the closed connection lingers in TIME_WAIT, which blocks only a bind
+    # without SO_REUSEADDR; every server (viser included) sets it, so a restart works at once.
+    again = Dashboard(DashboardConfig(port=port, sessions_dir=tmp_path), verbose=False).start()
+    again.stop()
+
+
+def test_a_taken_port_is_refused_not_silently_moved(tmp_path: Path) -> None:
+    with socket.socket() as blocker:
+        blocker.bind(("127.0.0.1", 0))
+        blocker.listen()
+        port = blocker.getsockname()[1]
+        with pytest.raises(PortInUse, match=f"127.0.0.1:{port}"):
+            Dashboard(DashboardConfig(port=port, sessions_dir=tmp_path), verbose=False)
+
+
+def cli(*args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "app.dashboard.cli", *args], capture_output=True, text=True, timeout=timeout, cwd=REPO
+    )
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--kp", "-1"], "kp must be a finite number in [0, 5000]"),
+        (["--kd", "nan"], "kd must be a finite number"),
+        (["--terrain", "moon"], "invalid choice 'moon'"),
+        (["--port", "abc"], "--port"),
+        (["--port", "70000"], "port must be an integer in [1, 65535]"),
+        (["--speed", "9"], "speed must be in [0.1, 4]"),
+        (["--seed", "-3"], "seed must be a non-negative integer"),
+        (["--host", "not a host"], "host must be an IP address"),
+        (["--rrd", "/nonexistent/dir/run.rrd"], "does not exist"),
+        (["--rrd", "run.txt"], "must name a .rrd file"),
+        (["--rerun-viewer", "sometimes"], "invalid choice"),
+        (["--bogus"], "Unrecognized options: --bogus"),
+    ],
+)
+def test_bad_arguments_give_one_line_and_exit_2(args: list[str], message: str) -> None:
+    result = cli(*args)
+    assert result.returncode == 2, result
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert lines[0].startswith("hopper-dashboard: error: ") and message in lines[0], lines[0]
+    assert "Traceback" not in result.stderr + result.stdout
+
+
+def test_a_port_in_use_gives_one_line_and_exit_2() -> None:
+    with socket.socket() as blocker:
+        blocker.bind(("127.0.0.1", 0))
+        blocker.listen()
+        result = cli("--port", str(blocker.getsockname()[1]))
+    assert result.returncode == 2
+    assert result.stderr.strip().splitlines() == [result.stderr.strip()]
+    assert "cannot serve on 127.0.0.1" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_sigterm_stops_cleanly_finalizes_the_recording_and_frees_the_port(tmp_path: Path) -> None:
+    pytest.importorskip("hopper.telemetry")
+    port, rrd = free_port(), tmp_path / "run.rrd"
+    process = subprocess.Popen(
+        [sys.executable, "-m", "app.dashboard.cli", "--port", str(port), "--rrd", str(rrd)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=REPO,
+    )
+    try:
+        assert wait_until(lambda: not port_is_free(port), timeout=60), "the dashboard never started"
+        time.sleep(1.5)  # some simulation into the recording
+        process.send_signal(signal.SIGTERM)
+        out, err = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 0, err
+    assert "serving http://127.0.0.1:" in out and "stopped" in out
+    assert "Traceback" not in err
+    assert rrd.stat().st_size > 10_000
+    assert port_is_free(port)
+
+
+# -- browser input ---------------------------------------------------------------------------------
+def test_a_non_finite_gain_is_refused_with_a_notification_and_the_loop_runs_on(
+    dashboard: Dashboard, client: ProbeClient
+) -> None:
+    before_time, before_frames = dashboard.sim.time, dashboard.frames
+    client.set_gui_value("Kp", math.nan)
+    assert client.wait_for(lambda p: "Value refused" in titles(p)), titles(client)
+    assert "Kp must be finite" in client.notifications[-1]["body"]
+    assert dashboard.sim.gains.kp == 450.0 and dashboard.layout.gains.kp.value == 450.0
+    client.set_gui_value("Kd", math.inf)
+    assert client.wait_for(lambda p: sum(t == "Value refused" for t in titles(p)) == 2)
+    assert dashboard.sim.gains.kd == 30.0
+    assert wait_until(lambda: dashboard.sim.time > before_time + 0.5 and dashboard.frames > before_frames + 10)
+
+
+def test_a_valid_gain_reaches_the_controller_at_the_next_tick(dashboard: Dashboard, client: ProbeClient) -> None:
+    client.set_gui_value("Kp", 620.0)
+    assert wait_until(lambda: dashboard.sim.gains.kp == 620.0)
+    assert dashboard.sim.gains.ki == 50.0 and dashboard.sim.gains.kd == 30.0
+
+
+def test_out_of_range_values_are_clamped_with_a_notification(dashboard: Dashboard, client: ProbeClient) -> None:
+    client.set_gui_value("Speed ×", 9.0)
+    assert client.wait_for(lambda p: "Speed clamped" in titles(p))
+    assert dashboard.pacer.speed == 4.0
+    client.set_gui_value("Kp", 1e9)
+    assert client.wait_for(lambda p: "Gain clamped" in titles(p))
+    assert wait_until(lambda: dashboard.sim.gains.kp == 2000.0)
+    client.set_gui_value("Kick (N m s)", -99.0)
+    assert client.wait_for(lambda p: "Value clamped" in titles(p))
+    assert dashboard.layout.disturbances.magnitudes["pitch_kick"].value == -5.0
+
+
+def test_other_clients_do_not_get_someone_elses_refusal(dashboard: Dashboard, client: ProbeClient) -> None:
+    other = ProbeClient(dashboard.url)
+    try:
+        assert other.wait_for(lambda p: len(p.gui) > 20)
+        client.set_gui_value("Ki", math.nan)
+        assert client.wait_for(lambda p: "Value refused" in titles(p))
+        time.sleep(0.5)
+        assert "Value refused" not in titles(other)
+    finally:
+        other.close()
+
+
+def test_an_exception_in_a_callback_is_reported_and_never_stops_the_loop(
+    dashboard: Dashboard, client: ProbeClient
+) -> None:
+    client.set_gui_value("Apply", "no such disturbance")  # KeyError inside the callback
+    assert client.wait_for(lambda p: "Something went wrong" in titles(p))
+    t = dashboard.sim.time
+    assert wait_until(lambda: dashboard.sim.time > t + 0.3)
+
+
+def test_a_pitch_kick_is_applied_and_logged(dashboard: Dashboard, client: ProbeClient) -> None:
+    seen: list[Event] = []
+    dashboard.sim.submit(lambda sim: sim.listeners.append(_Recorder(seen)))
+    client.set_gui_value("Apply", "Pitch kick")
+    assert wait_until(lambda: any(e.kind == "disturbance" for e in seen))
+    kick = next(e for e in seen if e.kind == "disturbance")
+    assert kick.data["kind"] == "pitch_kick" and kick.data["magnitude"] == 1.0
+    assert wait_until(lambda: "pitch kick +1 N m s" in dashboard.layout.events.html.content)
+
+
+class _Recorder:
+    def __init__(self, events: list[Event]) -> None:
+        self.events = events
+
+    def tick(self, sim: object) -> None:
+        pass
+
+    def event(self, sim: object, event: Event) -> None:
+        self.events.append(event)
+
+
+def test_commands_apply_while_paused(dashboard: Dashboard, client: ProbeClient) -> None:
+    client.set_gui_value("Pause", True)
+    assert wait_until(lambda: dashboard.pacer.paused)
+    t = dashboard.sim.time
+    client.set_gui_value("Kp", 700.0)
+    assert wait_until(lambda: dashboard.sim.gains.kp == 700.0)
+    client.set_gui_value("Step", "+10 ms")
+    assert wait_until(lambda: abs(dashboard.sim.time - (t + 0.010)) < 1e-9)
+    time.sleep(0.3)
+    assert abs(dashboard.sim.time - (t + 0.010)) < 1e-9, "a paused simulation must not advance on its own"
+    client.set_gui_value("Resume", True)
+    assert wait_until(lambda: dashboard.sim.time > t + 0.2)
+
+
+# -- simulation trouble ----------------------------------------------------------------------------
+def test_a_fall_is_notified_and_reset_unless_stay_fallen(dashboard: Dashboard, client: ProbeClient) -> None:
+    def topple(sim) -> None:
+        sim.set_wheel(False)
+        sim.disturb("pitch_kick", 5.0)
+
+    client.set_gui_value("Stay fallen", True)
+    assert wait_until(lambda: dashboard.stay_fallen)
+    dashboard.sim.submit(topple)
+    assert client.wait_for(lambda p: "The robot fell" in titles(p))
+    assert "stays down" in client.notifications[-1]["body"]
+    time.sleep(2.5)
+    assert dashboard.sim.fallen, "Stay fallen must keep the robot down"
+    client.set_gui_value("Stay fallen", False)
+    assert wait_until(lambda: not dashboard.sim.fallen, timeout=5.0), "no auto reset after the fall"
+
+
+def test_a_diverging_simulation_resets_with_a_notification(dashboard: Dashboard, client: ProbeClient) -> None:
+    dashboard.sim.submit(lambda sim: sim.data.qvel.__setitem__(0, math.nan))
+    assert client.wait_for(lambda p: "Simulation diverged" in titles(p))
+    assert wait_until(lambda: math.isfinite(dashboard.sim.physics.x) and dashboard.sim.time > 0.1)
+
+
+def test_eight_clients_coming_and_going_leave_the_simulation_in_real_time(dashboard: Dashboard) -> None:
+    start_wall, start_steps = time.perf_counter(), dashboard.pacer._steps
+    deadline = start_wall + 8.0
+    connected = 0
+    while time.perf_counter() < deadline:
+        clients = [ProbeClient(dashboard.url) for _ in range(8)]
+        assert all(c.wait_for(lambda p: p.pose_frames > 0, timeout=15) for c in clients)
+        connected += len(clients)
+        time.sleep(0.3)
+        for c in clients:
+            c.close()
+    wall = time.perf_counter() - start_wall
+    rtf = (dashboard.pacer._steps - start_steps) * dashboard.pacer.timestep / wall
+    assert connected >= 16
+    assert dashboard._thread.is_alive()
+    assert rtf > 0.9, f"real-time factor {rtf:.3f} with 8 clients churning"
+    assert wait_until(lambda: not dashboard.server.get_clients(), timeout=5.0)
+
+
+# -- recording -------------------------------------------------------------------------------------
+def test_record_and_stop_write_a_session_file(dashboard: Dashboard, client: ProbeClient) -> None:
+    pytest.importorskip("hopper.telemetry")
+    client.set_gui_value("Record", True)
+    assert wait_until(lambda: dashboard.recorder.path is not None and dashboard.recorder._telemetry is not None)
+    path = dashboard.recorder.path
+    assert path.parent == (dashboard.config.sessions_dir).absolute() and path.suffix == ".rrd"
+    assert wait_until(lambda: "Recording to" in dashboard.layout.record.info.content)
+    time.sleep(1.0)
+    client.set_gui_value("Stop recording", True)
+    assert client.wait_for(lambda p: "Recording saved" in titles(p), timeout=30)
+    assert path.stat().st_size > 10_000
+    assert not dashboard.recorder.active
+
+
+def test_record_without_telemetry_says_so(dashboard: Dashboard, client: ProbeClient, monkeypatch) -> None:
+    import app.dashboard.recording as recording
+
+    def missing() -> None:
+        raise ValueError("recording needs hopper.telemetry, which is not available (test)")
+
+    monkeypatch.setattr(recording, "telemetry_module", missing)
+    client.set_gui_value("Record", True)
+    assert client.wait_for(lambda p: "Cannot record" in titles(p))
+    assert not dashboard.recorder.active
+
+
+# -- pure parts ------------------------------------------------------------------------------------
+def test_pacer_turns_wall_time_into_steps_and_caps_the_debt() -> None:
+    pacer = Pacer(0.001, speed=2.0)
+    assert pacer.due(10.0) == 0
+    assert pacer.due(10.010) == 20  # 10 ms of wall at 2x
+    pacer.done(20, 10.010)
+    assert pacer.due(15.0) == int(MAX_LAG_S * 2.0 / 0.001)  # a 5 s stall is not caught up
+    pacer.paused = True
+    assert pacer.due(16.0) == 0
+    with pytest.raises(ValueError, match="speed must be"):
+        pacer.set_speed(math.nan)
+
+
+def test_pacer_real_time_factor() -> None:
+    pacer = Pacer(0.001)
+    now = 0.0
+    for _ in range(200):
+        now += 0.01
+        steps = pacer.due(now)
+        pacer.done(steps, now)
+    assert abs(pacer.real_time_factor() - 1.0) < 0.02 and not pacer.behind
+    for _ in range(200):  # deliver half of what is asked
+        now += 0.01
+        steps = pacer.due(now)
+        pacer.done(steps // 2, now)
+        pacer._budget = 0.0
+    assert pacer.real_time_factor() < 0.6 and pacer.behind
+
+
+def test_hop_table_and_event_log_text() -> None:
+    hop = HopMetrics(
+        index=1, distance_m=0.8, apex_height_m=0.25, flight_time_s=1.2, stance_time_s=0.5, peak_pitch_deg=12.0,
+        rms_pitch_rate_deg_s=40.0, landing_pitch_deg=2.0, saturation_time_s=0.3, peak_wheel_rpm=250.0,
+        liftoff_momentum=0.1, touchdown_time_s=3.0,
+    )  # fmt: skip
+    table = hop_table_html([hop])
+    assert "0.80" in table and "12.0" in table and "250" in table and "hd-mean" in table
+    assert "no hops yet" in hop_table_html([])
+    assert describe(Event(1.0, "disturbance", {"kind": "push_forward", "magnitude": 4.0, "unit": "N s"})) == (
+        "push ▶ +4 N s"
+    )
+    assert describe(Event(1.0, "liftoff", {})) is None
+
+
+@pytest.mark.skipif(os.environ.get("CI") == "true", reason="timing-only check, run locally")
+def test_loop_holds_real_time_without_clients(dashboard: Dashboard) -> None:
+    time.sleep(2.5)
+    assert dashboard.pacer.real_time_factor() > 0.95
