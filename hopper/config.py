@@ -69,7 +69,7 @@ class GaitParams:
     """The hop cycle's targets. Lengths are hip heights above the feet, in metres."""
 
     apex_height: float = 0.25  # m above the liftoff height; v_z = sqrt(2 g h)
-    forward_speed: float = 0.5  # m/s at liftoff
+    forward_speed: float = 0.4  # m/s at liftoff
     stand_height: float = 0.85  # m
     crouch_height: float = 0.68  # m
     push_length: float = 0.96  # m, leg length where the push stops

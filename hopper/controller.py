@@ -61,12 +61,13 @@ KD_STANCE = 2 * STANCE_PITCH_ZETA * STANCE_PITCH_WN * STANCE_PITCH_INERTIA
 LANDING_DAMPING = 6.0  # 1/s, vertical velocity damping while absorbing the impact
 DESAT_TIME = 0.25  # s, time constant of the stance wheel spin-down
 MIN_SUPPORT = 0.4  # fraction of the weight the stance legs always carry
+SINGLE_SUPPORT_WHEEL = 8.0  # N m of wheel torque the legs may leave for balance on one foot
 REACH_FORCE = 0.2  # fraction of the weight a free leg may push with while it reaches for the ground
 PUSH_MAX_ACCEL = 8.0  # m/s^2, cap on the push-off acceleration
 PUSH_X_GAIN = 6.0  # 1/s, horizontal velocity tracking during the push
 # Flight: the legs swing as a virtual leg (length, angle) with PD gains about the hip.
 SWING_K, SWING_D = 15.0, 2.5  # N m/rad, N m s/rad  (wn ~ 10 rad/s for ~0.15 kg m^2)
-LENGTH_K, LENGTH_D = 300.0, 12.0  # N/m, N s/m
+KNEE_K, KNEE_D = 20.0, 1.5  # N m/rad, N m s/rad (wn ~ 10 rad/s for the shank about the knee)
 # Fall: beyond these the legs cannot recover the body.
 FALL_PITCH = math.radians(60.0)
 FALL_HIP_HEIGHT = 0.35  # m, hip above the feet in stance
@@ -156,20 +157,21 @@ def swing_torques(
     knee_rate: float,
     length: float,
     foot_x: float,
-    max_force: float = 1e9,
+    max_knee_torque: float = LEG_TORQUE_LIMIT,
 ) -> tuple[float, float]:
-    """PD on the virtual leg toward a foot `foot_x` ahead of the hip, `length` from it, with the
-    leg's axial force capped at `max_force` (N).
+    """PD toward a foot `foot_x` ahead of the hip, `length` from it (a swing, not a support).
 
-    The virtual leg (hip to foot) has length 2 L cos(knee / 2) and bisects the knee, so its angle
-    and length decouple into a hip torque and a knee force. Damping acts on the joint rates so
-    the legs do not fight the torso's rotation.
+    The virtual leg (hip to foot) bisects the knee, so its world angle is servoed by the hip
+    (the knee takes half of that torque to keep the bisection) and its length by the knee, in
+    joint space: length = 2 L cos(knee / 2) has no gradient at a straight knee, where a
+    Cartesian length servo would lock the leg straight. Damping acts on the joint rates so the
+    legs do not fight the torso's rotation. `max_knee_torque` caps the length servo (N m).
     """
     angle = -math.asin(clamp(foot_x / length, 0.9))  # world angle, + = foot behind the hip
-    dl_dknee = -L1 * math.sin(knee / 2)
     torque = SWING_K * (angle - math.atan2(-px, -pz)) - SWING_D * (hip_rate + knee_rate / 2)
-    force = clamp(LENGTH_K * (length - math.hypot(px, pz)) - LENGTH_D * dl_dknee * knee_rate, max_force)
-    return clamp(torque, LEG_TORQUE_LIMIT), clamp(torque / 2 + force * dl_dknee, LEG_TORQUE_LIMIT)
+    knee_target = -2.0 * math.acos(min(length / (L1 + L2), 0.999))
+    bend = clamp(KNEE_K * (knee_target - knee) - KNEE_D * knee_rate, max_knee_torque)
+    return clamp(torque, LEG_TORQUE_LIMIT), clamp(torque / 2 + bend, LEG_TORQUE_LIMIT)
 
 
 @njit(cache=True)
@@ -440,13 +442,17 @@ def stance(
         ctrl[1], ctrl[2] = push_torques(pxl, pzl, jxl, jzl, clamp(fx, mu * fz_l), fz_l)  # friction cone
         ctrl[3], ctrl[4] = push_torques(pxr, pzr, jxr, jzr, clamp(fx, mu * fz_r), fz_r)
     else:
-        # One support point. With the wheel, the legs keep the CoM over the foot and the wheel
-        # makes up the pitch moment they leave; without it, the moment has to come from fx alone.
+        # One support point: the feet's moment is rz fx + offset_x fz, so the pitch moment sets
+        # fx. With the wheel, fx may stray from that toward keeping the CoM over the foot by as
+        # much as the wheel can make up within SINGLE_SUPPORT_WHEEL (N m) of torque.
+        rz = hip_z - height
+        fx_pitch = (moment - offset_x * fz) / rz
         if wheel_on:
-            fx = clamp(fx, mu * fz)
-            wheel = wheel_torque_bound(wheel_speed, (hip_z - height) * fx + offset_x * fz - moment)
+            stray = SINGLE_SUPPORT_WHEEL / -rz
+            fx = clamp(min(max(fx, fx_pitch - stray), fx_pitch + stray), mu * fz)
+            wheel = wheel_torque_bound(wheel_speed, rz * fx + offset_x * fz - moment)
         else:
-            fx = (moment + offset_x * fz) / (hip_z - height)
+            fx = fx_pitch
         if both:
             ctrl[1], ctrl[2] = push_torques(pxl, pzl, jxl, jzl, clamp(fx / 2, mu * fz / 2), fz / 2)
             ctrl[3], ctrl[4] = push_torques(pxr, pzr, jxr, jzr, clamp(fx / 2, mu * fz / 2), fz / 2)
@@ -454,8 +460,8 @@ def stance(
             # The free foot reaches a little below the stance foot to find the ground, gently: a
             # leg that keeps extending into the ground launches the robot in lunar gravity.
             half = 0.5 * p[P_SPREAD]
-            reach = min(math.hypot(height + 0.05, half), p[P_PUSH])
-            gentle = REACH_FORCE * TOTAL_MASS * p[P_GRAVITY]
+            reach = p[P_PUSH]
+            gentle = REACH_FORCE * TOTAL_MASS * p[P_GRAVITY] * 0.5 * L2  # knee torque, ~0.5 L2 lever
             if on_l:
                 ctrl[1], ctrl[2] = push_torques(pxl, pzl, jxl, jzl, clamp(fx, mu * fz), fz)
                 ctrl[3], ctrl[4] = swing_torques(
