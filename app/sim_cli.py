@@ -14,6 +14,8 @@ import time
 from pathlib import Path
 from typing import Any, NoReturn
 
+import numpy as np
+
 from hopper.config import GRAVITY_PRESETS, Gains, InvalidConfig, SimConfig
 
 # The JSON keys of a hop, in table order, with their column headings.
@@ -106,6 +108,10 @@ def parser() -> Parser:
     common(compare)
     compare.add_argument("--seeds", type=int, default=10, help="number of seeds (default 10)")
     compare.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
+
+    export = commands.add_parser("terrain", help="export a crater field as a grayscale PNG (as the paper does)")
+    export.add_argument("--seed", type=int, default=0, help="terrain seed (default 0)")
+    export.add_argument("--png", type=writable_file, required=True, metavar="PATH", help="16-bit grayscale PNG")
     return top
 
 
@@ -237,9 +243,24 @@ def command_compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def command_terrain(args: argparse.Namespace) -> int:
+    from terrain import CraterParams, generate, write_png
+
+    params = CraterParams()
+    heights = generate(params, np.random.default_rng(args.seed))
+    write_png(heights, args.png)
+    print(
+        f"{args.png}: {heights.shape[1]} x {heights.shape[0]} cells of {params.cell} m "
+        f"({params.length} m x {params.width} m), relief {np.ptp(heights):.3f} m, seed {args.seed}"
+    )
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
     signal.signal(signal.SIGTERM, _interrupt)
+    if args.command == "terrain":
+        return command_terrain(args)
     if args.hops < 1:
         fail("--hops must be at least 1")
     try:

@@ -71,3 +71,15 @@ def test_bad_arguments_fail_in_one_line(args: list[str], message: str) -> None:
     assert result.returncode == 2
     assert result.stderr.count("\n") == 1 and message in result.stderr
     assert "Traceback" not in result.stderr
+
+
+def test_terrain_export_writes_the_png_the_paper_loads(tmp_path) -> None:
+    from terrain import CraterParams, generate, read_png
+
+    out = tmp_path / "craters.png"
+    result = hopper_sim("terrain", "--seed", "4", "--png", str(out))
+    assert result.returncode == 0, result.stderr
+    import numpy as np
+
+    expected = generate(CraterParams(), np.random.default_rng(4))
+    assert np.abs(read_png(out) - expected).max() < 1e-5
