@@ -73,7 +73,8 @@ FALL_PITCH = math.radians(60.0)
 FALL_HIP_HEIGHT = 0.35  # m, hip above the feet in stance
 # Phase timing, s.
 LANDING_MIN_S, STANCE_MAX_S, CROUCH_MIN_S, CROUCH_MAX_S, PUSH_MAX_S = 0.1, 2.0, 0.15, 1.2, 1.0
-LIFTOFF_CONFIRM_S = 0.01  # both feet off this long before the flight counts
+LIFTOFF_CONFIRM_S = 0.01  # s both feet off after a push before the flight counts
+BOUNCE_CONFIRM_S = 0.08  # s both feet off in any other ground phase before it is a flight
 
 LANDING, STANCE, CROUCH, PUSH, FLIGHT, FALLEN = (int(p) for p in Phase)
 
@@ -275,8 +276,10 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
                 events |= EV_TOUCHDOWN
         elif not contact:
             # Liftoff once both feet have been off for a while: a foot skipping over a crater
-            # rim for a few ms during the push is not a hop.
-            if time - k[K_LAST_CONTACT] >= LIFTOFF_CONFIRM_S:
+            # rim for a few ms during the push is not a hop, nor is a stumble off a rim while
+            # standing unless it lasts long enough to need the wheel's flight control.
+            confirm = LIFTOFF_CONFIRM_S if phase == PUSH else BOUNCE_CONFIRM_S
+            if time - k[K_LAST_CONTACT] >= confirm:
                 enter(k, FLIGHT, time)
                 k[K_INTEGRAL] = 0.0  # integral reset at liftoff
                 events |= EV_LIFTOFF

@@ -10,6 +10,7 @@ import numpy as np
 from hopper.controller import A_APEX_Z, A_FLIGHT_TICKS, A_PEAK_PITCH, A_PEAK_WHEEL, A_RATE_SQ, A_SATURATION, N_ACC
 
 RAD_S_TO_RPM = 60.0 / (2.0 * math.pi)
+MIN_HOP_FLIGHT_S = 0.05  # s; a shorter flight (a foot skipping after a weak push) is no hop
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
@@ -69,6 +70,9 @@ class MetricsTracker:
     def touchdown(self, time: float, x: float, pitch: float, completed: bool = True) -> HopMetrics | None:
         """Close the hop at a touchdown (or a fall in flight); None if no liftoff preceded it."""
         if self._liftoff_time is None:
+            return None
+        if completed and time - self._liftoff_time < MIN_HOP_FLIGHT_S:
+            self._liftoff_time = None  # a skip off a rim, not a hop: the hop goes on
             return None
         acc = self.acc
         ticks = max(acc[A_FLIGHT_TICKS], 1.0)
