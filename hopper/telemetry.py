@@ -34,6 +34,7 @@ from __future__ import annotations
 import atexit
 import contextlib
 import datetime
+import functools
 import logging
 import math
 import os
@@ -70,6 +71,7 @@ APPLICATION_ID = "hopper"
 TIME = "sim_time"
 HOP = "hop"
 BATCH_TICKS = 1000  # ticks per send (1 s simulated): fewer chunks, each ~1 kB of schema
+LIMIT_EVERY_BATCHES = 10  # the torque limit lines only need a point now and then
 POSE_EVERY_TICKS = 20  # 50 Hz body poses
 RAD_S_TO_RPM = 60.0 / (2.0 * math.pi)
 SIGNALS_F32 = ("pitch_deg", "pitch_rate_deg_s", "wheel_rpm", "wheel_torque_nm")
@@ -289,7 +291,7 @@ def default_blueprint() -> rrb.Blueprint:
                     _plot("foot forces (N)", ("foot_L_n", "left", BLUE), ("foot_R_n", "right", RED)),
                 ),
                 rrb.StateTimelineView(name="phase", origin="/phase"),
-                row_shares=[3, 3, 3, 3, 1],
+                row_shares=[3, 3, 3, 3, 2],
             ),
             rrb.TextLogView(name="events", origin="/events"),
             column_shares=[5, 5, 3],
@@ -343,25 +345,28 @@ class Telemetry:
         data = sim.data
         self._data = data
         # Cached views: MjData's array properties build a new numpy object on every access.
-        self._sensordata, self._force, self._qpos = data.sensordata, data.actuator_force, data.qpos
-        self._xpos, self._xquat = data.xpos.reshape(-1), data.xquat.reshape(-1)
+        self._qpos = data.qpos
+        # Bound tobytes of cached views: MjData's array properties build a new numpy object per access.
+        self._sensor_bytes, self._force_bytes = data.sensordata.tobytes, data.actuator_force.tobytes
+        self._qpos_bytes, self._xpos_bytes, self._xquat_bytes = data.qpos.tobytes, data.xpos.tobytes, data.xquat.tobytes
         self._dt_ns = round(sim.model.opt.timestep * 1e9)
         self._meshes = body_meshes(sim.model)
         self._layout(sim)
+        # Raw float64 bytes, one row a tick: sensordata | actuator_force | qpos. tobytes() and a
+        # bytearray append cost half of tolist() and a list extend, and numpy reads them back free.
         self._n = 0  # ticks buffered
-        self._sens: list[float] = []
-        self._forces: list[float] = []
-        self._qpos_rows: list[float] = []
+        self._ticks = bytearray()
         self._pose_rows: list[int] = []
-        self._pose_xpos: list[float] = []
-        self._pose_xquat: list[float] = []
+        self._poses = bytearray()  # xpos | xquat of every body, one row a pose sample
         self._events: list[tuple[int, int, str, str, str]] = []  # (time ns, hop, kind, level, text)
         self._phases: list[tuple[int, int, str]] = []  # (time ns, hop, label)
         self._hop_rows: list[tuple[int, int, dict[str, float | int | bool]]] = []
-        self._carry_qpos = self._qpos.tolist()  # qpos at the next row's time (module docstring)
+        self._carry_qpos = self._qpos.copy()  # qpos at the next row's time (module docstring)
         self._offset_ns = 0  # sim_time minus data.time; grows at each reset
         self._next_ns = self._data_ns()  # sim_time of the next row
         self._last_torso: list[float] | None = None
+        self._batches = 0
+        self._frames: dict[int, pa.Array] = {}  # child_frame columns by pose count
         self._hops = 0
         self._phase_key: object = None
         self._phase_probe = self._make_phase_probe(sim)
@@ -461,33 +466,35 @@ class Telemetry:
 
         state, slot = getattr(sim.controller, "state", None), getattr(controller, "K_PHASE", None)
         if isinstance(state, np.ndarray) and isinstance(slot, int):
-            return lambda: state[slot]  # the control kernel's phase slot, ~0.1 us
+            return functools.partial(state.item, slot)  # the control kernel's phase slot as a float, ~0.1 us
         return lambda: sim.phase
 
     # -- Listener --------------------------------------------------------------------------
     def tick(self, sim: Simulation) -> None:
-        """Buffer one tick. The hot path: three tolist() and extends, a phase probe, a counter."""
-        self._sens += self._sensordata.tolist()
-        self._forces += self._force.tolist()
-        self._qpos_rows += self._qpos.tolist()
+        """Buffer one tick. The hot path: three tobytes() appends, a phase probe, a counter."""
+        b = self._ticks
+        b += self._sensor_bytes()
+        b += self._force_bytes()
+        b += self._qpos_bytes()
         n = self._n = self._n + 1
         if self._phase_probe() != self._phase_key:
             self._check_phase(self._next_ns + (n - 1) * self._dt_ns)
         if n % POSE_EVERY_TICKS == 0:
             self._pose_rows.append(n - 1)
-            self._pose_xpos += self._xpos.tolist()
-            self._pose_xquat += self._xquat.tolist()
+            p = self._poses
+            p += self._xpos_bytes()
+            p += self._xquat_bytes()
             if n >= self._batch:
-                self.flush(wait=False)
+                self._flush(wait=False)
 
     def event(self, sim: Simulation, event: Event) -> None:
         """Buffer an event's text (and a finished hop's metrics); a reset sends the ticks before it."""
         if self._closed:
             return
         if event.kind == "reset":
-            self.flush(wait=False)  # rows before the reset keep their times
+            self._flush(wait=False, check_clock=False)  # rows before the reset keep their times
             self._offset_ns = self._next_ns - self._data_ns()
-            self._carry_qpos = self._qpos.tolist()
+            self._carry_qpos = self._qpos.copy()
             self._last_torso = None
         t_ns = round(event.time * 1e9) + self._offset_ns
         hop = event.data.get("hop")
@@ -506,32 +513,38 @@ class Telemetry:
     # -- sending ---------------------------------------------------------------------------
     def flush(self, wait: bool = True) -> None:
         """Send everything buffered now; `wait` until the sinks have written it."""
+        self._flush(wait)
+
+    def _flush(self, wait: bool, check_clock: bool = True) -> None:
         with self._lock, _deferred_signals():
             if self._closed:
                 return
-            self._send()
+            self._send(check_clock)
             if wait:
                 self.rec.flush()
 
-    def _send(self) -> None:
-        n = min(
-            self._n, len(self._sens) // self._nsens, len(self._forces) // self._nu, len(self._qpos_rows) // self._nq
-        )
-        sens, forces, qpos = self._sens, self._forces, self._qpos_rows
-        rows, xpos, xquat = self._pose_rows, self._pose_xpos, self._pose_xquat
-        events, phases, hop_rows = self._events, self._phases, self._hop_rows
-        # Swap before sending: an exception mid-send must not make the next flush send it twice.
-        self._sens, self._forces, self._qpos_rows, self._n = [], [], [], 0
-        self._pose_rows, self._pose_xpos, self._pose_xquat = [], [], []
+    def _send(self, check_clock: bool) -> None:
+        # Take the buffers before sending (an exception mid-send must not make the next flush send
+        # them twice) and copy them out: a numpy view would pin a bytearray that tick() may still
+        # append to if close() runs on another thread.
+        ticks, rows, poses = bytes(self._ticks), self._pose_rows, bytes(self._poses)
+        count, events, phases, hop_rows = self._n, self._events, self._phases, self._hop_rows
+        self._ticks, self._poses, self._n, self._pose_rows = bytearray(), bytearray(), 0, []
         self._events, self._phases, self._hop_rows = [], [], []
+        width = self._nsens + self._nu + self._nq
+        ticks, poses = np.frombuffer(ticks, dtype=np.float64), np.frombuffer(poses, dtype=np.float64)
+        n = min(count, len(ticks) // width)  # an interrupt may cut a tick's appends short
+        k = min(len(rows), len(poses) // (7 * self._nbody))
         if n:
             times = self._next_ns + np.arange(n, dtype=np.int64) * self._dt_ns
             self._next_ns += n * self._dt_ns
-            self._send_signals(times, sens, forces, qpos, n)
-            self._send_limits(times[-1:])
-            k = sum(1 for r in rows if r < n)  # an interrupt may leave a pose without its tick
+            self._send_signals(times, ticks[: n * width].reshape(n, width))
+            self._batches += 1
+            if self._batches % LIMIT_EVERY_BATCHES == 0:
+                self._send_limits(times[-1:])
+            k = sum(1 for r in rows[:k] if r < n)
             if k:
-                self._send_poses(times[rows[:k]], xpos, xquat, k)
+                self._send_poses(times[rows[:k]], poses[: k * 7 * self._nbody].reshape(k, 7 * self._nbody))
         if events:
             t, h, kinds, levels, texts = zip(*events, strict=True)
             columns = [
@@ -554,7 +567,7 @@ class Telemetry:
             ]
             rr.send_columns("hops", _times(t, h), columns, recording=self.rec)
         expected = self._data_ns() + self._offset_ns
-        if n and expected != self._next_ns and not self._closed:
+        if check_clock and n and expected != self._next_ns:
             # Steps without tick() (or a time jump): re-anchor rather than drift, and say so once.
             if not self._warned:
                 log.warning(
@@ -563,13 +576,12 @@ class Telemetry:
                 self._warned = True
             self._next_ns = expected
 
-    def _send_signals(
-        self, times: np.ndarray, sens: list[float], forces: list[float], qpos: list[float], n: int
-    ) -> None:
-        s = np.array(sens[: n * self._nsens]).reshape(n, self._nsens)
-        f = np.array(forces[: n * self._nu]).reshape(n, self._nu)
-        q = np.array(self._carry_qpos + qpos[: (n - 1) * self._nq]).reshape(n, self._nq)
-        self._carry_qpos = qpos[(n - 1) * self._nq : n * self._nq]
+    def _send_signals(self, times: np.ndarray, rows: np.ndarray) -> None:
+        """rows: (n, nsensordata + nu + nq) as buffered by tick()."""
+        s, f = rows[:, : self._nsens], rows[:, self._nsens : self._nsens + self._nu]
+        after = rows[:, self._nsens + self._nu :]  # qpos after each step: the next row's state
+        q = np.vstack([self._carry_qpos, after[:-1]])
+        self._carry_qpos = after[-1].copy()
         columns = {
             "pitch_deg": np.degrees(s[:, self._i_pitch]),
             "pitch_rate_deg_s": np.degrees(s[:, self._i_rate]),
@@ -585,12 +597,13 @@ class Telemetry:
         struct = pa.StructArray.from_arrays(arrays, names=list(SIGNALS))
         rr.send_columns("signals", _times(times), [_Column("signals", struct)], recording=self.rec)
 
-    def _send_poses(self, times: np.ndarray, xpos: list[float], xquat: list[float], k: int) -> None:
-        ids = self._body_ids
-        p = np.array(xpos[: k * self._nbody * 3]).reshape(k, self._nbody, 3)
-        q = np.array(xquat[: k * self._nbody * 4]).reshape(k, self._nbody, 4)[:, ids][..., [1, 2, 3, 0]]  # wxyz -> xyzw
+    def _send_poses(self, times: np.ndarray, rows: np.ndarray) -> None:
+        """rows: (k, 7 nbody), every body's xpos then every body's xquat, as buffered by tick()."""
+        ids, k = self._body_ids, len(rows)
+        p = rows[:, : 3 * self._nbody].reshape(k, self._nbody, 3)
+        q = rows[:, 3 * self._nbody :].reshape(k, self._nbody, 4)[:, ids][..., [1, 2, 3, 0]]  # wxyz -> xyzw
         nb = len(ids)
-        frames = pa.array([mesh.name for mesh in self._meshes] * k)
+        frames = self._frames.get(k) or self._frames.setdefault(k, pa.array([m.name for m in self._meshes] * k))
         rr.send_columns(  # one row per body and sample: one chunk for all bodies
             "world/tf",
             _times(np.repeat(times, nb)),
@@ -604,7 +617,10 @@ class Telemetry:
         torso = p[:, self._torso]
         trail = torso if self._last_torso is None else np.vstack([self._last_torso, torso])
         self._last_torso = torso[-1].tolist()
-        strip = pa.ListArray.from_arrays(pa.array([0, len(trail)], pa.int32()), _vectors(trail))
+        points = _vectors(trail)
+        strip = pa.ListArray.from_arrays(
+            pa.array([0, len(trail)], pa.int32()), points, type=pa.list_(pa.field("item", points.type, False))
+        )
         rr.send_columns("world/trail", _times(times[-1:]), [_Column(_STRIPS, strip)], recording=self.rec)
 
     def _send_limits(self, times: np.ndarray | list[int]) -> None:
@@ -624,7 +640,8 @@ class Telemetry:
                 self.sim.listeners.remove(self)
             self._closed = True
             try:
-                self._send()
+                self._send(check_clock=False)  # an interrupt may have cut a step short of its tick()
+                self._send_limits([self._next_ns - self._dt_ns])
                 self.rec.flush()
             finally:
                 self.rec.disconnect()  # writes the .rrd footer, stops the gRPC server

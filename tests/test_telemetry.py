@@ -1,0 +1,274 @@
+"""Telemetry: recordings read back with rerun's own reader, interrupts, paths and the web viewer server."""
+
+from __future__ import annotations
+
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections import defaultdict
+from pathlib import Path
+from urllib.parse import parse_qs, urlparse
+
+import numpy as np
+import psutil
+import pyarrow as pa
+import pytest
+from rerun.chunk import RrdReader
+
+from hopper.config import Gains, SimConfig
+from hopper.sim import Simulation
+from hopper.telemetry import SIGNALS, Telemetry, TelemetryError, check_writable, session_path
+
+REPO = Path(__file__).resolve().parent.parent
+RERUN = [sys.executable, "-m", "rerun_cli"]
+
+
+class Probe:
+    """A reference listener: what MjData holds after each step, read independently of Telemetry."""
+
+    def __init__(self, sim: Simulation) -> None:
+        m = sim.model
+        self.dt = m.opt.timestep
+        self.pitch_adr = m.sensor("imu_pitch").adr[0]
+        self.rpm_adr = m.sensor("wheel_speed").adr[0]
+        self.wheel_id, self.gear = m.actuator("wheel").id, m.actuator("wheel").gear[0]
+        self.hip_adr = m.joint("hip_L").qposadr[0]
+        self.initial_hip = sim.data.qpos[self.hip_adr]
+        self.times: list[float] = []
+        self.pitch: list[float] = []
+        self.rpm: list[float] = []
+        self.torque: list[float] = []
+        self.hip_after: list[float] = []  # qpos after the step: the state at the next tick's start
+
+    def tick(self, sim: Simulation) -> None:
+        d = sim.data
+        self.times.append(d.time - self.dt)
+        self.pitch.append(d.sensordata[self.pitch_adr])
+        self.rpm.append(d.sensordata[self.rpm_adr])
+        self.torque.append(d.actuator_force[self.wheel_id] * self.gear)
+        self.hip_after.append(d.qpos[self.hip_adr])
+
+    def event(self, sim: Simulation, event: object) -> None:
+        pass
+
+
+def read(path: Path) -> dict[str, pa.Table]:
+    """The recording's non-static rows per entity path, as Arrow tables."""
+    batches = defaultdict(list)
+    for chunk in RrdReader(path).stream():
+        if not chunk.is_static:
+            batches[chunk.entity_path.lstrip("/")].append(chunk.to_record_batch())
+    return {entity: pa.Table.from_batches(b).combine_chunks() for entity, b in batches.items()}
+
+
+def seconds(table: pa.Table) -> np.ndarray:
+    return table.column("sim_time").cast(pa.int64()).to_numpy() / 1e9
+
+
+def cells(table: pa.Table, name: str) -> list:
+    """One value per row of a component column (each row holds a one-element list)."""
+    column = table.column(name).to_pylist()
+    assert all(len(row) == 1 for row in column), f"{name}: rows must hold exactly one value"
+    return [row[0] for row in column]
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Simulation, Probe, Path, dict[str, pa.Table]]:
+    """Two hops on flat ground with a gain change before the first and a pitch kick in the second."""
+    path = tmp_path_factory.mktemp("rec") / "run.rrd"
+    sim = Simulation(SimConfig(terrain="flat"))
+    probe = Probe(sim)
+    with Telemetry(sim, path=path) as telemetry:
+        assert sim.listeners == [telemetry]
+        sim.listeners.append(probe)
+        sim.set_gains(Gains(kp=500.0, ki=40.0, kd=28.0))
+        sim.run(1)
+        sim.disturb("pitch_kick", 0.5)
+        sim.run(2)
+    assert telemetry.closed and telemetry not in sim.listeners
+    return sim, probe, path, read(path)
+
+
+def test_recording_verifies_and_has_both_timelines(run) -> None:
+    _, _, path, tables = run
+    subprocess.run([*RERUN, "rrd", "verify", str(path)], check=True, capture_output=True)
+    timelines = {name for table in tables.values() for name in table.column_names}
+    assert {"sim_time", "hop"} <= timelines
+    assert tables["hops"].column("hop").to_pylist() == [1, 2]
+
+
+def test_signals_hold_one_sample_per_tick(run) -> None:
+    sim, probe, _, tables = run
+    signals = tables["signals"]
+    t = seconds(signals)
+    assert len(t) == len(probe.times) == round(sim.time / probe.dt) > 5000
+    np.testing.assert_allclose(t, probe.times, atol=1e-9)
+    assert np.all(np.diff(t) > 0.0)
+    values = cells(signals, "signals")
+    assert set(values[0]) == set(SIGNALS)
+    for name in ("pitch_deg", "wheel_rpm", "wheel_torque_nm"):
+        assert sum(v[name] is not None for v in values) == len(t), name
+
+
+def test_signals_match_the_physics(run) -> None:
+    _, probe, _, tables = run
+    values = cells(tables["signals"], "signals")
+    pitch = np.array([v["pitch_deg"] for v in values])
+    np.testing.assert_allclose(pitch, np.degrees(probe.pitch).astype(np.float32), rtol=1e-6, atol=1e-6)
+    rpm = np.array([v["wheel_rpm"] for v in values])
+    np.testing.assert_allclose(rpm, np.array(probe.rpm) * 60 / (2 * math.pi), rtol=1e-6, atol=1e-4)
+    torque = np.array([v["wheel_torque_nm"] for v in values])
+    np.testing.assert_allclose(torque, probe.torque, rtol=1e-6, atol=1e-5)
+    assert np.abs(torque).max() > 1.0  # the wheel did work: the comparison is not of zeros
+    # Joint angles come from the qpos of the previous tick, the state at this tick's start.
+    hip = np.array([v["hip_L_deg"] for v in values])
+    expected = np.degrees([probe.initial_hip, *probe.hip_after[:-1]])
+    np.testing.assert_allclose(hip, expected, atol=np.abs(expected).max() / 1000)  # float16
+
+
+def test_each_touchdown_has_the_runner_metrics(run) -> None:
+    sim, _, _, tables = run
+    hops = tables["hops"]
+    assert hops.num_rows == len(sim.hops) == 2
+    for row, hop in enumerate(sim.hops):
+        for name, value in hop.as_dict().items():
+            assert cells(hops, name)[row] == float(value), name
+    np.testing.assert_allclose(seconds(hops), [h.touchdown_time_s for h in sim.hops], atol=1e-9)
+
+
+def test_events_include_gains_disturbance_and_phase_events(run) -> None:
+    sim, _, _, tables = run
+    events = tables["events"]
+    kinds, texts = cells(events, "kind"), cells(events, "TextLog:text")
+    assert "gains: kp=500, ki=40, kd=28" in texts
+    assert "disturbance: kind=pitch_kick, magnitude=0.5, unit=N m s" in texts
+    assert kinds.count("liftoff") == kinds.count("touchdown") == 2 and kinds.count("apex") == 2
+    touchdowns = [text for text in texts if text.startswith("touchdown")]
+    assert f"distance {sim.hops[1].distance_m:.3f} m" in touchdowns[1]
+    states = cells(tables["phase"], "StateChange:state")
+    assert states[0] == "stance" and states.count("flight") == 2
+    assert all(a != b for a, b in zip(states, states[1:], strict=False))  # logged on change only
+
+
+def test_reset_keeps_sim_time_monotonic(tmp_path: Path) -> None:
+    sim = Simulation(SimConfig(terrain="flat"))
+    path = tmp_path / "reset.rrd"
+    with Telemetry(sim, path=path, batch_ticks=100):
+        for _ in range(250):
+            sim.step()
+        sim.reset(reason="test")
+        for _ in range(150):
+            sim.step()
+    tables = read(path)
+    t = seconds(tables["signals"])
+    assert len(t) == 400
+    np.testing.assert_allclose(np.diff(t), sim.model.opt.timestep, atol=1e-9)
+    reset = cells(tables["events"], "TextLog:text").index("reset: reason=test")
+    assert seconds(tables["events"])[reset] == pytest.approx(t[250])
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_interrupt_leaves_a_verified_recording(tmp_path: Path, signum: int) -> None:
+    path = tmp_path / "interrupted.rrd"
+    script = (
+        "import sys\n"
+        "from hopper.config import SimConfig\n"
+        "from hopper.sim import Simulation\n"
+        "from hopper.telemetry import Telemetry, exit_on_sigterm\n"
+        "exit_on_sigterm()\n"
+        "sim = Simulation(SimConfig(terrain='flat'))\n"
+        "with Telemetry(sim, path=sys.argv[1]):\n"
+        "    for i in range(10**9):\n"
+        "        sim.step()\n"
+        "        if i == 2500:\n"
+        "            print('ready', flush=True)\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    child = subprocess.Popen([sys.executable, "-c", script, str(path)], stdout=subprocess.PIPE, text=True, env=env)
+    try:
+        assert child.stdout is not None and child.stdout.readline().strip() == "ready"
+        time.sleep(1.0)
+        child.send_signal(signum)
+        code = child.wait(timeout=60)
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.wait()
+    assert code == (-signal.SIGINT if signum == signal.SIGINT else 128 + signal.SIGTERM)
+    subprocess.run([*RERUN, "rrd", "verify", str(path)], check=True, capture_output=True)
+    t = seconds(read(path)["signals"])
+    assert len(t) > 2500  # the ticks after the last full batch were flushed too, not only batches
+    np.testing.assert_allclose(np.diff(t), 0.001, atol=1e-9)
+
+
+def test_check_writable(tmp_path: Path) -> None:
+    good = tmp_path / "a.rrd"
+    assert check_writable(good) == good and not good.exists()  # probing leaves nothing behind
+    cases = {
+        tmp_path / "missing" / "a.rrd": "does not exist",
+        tmp_path: "must end in .rrd",
+        tmp_path / "dir.rrd": "is a directory",
+        tmp_path / "a.txt": "must end in .rrd",
+    }
+    (tmp_path / "dir.rrd").mkdir()
+    if Path("/sys").is_dir():  # sysfs refuses new files even to root
+        cases[Path("/sys/hopper.rrd")] = "Permission denied"
+    for path, reason in cases.items():
+        with pytest.raises(ValueError, match=reason) as error:
+            check_writable(path)
+        assert "\n" not in str(error.value)
+    with pytest.raises(ValueError, match="does not exist"):
+        Telemetry(Simulation(SimConfig(terrain="flat")), path=tmp_path / "missing" / "a.rrd")
+
+
+def test_session_path_is_new_and_timestamped(tmp_path: Path) -> None:
+    first = session_path(tmp_path / "sessions")
+    first.touch()
+    second = session_path(tmp_path / "sessions")
+    assert first.parent == second.parent == tmp_path / "sessions"
+    assert first.suffix == ".rrd" and first.name.startswith("hopper-20") and second != first
+
+
+def test_close_is_idempotent_and_detaches(tmp_path: Path) -> None:
+    sim = Simulation(SimConfig(terrain="flat"))
+    telemetry = Telemetry(sim, path=tmp_path / "c.rrd")
+    for _ in range(30):
+        sim.step()
+    telemetry.close()
+    telemetry.close()
+    sim.step()  # no listener left to fail
+    assert sim.listeners == [] and len(seconds(read(tmp_path / "c.rrd")["signals"])) == 30
+
+
+def test_spawn_without_display_fails_clearly(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    monkeypatch.setattr(sys, "platform", "linux")
+    sim = Simulation(SimConfig(terrain="flat"))
+    with pytest.raises(TelemetryError, match="needs a display"):
+        Telemetry(sim, viewer="spawn")
+    assert sim.listeners == []
+
+
+def _listening(port: int) -> list[str]:
+    return [c.laddr.ip for c in psutil.net_connections("tcp") if c.status == "LISTEN" and c.laddr.port == port]
+
+
+def test_serve_binds_loopback_only_and_frees_its_ports() -> None:
+    sim = Simulation(SimConfig(terrain="flat"))
+    with Telemetry(sim, viewer="serve") as telemetry:
+        url = urlparse(telemetry.viewer_url or "")
+        grpc = urlparse(parse_qs(url.query)["url"][0])
+        ports = (url.port, grpc.port)
+        assert url.hostname == grpc.hostname == "127.0.0.1"
+        for port in ports:
+            assert _listening(port) == ["127.0.0.1"], port
+        for _ in range(100):
+            sim.step()
+    deadline = time.monotonic() + 10
+    while any(_listening(p) for p in ports) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not any(_listening(p) for p in ports)
