@@ -383,6 +383,7 @@ class Telemetry:
         self._log_static(sim)
         self._check_phase(self._next_ns)
         sim.listeners.append(self)
+        self.tick = self._first_tick  # type: ignore[method-assign]  # one-off check, then the plain tick
         _open.add(self)
 
     # -- setup -----------------------------------------------------------------------------
@@ -470,6 +471,19 @@ class Telemetry:
         return lambda: sim.phase
 
     # -- Listener --------------------------------------------------------------------------
+    def _first_tick(self, sim: Simulation) -> None:
+        """Drop a second registration (an extra `sim.listeners.append`), which would double every row."""
+        del self.tick
+        listeners = sim.listeners
+        if self in listeners:
+            first = listeners.index(self)
+            extra = [i for i in range(len(listeners) - 1, first, -1) if listeners[i] is self]
+            for i in extra:  # later than us in the list: the loop calling us simply never reaches them
+                del listeners[i]
+            if extra:
+                log.warning("Telemetry attaches itself to sim.listeners; ignoring the extra registration")
+        self.tick(sim)
+
     def tick(self, sim: Simulation) -> None:
         """Buffer one tick. The hot path: three tobytes() appends, a phase probe, a counter."""
         b = self._ticks
