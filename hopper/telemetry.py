@@ -16,7 +16,7 @@ Timelines: `sim_time` (duration: the simulation time, kept monotonic across rese
   each entity row costs a row id, a time and an offset (~14 B compressed) and each chunk ~1 kB of
   schema: fourteen float32 entities take ~14 MB per simulated minute, this struct ~3 MB. The
   blueprint plots the fields through component mappings (selector `.pitch_deg` and so on).
-- `limits/wheel_torque`: +-WHEEL_TORQUE_LIMIT reference lines, one row per batch.
+- `limits/wheel_torque`: +-WHEEL_TORQUE_LIMIT reference lines, a point every few batches.
 - `phase` (StateChange), `events` (TextLog, plus a `kind` string), `hops` (one row per touchdown
   or fall in flight with a float64 component per HopMetrics field, on both timelines).
 - `world/terrain` and `world/robot/<body>` static meshes in named frames; `world/tf` the bodies'
@@ -313,8 +313,8 @@ def _close_all() -> None:  # a forgotten close() must not cost the file its foot
 class Telemetry:
     """Records one Simulation to rerun; adds itself to `sim.listeners` until `close()`.
 
-    tick() appends three flat lists (~1.5 us); every `batch_ticks` ticks the batch is converted
-    with numpy and sent with rr.send_columns. Call close() (or use `with`) from the thread that
+    tick() appends three arrays' bytes to a bytearray (~1.5 us); every `batch_ticks` ticks the
+    batch is read back with numpy and sent with rr.send_columns. Call close() (or use `with`) from the thread that
     steps the simulation, or while it is not stepping (e.g. through `sim.submit`).
     """
 
@@ -344,9 +344,8 @@ class Telemetry:
 
         data = sim.data
         self._data = data
-        # Cached views: MjData's array properties build a new numpy object on every access.
+        # Cached views and bound methods: MjData's array properties build a new numpy object per access.
         self._qpos = data.qpos
-        # Bound tobytes of cached views: MjData's array properties build a new numpy object per access.
         self._sensor_bytes, self._force_bytes = data.sensordata.tobytes, data.actuator_force.tobytes
         self._qpos_bytes, self._xpos_bytes, self._xquat_bytes = data.qpos.tobytes, data.xpos.tobytes, data.xquat.tobytes
         self._dt_ns = round(sim.model.opt.timestep * 1e9)
@@ -363,7 +362,7 @@ class Telemetry:
         self._hop_rows: list[tuple[int, int, dict[str, float | int | bool]]] = []
         self._carry_qpos = self._qpos.copy()  # qpos at the next row's time (module docstring)
         self._offset_ns = 0  # sim_time minus data.time; grows at each reset
-        self._next_ns = self._data_ns()  # sim_time of the next row
+        self._next_ns = self._start_ns = self._data_ns()  # sim_time of the next row, of the first
         self._last_torso: list[float] | None = None
         self._batches = 0
         self._frames: dict[int, pa.Array] = {}  # child_frame columns by pose count
@@ -443,8 +442,7 @@ class Telemetry:
     def _log_static(self, sim: Simulation) -> None:
         rec = self.rec
         rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-        terrain = terrain_mesh(sim.heights, sim.config.craters)
-        rec.log("world/terrain", _mesh3d(terrain.vertices, terrain.faces, terrain.visual.vertex_colors), static=True)
+        self._log_terrain(sim)
         for mesh in self._meshes:  # each body mesh lives in its own frame, posed by world/tf
             rec.log(
                 f"world/robot/{mesh.name}",
@@ -459,6 +457,12 @@ class Telemetry:
             rr.AnyValues(terrain=c.terrain, seed=c.seed, gravity=c.gravity, wheel=c.wheel, timestep=c.timestep),
         )
         self._send_limits([self._next_ns])
+
+    def _log_terrain(self, sim: Simulation) -> None:
+        """Static, so a terrain change mid-recording shows its new terrain for the whole replay (the
+        3D view's time range would otherwise draw every terrain at once); the event log has the change."""
+        mesh = terrain_mesh(sim.heights, sim.config.craters)
+        self.rec.log("world/terrain", _mesh3d(mesh.vertices, mesh.faces, mesh.visual.vertex_colors), static=True)
 
     @staticmethod
     def _make_phase_probe(sim: Simulation) -> Callable[[], object]:
@@ -505,6 +509,8 @@ class Telemetry:
         """Buffer an event's text (and a finished hop's metrics); a reset sends the ticks before it."""
         if self._closed:
             return
+        if event.kind == "terrain":
+            self._log_terrain(sim)
         if event.kind == "reset":
             self._flush(wait=False, check_clock=False)  # rows before the reset keep their times
             self._offset_ns = self._next_ns - self._data_ns()
@@ -655,7 +661,7 @@ class Telemetry:
             self._closed = True
             try:
                 self._send(check_clock=False)  # an interrupt may have cut a step short of its tick()
-                self._send_limits([self._next_ns - self._dt_ns])
+                self._send_limits([max(self._start_ns, self._next_ns - self._dt_ns)])
                 self.rec.flush()
             finally:
                 self.rec.disconnect()  # writes the .rrd footer, stops the gRPC server
