@@ -182,9 +182,18 @@ def _wait_for_port(port: int, process: subprocess.Popen[bytes], what: str) -> No
             if s.connect_ex(("127.0.0.1", port)) == 0:
                 return
         time.sleep(0.05)
-    process.terminate()
+    _signal_group(process, signal.SIGTERM)
     process.wait()
     raise TelemetryError(f"{what} did not listen on 127.0.0.1:{port} within {VIEWER_WAIT_S:g} s")
+
+
+def _signal_group(process: subprocess.Popen[bytes], signum: int) -> None:
+    """Signal the process group we started it in (it is its leader), or just the process."""
+    if hasattr(os, "killpg"):
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(process.pid, signum)
+    else:
+        process.send_signal(signum)
 
 
 def _has_display() -> bool:
@@ -434,6 +443,7 @@ class Telemetry:
                 stdin=subprocess.DEVNULL,
                 stdout=subprocess.DEVNULL,
                 stderr=subprocess.DEVNULL,
+                start_new_session=True,  # its own process group: a wrapper script's child dies with it
             )
             _wait_for_port(web_port, self._web, "the rerun web viewer server")
             self.viewer_url = f"http://127.0.0.1:{web_port}/?url={quote(server.uri, safe='')}"
@@ -669,14 +679,15 @@ class Telemetry:
                 _open.discard(self)
 
     def _stop_web(self) -> None:
-        if self._web is not None and self._web.poll() is None:
-            self._web.terminate()
-            try:
-                self._web.wait(timeout=5)
-            except subprocess.TimeoutExpired:
-                self._web.kill()
-                self._web.wait()
-        self._web = None
+        web, self._web = self._web, None
+        if web is None or web.poll() is not None:
+            return
+        _signal_group(web, signal.SIGTERM)
+        try:
+            web.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            _signal_group(web, signal.SIGKILL if hasattr(signal, "SIGKILL") else signal.SIGTERM)
+            web.wait()
 
     @property
     def closed(self) -> bool:
