@@ -37,7 +37,7 @@ def closed_loop(config: SimConfig, hops: int, listeners: tuple = ()) -> tuple[fl
     sim.listeners.extend(listeners)
     start = time.perf_counter()
     sim.run(hops)
-    return sim._ticks / (time.perf_counter() - start), sim._ticks, sim
+    return sim.ticks / (time.perf_counter() - start), sim.ticks, sim
 
 
 def raw_replay(config: SimConfig, controls: np.ndarray) -> tuple[float, np.ndarray]:

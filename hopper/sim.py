@@ -82,7 +82,7 @@ class Simulation:
         self._qpos, self._qvel, self._sensors, self._ctrl = d.qpos, d.qvel, d.sensordata, d.ctrl
         self._mem, self._dt = self.controller.mem, self.model.opt.timestep
         self._torso = self.model.body("torso").id
-        self._ticks = 0
+        self.ticks = 0  # control ticks stepped since construction
         self.reset(reason="start")
 
     # -- reading ---------------------------------------------------------------------------
@@ -120,8 +120,8 @@ class Simulation:
         if self._pulse_at != math.inf and self._pulse_at <= self.data.time:
             self._pulse_event()
         mujoco.mj_step(self.model, self.data)
-        self._ticks += 1
-        if self._ticks % HEALTH_CHECK_TICKS == 0:
+        self.ticks += 1
+        if self.ticks % HEALTH_CHECK_TICKS == 0:
             self._check_health()
         for listener in self.listeners:
             listener.tick(self)
