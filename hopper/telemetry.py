@@ -80,6 +80,7 @@ SIGNALS_F16 = (*(f"{j}_deg" for j in LEG_JOINTS), *(f"{j}_torque_nm" for j in LE
 SIGNALS = SIGNALS_F32 + SIGNALS_F16
 EVENT_LEVELS = {"fall": "ERROR", "error": "ERROR", "diverged": "WARN", "disturbance": "WARN"}
 VIEWER_WAIT_S = 10.0  # s for a viewer process to start listening
+VIEWER_GRACE_S = 1.5  # s a spawned viewer must then stay alive (no display: it exits within ~0.5 s)
 BLUE, ORANGE, GREEN, RED, PURPLE = (31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189)
 
 
@@ -442,6 +443,9 @@ class Telemetry:
                 start_new_session=True,  # the window outlives the run and ignores our Ctrl-C
             )
             _wait_for_port(port, process, "the rerun viewer")
+            time.sleep(VIEWER_GRACE_S)  # it listens before opening its window, and exits if it cannot
+            if process.poll() is not None:
+                raise TelemetryError(f"the rerun viewer exited with code {process.returncode}: no usable display?")
             sinks.append(rr.GrpcSink(f"rerun+http://127.0.0.1:{port}/proxy"))
         elif viewer == "serve":
             # rr.serve_web_viewer binds 0.0.0.0, the CLI's web server takes --bind: the gRPC server
@@ -570,7 +574,7 @@ class Telemetry:
                 return
             self._send(check_clock)
             if wait:
-                self.rec.flush()
+                self._wait_for_sinks()
 
     def _send(self, check_clock: bool) -> None:
         # Take the buffers before sending (an exception mid-send must not make the next flush send
@@ -685,6 +689,13 @@ class Telemetry:
         limits = pa.array(np.tile([WHEEL_TORQUE_LIMIT, -WHEEL_TORQUE_LIMIT], len(times)))
         rr.send_columns("limits/wheel_torque", _times(times), [_Column(_SCALARS, limits, 2)], recording=self.rec)
 
+    def _wait_for_sinks(self) -> None:
+        """rec.flush(), but a viewer that went away (its window closed) must not fail the file."""
+        try:
+            self.rec.flush()
+        except RuntimeError as exc:
+            log.warning("rerun: a sink failed (%s); the file is still written", exc)
+
     def _data_ns(self) -> int:
         return round(self._data.time * 1e9)
 
@@ -700,7 +711,7 @@ class Telemetry:
             try:
                 self._send(check_clock=False)  # an interrupt may have cut a step short of its tick()
                 self._send_limits([max(self._start_ns, self._next_ns - self._dt_ns)])
-                self.rec.flush()
+                self._wait_for_sinks()
             finally:
                 self.rec.disconnect()  # writes the .rrd footer, stops the gRPC server
                 self._stop_web()
