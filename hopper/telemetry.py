@@ -1,32 +1,11 @@
-"""Rerun telemetry: 1 kHz signals, phases, events, per-hop metrics and 3D poses, to a .rrd and/or a viewer.
+"""Rerun telemetry of a Simulation: 1 kHz signals, phases, events, per-hop metrics and 3D poses.
 
-Usage from a CLI (Ctrl-C and SIGTERM both leave a finalised file that `rerun rrd verify` accepts):
+A CLI records so that Ctrl-C and SIGTERM still leave a file `rerun rrd verify` accepts:
 
-    path = check_writable(args.record)          # before the simulation starts
-    exit_on_sigterm()                           # SIGTERM -> SystemExit, so `with` blocks unwind
-    with Telemetry(sim, path=path, viewer="off") as telemetry:
+    path = check_writable(args.rrd)  # before the simulation starts
+    exit_on_sigterm()  # SIGTERM -> SystemExit, so the `with` block unwinds
+    with Telemetry(sim, path=path) as telemetry:
         sim.run(hops)
-
-Timelines: `sim_time` (duration: the simulation time, kept monotonic across resets) and `hop`
-(sequence: hops completed in this recording; it keeps counting after a reset). Entities:
-
-- `signals`: one row per control tick holding one struct component `signals` with the fields of
-  SIGNALS (pitch, rate, wheel speed and torque in float32; leg angles, leg torques and foot forces
-  in float16, 0.05 % relative resolution). One struct rather than an entity per channel because
-  each entity row costs a row id, a time and an offset (~14 B compressed) and each chunk ~1 kB of
-  schema: fourteen float32 entities take ~14 MB per simulated minute, this struct ~3 MB. The
-  blueprint plots the fields through component mappings (selector `.pitch_deg` and so on).
-- `limits/wheel_torque`: +-WHEEL_TORQUE_LIMIT reference lines, a point every few batches.
-- `phase` (StateChange), `events` (TextLog, plus a `kind` string), `hops` (one row per touchdown
-  or fall in flight with a float64 component per HopMetrics field, on both timelines).
-- `world/terrain` and `world/robot/<body>` static meshes in named frames; `world/tf` the bodies'
-  poses (Transform3D with `child_frame`) every POSE_EVERY_TICKS; `world/trail` the torso path.
-
-Rows describe the state at the start of their tick, as MuJoCo's forward pass of that tick saw it:
-sensors, actuator forces (the torques applied this tick) and body poses are read from MjData after
-mj_step (the integrator does not advance them), joint angles from qpos read one tick earlier (it
-does). Telemetry reads MjData rather than `sim.physics`, which the simulation no longer refreshes
-every tick. Everything is buffered and sent every `batch_ticks` with rr.send_columns.
 """
 
 from __future__ import annotations
@@ -324,7 +303,27 @@ def _close_all() -> None:  # a forgotten close() must not cost the file its foot
 class Telemetry:
     """Records one Simulation to rerun; adds itself to `sim.listeners` until `close()`.
 
-    tick() appends three arrays' bytes to a bytearray (~0.5 us); every `batch_ticks` ticks the
+    Timelines: `sim_time` (duration: simulation time, kept monotonic across resets) and `hop`
+    (sequence: hops completed in this recording, still counting after a reset). Entities:
+
+    - `signals`: a row per control tick, one struct component `signals` with the fields of
+      SIGNALS (pitch, rate, wheel speed and torque as float32; leg angles and torques and foot
+      forces as float16, 0.05 % resolution). One struct, not an entity per channel: every entity
+      row costs a row id, a time and an offset (~14 B compressed) and every chunk ~1 kB of schema,
+      so fourteen float32 entities take ~14 MB per simulated minute and this ~3 MB. The blueprint
+      plots the fields through component mappings (selector `.pitch_deg`, ...).
+    - `limits/wheel_torque`: +-WHEEL_TORQUE_LIMIT reference lines.
+    - `phase`: StateChange at each change, exact to the tick. `events`: TextLog and a `kind`.
+    - `hops`: a row per touchdown (or fall in flight), a float64 component per HopMetrics field.
+    - `world/terrain`, `world/robot/<body>`: static meshes, bodies in named frames posed by
+      `world/tf` (Transform3D rows with `child_frame`) at 50 Hz; `world/trail`: the torso path.
+
+    A row is the state at the start of its tick, as that tick's forward pass saw it: sensors,
+    applied actuator forces and body poses come from MjData after mj_step (the integrator leaves
+    them), joint angles from the qpos of one tick earlier (it advances qpos). MjData is read
+    directly: the simulation no longer refreshes `sim.physics` every tick.
+
+    tick() appends four byte views to a bytearray (~0.5 us); every `batch_ticks` ticks the
     batch is read back with numpy and sent with rr.send_columns (~1 us a tick, amortised). Call
     close() (or use `with`) from the thread that steps the simulation, or while it is not stepping
     (e.g. through `sim.submit`).
@@ -366,8 +365,8 @@ class Telemetry:
         self._dt_ns = round(sim.model.opt.timestep * 1e9)
         self._meshes = body_meshes(sim.model)
         self._layout(sim)
-        # Raw float64 bytes, one row a tick: sensordata | actuator_force | qpos; numpy reads them back
-        # without conversion (lists of floats cost ~3x more to fill and ~4x more to convert).
+        # Raw float64 bytes, one row a tick: sensordata | actuator_force | qpos | phase code; numpy
+        # reads them back without conversion (lists of floats cost ~3x more to fill, ~4x to convert).
         self._n = 0  # ticks buffered
         self._ticks = bytearray()
         self._pose_rows: list[int] = []
