@@ -170,7 +170,7 @@ def test_reset_keeps_sim_time_monotonic(tmp_path: Path) -> None:
     assert seconds(tables["events"])[reset] == pytest.approx(t[250])
 
 
-@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_interrupt_leaves_a_verified_recording(tmp_path: Path, signum: int) -> None:
     path = tmp_path / "interrupted.rrd"
     script = (
