@@ -12,10 +12,12 @@ from pathlib import Path
 
 from hopper.config import SimConfig
 from hopper.sim import Simulation
-from hopper.telemetry import Telemetry
+from hopper.telemetry import BATCH_TICKS, Telemetry
 
 
-def _run(config: SimConfig, hops: int, path: Path | None) -> tuple[float, float, float, int]:
+def _run(
+    config: SimConfig, hops: int, path: Path | None, batch_ticks: int = BATCH_TICKS
+) -> tuple[float, float, float, int]:
     """Wall and main-thread CPU seconds, simulated seconds and ticks for `hops` hops.
 
     The recording (if any) is closed outside the timed loop: a one-off at the end of a session.
@@ -23,7 +25,7 @@ def _run(config: SimConfig, hops: int, path: Path | None) -> tuple[float, float,
     counts rerun's encoder and writer threads when cores are scarce.
     """
     sim = Simulation(config)
-    telemetry = Telemetry(sim, path=path) if path is not None else None
+    telemetry = Telemetry(sim, path=path, batch_ticks=batch_ticks) if path is not None else None
     start_time, start, cpu = sim.time, time.perf_counter(), time.thread_time()
     sim.run(hops)
     wall, cpu = time.perf_counter() - start, time.thread_time() - cpu
@@ -33,7 +35,9 @@ def _run(config: SimConfig, hops: int, path: Path | None) -> tuple[float, float,
     return wall, cpu, sim.time - start_time, ticks
 
 
-def measure(seed: int = 0, hops: int = 7, repeats: int = 5, terrain: str = "crater") -> dict[str, float]:
+def measure(
+    seed: int = 0, hops: int = 7, repeats: int = 5, terrain: str = "crater", batch_ticks: int = BATCH_TICKS
+) -> dict[str, float]:
     """Ticks per second without and with a recording (best of `repeats`, interleaved) and file sizes.
 
     Returns rate_off, rate_on (ticks/s of wall time), ratio (on/off), tick_cost_us (extra wall time
@@ -48,7 +52,7 @@ def measure(seed: int = 0, hops: int = 7, repeats: int = 5, terrain: str = "crat
         off, on = [], []
         for i in range(repeats):
             off.append(_run(config, hops, None))
-            on.append(_run(config, hops, folder / f"run{i}.rrd"))
+            on.append(_run(config, hops, folder / f"run{i}.rrd", batch_ticks))
         static = folder / "static.rrd"
         Telemetry(Simulation(config), path=static).close()
         mb = (folder / "run0.rrd").stat().st_size / 1e6
@@ -78,8 +82,9 @@ def main() -> None:
     parser.add_argument("--hops", type=int, default=7)
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--terrain", choices=("crater", "flat"), default="crater")
+    parser.add_argument("--batch-ticks", type=int, default=BATCH_TICKS, help="ticks per rerun send")
     args = parser.parse_args()
-    r = measure(args.seed, args.hops, args.repeats, args.terrain)
+    r = measure(args.seed, args.hops, args.repeats, args.terrain, args.batch_ticks)
     print(f"ticks/s without recording {r['rate_off']:9.0f}")
     print(f"ticks/s with recording    {r['rate_on']:9.0f}")
     print(f"ratio with/without        {r['ratio']:9.3f}   (target >= 0.85)")

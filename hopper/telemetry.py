@@ -50,7 +50,11 @@ log = logging.getLogger(__name__)
 APPLICATION_ID = "hopper"
 TIME = "sim_time"
 HOP = "hop"
-BATCH_TICKS = 2000  # ticks per send (2 s simulated): each send costs ~0.4 ms, each chunk ~1 kB of schema
+# A batch goes out when it holds BATCH_TICKS ticks or FLUSH_WALL_S after the last one, whichever
+# comes first: faster than real time the ticks decide (a send costs ~1 ms whatever its size, each
+# chunk ~1 kB of schema), at real time the clock does (a live viewer lags by at most a second).
+BATCH_TICKS = 4000
+FLUSH_WALL_S = 1.0
 LIMIT_EVERY_BATCHES = 5  # the torque limit lines only need a point now and then
 POSE_EVERY_TICKS = 20  # 50 Hz body poses
 RAD_S_TO_RPM = 60.0 / (2.0 * math.pi)
@@ -323,8 +327,8 @@ class Telemetry:
     them), joint angles from the qpos of one tick earlier (it advances qpos). MjData is read
     directly: the simulation no longer refreshes `sim.physics` every tick.
 
-    tick() appends four byte views to a bytearray (~0.5 us); every `batch_ticks` ticks the
-    batch is read back with numpy and sent with rr.send_columns (~1 us a tick, amortised). Call
+    tick() appends four byte views to a bytearray (~0.5 us); every `batch_ticks` ticks (or
+    FLUSH_WALL_S) the batch is read back with numpy and sent with rr.send_columns. Call
     close() (or use `with`) from the thread that steps the simulation, or while it is not stepping
     (e.g. through `sim.submit`).
     """
@@ -379,6 +383,7 @@ class Telemetry:
         self._next_ns = self._start_ns = self._data_ns()  # sim_time of the next row, of the first
         self._last_torso: list[float] | None = None
         self._batches = 0
+        self._flush_due = time.monotonic() + FLUSH_WALL_S
         self._frames: dict[int, pa.Array] = {}  # child_frame columns by pose count
         self._hops = 0
         self._phase_view, self._phase_exact = self._phase_source(sim)
@@ -538,7 +543,7 @@ class Telemetry:
             p = self._poses
             p += self._xpos_view
             p += self._xquat_view
-            if n >= self._batch:
+            if n >= self._batch or time.monotonic() >= self._flush_due:
                 self._flush(wait=False)
 
     def event(self, sim: Simulation, event: Event) -> None:
@@ -576,6 +581,7 @@ class Telemetry:
                 self._wait_for_sinks()
 
     def _send(self, check_clock: bool) -> None:
+        self._flush_due = time.monotonic() + FLUSH_WALL_S
         # Take the buffers before sending (an exception mid-send must not make the next flush send
         # them twice) and copy them out: a numpy view would pin a bytearray that tick() may still
         # append to if close() runs on another thread.
