@@ -81,7 +81,7 @@ def build_layout(
         disturbances = build_disturbances_panel(gui, ctx)
     with tabs.add_tab("World", viser.Icon.PLANET):
         terrain_panel = build_terrain_panel(gui, ctx, seed, terrain, gravity)
-        view = build_view_panel(gui, camera, trail, robot)
+        view = build_view_panel(gui, server.scene, camera, trail, robot)
     with tabs.add_tab("Record", viser.Icon.PLAYER_RECORD):
         record = build_record_panel(gui, recorder)
     build_help_button(gui, assets.help_markdown())

@@ -13,7 +13,9 @@ from hopper.metrics import RAD_S_TO_RPM
 
 PLOT_WINDOW_S = 10.0  # s of simulation shown
 PLOT_SAMPLE_S = 0.025  # s of simulation between samples: 8 a period of the wn = 30 rad/s pitch loop
-PLOT_PUBLISH_S = 1 / 15  # s of wall time between chart updates (each re-sends the window: ~11 KB)
+PLOT_PUBLISH_S = 0.1  # s of wall time between chart updates; each re-sends the window (~22 KB, float64)
+CHART_HEIGHT = 135  # px
+Y_SOFT = 2.0  # deg, the pitch chart shows at least +-Y_SOFT
 _N = int(round(PLOT_WINDOW_S / PLOT_SAMPLE_S))
 # Columns of the ring buffer.
 _T, _PITCH, _RPM, _TORQUE, _COMMAND = range(5)
@@ -56,20 +58,26 @@ def _series(label: str, color: str, width: float = 1.5, dash: tuple[float, ...] 
 
 
 def _chart(
-    gui: viser.GuiApi, title: str, series: tuple[uplot.Series, ...], y_range: tuple[float, float] | None
+    gui: viser.GuiApi, series: tuple[uplot.Series, ...], y_range: tuple[float, float] | None
 ) -> viser.GuiUplotHandle:
+    """A compact chart: no title (the legend names the series and units, with live values on hover)."""
     empty = tuple(np.zeros(1, dtype=np.float32) for _ in series)
     scales: dict[str, uplot.Scale] = {"x": {"time": False, "auto": True}}
-    if y_range is not None:
-        scales["y"] = {"range": y_range}
+    # A fixed range shows the limit; otherwise auto-range, but never tighter than y_soft.
+    scales["y"] = (
+        {"range": y_range}
+        if y_range
+        else {"range": {"min": {"soft": -Y_SOFT, "mode": 1}, "max": {"soft": Y_SOFT, "mode": 1}}}
+    )
     return gui.add_uplot(
         empty,
         series,
-        title=title,
         scales=scales,
+        # x, y: denser y ticks than uPlot's default on a short chart, short tick marks.
+        axes=({"space": 40, "size": 26, "ticks": {"size": 3}}, {"space": 18, "size": 46, "ticks": {"size": 3}}),
         legend={"show": True, "live": True},
         cursor={"drag": {"x": False, "y": False}},
-        height=130,
+        height=CHART_HEIGHT,
         padding=(4, 12, 0, 0),
     )
 
@@ -82,15 +90,12 @@ class LivePlots:
         self._last_publish = -math.inf
         self._dirty = False
         rpm_limit = WHEEL_NO_LOAD_SPEED * RAD_S_TO_RPM * 1.05
-        self.pitch = _chart(gui, "Pitch", (_series("t s", ""), _series("pitch °", "#ffb03b")), None)
-        self.rpm = _chart(gui, "Wheel speed", (_series("t s", ""), _series("rpm", "#5aa9ff")), (-rpm_limit, rpm_limit))
+        time = _series("t (s)", "")
+        self.pitch = _chart(gui, (time, _series("pitch (°)", "#ffb03b")), None)
+        self.rpm = _chart(gui, (time, _series("wheel speed (rpm)", "#5aa9ff")), (-rpm_limit, rpm_limit))
         limit = WHEEL_TORQUE_LIMIT * 1.08
-        self.torque = _chart(
-            gui,
-            "Wheel torque",
-            (_series("t s", ""), _series("applied N m", "#f25f5c"), _series("asked N m", "#cfd6dd", 1.0, (4, 3))),
-            (-limit, limit),
-        )
+        torque = (_series("wheel torque (N m)", "#f25f5c"), _series("asked", "#cfd6dd", 1.0, (4, 3)))
+        self.torque = _chart(gui, (time, *torque), (-limit, limit))
 
     def sample(self, time: float, pitch: float, wheel_speed: float, torque: float, command: float) -> None:
         """Add one sample (SI units); the caller keeps one every PLOT_SAMPLE_S of simulation time."""

@@ -17,6 +17,8 @@ import viser
 import websockets.sync.client as ws_client
 import zstandard
 
+TORSO = "/world/robot/torso"  # the scene node whose pose updates count as a frame
+
 
 class ProbeClient:
     """Receives the full stream on a thread; counts bytes and messages by type."""
@@ -118,7 +120,7 @@ class ProbeClient:
             for message in messages:
                 kind = message.get("type", "?")
                 self.counts[kind] += 1
-                if kind == "SetPositionMessage" and message.get("name") == "/robot/torso":
+                if kind == "SetPositionMessage" and message.get("name") == TORSO:
                     moved = True
                 elif kind == "NotificationShowMessage":
                     self.notifications.append(message.get("props", {}))

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import time
 import warnings
 
 import mujoco
@@ -19,19 +18,19 @@ from terrain import CraterParams
 # message will never be delivered, which is exactly right and not worth a warning per frame.
 warnings.filterwarnings("ignore", message=r"Queued a SetCamera\w+ on a closed connection")
 
+WORLD = "/world"  # parent of every scene node; following the robot moves this frame only
 TRAIL_SAMPLE_S = 0.05  # s of simulation between trail points
 TRAIL_CHUNK = 20  # points per line-segment node; only the newest chunk is re-sent
 TRAIL_CHUNKS = 15  # nodes kept: 15 s of trail
 TRAIL_COLOR = (255, 176, 59)
 SATURATION_COLORS = ((70, 200, 120), (245, 190, 40), (235, 60, 50))  # free, half, saturated
 CAMERA_OFFSET = np.array([0.0, -4.4, 1.9])  # m from the look-at point: side view from 23 deg above
-LOOK_OFFSET = np.array([0.3, 0.0, -0.3])  # m from the torso: a little ahead (it hops toward +x) and down
+LOOK_OFFSET = np.array([0.3, 0.0, -0.3])  # m from the followed torso: a little ahead (it hops toward +x), down
 CAMERA_FOV = math.radians(45.0)  # vertical; about 4 m of height in view at the default distance
 ENVIRONMENT_INTENSITY = 0.25
 GROUND_COLOR = (58, 58, 62)
 GROUND_Z = -0.01  # m, just under the strip's level start pad
 TERRAIN_DIM = 0.72  # factor on the terrain's hillshaded colours
-HOME_HOLD_S = 1.0  # s a newly homed camera is held, until the browser reports the new view
 FOLLOW_TAU_X, FOLLOW_TAU_Z = 0.25, 1.5  # s, camera smoothing; slow in z so hops do not bob it
 
 
@@ -42,13 +41,16 @@ def add_terrain(scene: viser.SceneApi, heights: np.ndarray, craters: CraterParam
     colors = np.asarray(mesh.visual.vertex_colors).copy()
     colors[:, :3] = (colors[:, :3] * TERRAIN_DIM).astype(np.uint8)
     mesh.visual.vertex_colors = colors
-    return scene.add_mesh_trimesh("/terrain", mesh, cast_shadow=False)
+    return scene.add_mesh_trimesh(f"{WORLD}/terrain", mesh, cast_shadow=False)
 
 
-def configure_lighting(scene: viser.SceneApi) -> None:
-    """A dim environment so the hillshaded craters read: viser's default studio light flattens them."""
+def configure_lighting(scene: viser.SceneApi, shadows: bool = True) -> None:
+    """A dim environment so the hillshaded craters read: viser's default studio light flattens them.
+
+    Shadows show the hop height, but cost a software (GPU-less) renderer a lot.
+    """
     scene.configure_environment_map("warehouse", environment_intensity=ENVIRONMENT_INTENSITY)
-    scene.configure_default_lights(enabled=True, cast_shadow=True)
+    scene.configure_default_lights(enabled=True, cast_shadow=shadows)
 
 
 def add_ground(scene: viser.SceneApi, craters: CraterParams) -> viser.MeshHandle:
@@ -61,7 +63,7 @@ def add_ground(scene: viser.SceneApi, craters: CraterParams) -> viser.MeshHandle
     )  # fmt: skip
     vertices[:, 2] = GROUND_Z
     faces = np.array([[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]], dtype=np.uint32)
-    return scene.add_mesh_simple("/ground", vertices, faces, color=GROUND_COLOR, cast_shadow=False)
+    return scene.add_mesh_simple(f"{WORLD}/ground", vertices, faces, color=GROUND_COLOR, cast_shadow=False)
 
 
 def saturation(wheel_torque: float, wheel_speed: float) -> float:
@@ -82,7 +84,7 @@ def _add_body(scene: viser.SceneApi, body: BodyMesh) -> viser.SceneNodeHandle:
     if (colors == colors[0]).all():
         r, g, b, a = (int(c) for c in colors[0])
         return scene.add_mesh_simple(
-            f"/robot/{body.name}",
+            f"{WORLD}/robot/{body.name}",
             body.vertices,
             body.faces,
             color=(r, g, b),
@@ -91,7 +93,7 @@ def _add_body(scene: viser.SceneApi, body: BodyMesh) -> viser.SceneNodeHandle:
             side="double" if a < 255 else "front",
             cast_shadow=a == 255,
         )
-    return scene.add_mesh_trimesh(f"/robot/{body.name}", body.mesh)
+    return scene.add_mesh_trimesh(f"{WORLD}/robot/{body.name}", body.mesh)
 
 
 class RobotView:
@@ -106,7 +108,7 @@ class RobotView:
         ring.apply_transform(trimesh.transformations.rotation_matrix(math.pi / 2, [1, 0, 0]))
         self._level = -1.0
         self.ring = scene.add_mesh_simple(
-            "/robot/torso/saturation",
+            f"{WORLD}/robot/torso/saturation",
             np.asarray(ring.vertices, np.float32),
             np.asarray(ring.faces, np.uint32),
             color=SATURATION_COLORS[0],
@@ -114,7 +116,7 @@ class RobotView:
             cast_shadow=False,
         )
         self.label = scene.add_label(
-            "/robot_label", "stance", position=(0.0, 0.0, 1.6), anchor="bottom-center", font_screen_scale=0.9
+            f"{WORLD}/robot_label", "stance", position=(0.0, 0.0, 1.6), anchor="bottom-center", font_screen_scale=0.9
         )
         self.show_label = True
 
@@ -168,7 +170,7 @@ class Trail:
         points = np.asarray(self._points, dtype=np.float32)
         slot = self._chunk % TRAIL_CHUNKS
         self._handles[slot] = self._scene.add_line_segments(
-            f"/trail/{slot}",
+            f"{WORLD}/trail/{slot}",
             np.stack([points[:-1], points[1:]], axis=1),
             TRAIL_COLOR,
             thickness=0.012,
@@ -187,60 +189,42 @@ class Trail:
 
 
 class CameraFollow:
-    """Keeps every client's camera aimed at the (smoothed) robot while preserving the user's orbit.
+    """Keeps the robot in view by sliding the world under the cameras, which never move.
 
-    Each update re-aims from the client's own last report: look_at goes to the target and the
-    camera keeps its offset from look_at (the orbit). Re-aiming, rather than adding deltas, cannot
-    drift when a report crosses an update in flight. A client just homed is held at the home pose
-    for HOME_HOLD_S, because its first reports still carry the browser's default view.
+    Every scene node lives under the WORLD frame; following sets that one frame's position to
+    minus the (smoothed) robot position: one message a frame for all clients, and each user's own
+    orbit, zoom and pan are never touched (moving each browser's camera instead fights the user
+    and drifts, as a browser reports the camera it last rendered). Unticking follow freezes the
+    world where it is.
     """
 
-    def __init__(self, x: float, z: float) -> None:
+    def __init__(self, scene: viser.SceneApi, x: float, z: float) -> None:
         self.enabled = True
         self.x, self.z = x, z
-        self._homing: dict[int, float] = {}  # client id -> wall time the home hold ends
-        self._initial_x = math.inf
+        self.world = scene.add_frame(WORLD, show_axes=False)
+        self._move_world()
 
-    @property
-    def look_at(self) -> np.ndarray:
-        return np.array([self.x, 0.0, self.z]) + LOOK_OFFSET
+    def _move_world(self) -> None:
+        self.world.position = (-self.x, 0.0, -self.z)
 
-    def home(self, client: viser.ClientHandle) -> None:
-        """Put a client's camera at the default side view of the robot (and hold it there briefly)."""
-        self._homing[client.client_id] = time.monotonic() + HOME_HOLD_S
-        client.camera.fov = CAMERA_FOV
-        self._aim(client, CAMERA_OFFSET)
-
-    def _aim(self, client: viser.ClientHandle, orbit: np.ndarray) -> None:
-        look = self.look_at
-        client.camera.position = look + orbit  # shifts look_at by the same offset...
-        client.camera.look_at = look  # ...so this only corrects a stale look_at
-
-    def set_initial(self, server: viser.ViserServer) -> None:
-        """Where new clients start (and where the viewer's own "reset view" goes), if it moved."""
-        if abs(self.x - self._initial_x) < 0.25:
-            return
-        self._initial_x = self.x
-        look = self.look_at
+    def configure_initial(self, server: viser.ViserServer) -> None:
+        """The side view new clients start from (and viser's own "reset view" returns to)."""
         initial = server.initial_camera
         initial.fov, initial.up = CAMERA_FOV, (0.0, 0.0, 1.0)
-        initial.position, initial.look_at = look + CAMERA_OFFSET, look
+        initial.position, initial.look_at = LOOK_OFFSET + CAMERA_OFFSET, LOOK_OFFSET
 
-    def update(self, clients: dict[int, viser.ClientHandle], x: float, z: float, dt: float) -> None:
-        """Move the target toward the robot at (x, z) (m) and re-aim the cameras."""
+    def home(self, client: viser.ClientHandle) -> None:
+        """Put a client's camera back at the side view."""
+        with client.atomic():
+            client.camera.fov = CAMERA_FOV
+            client.camera.up_direction = (0.0, 0.0, 1.0)
+            client.camera.position = LOOK_OFFSET + CAMERA_OFFSET
+            client.camera.look_at = LOOK_OFFSET
+
+    def update(self, x: float, z: float, dt: float) -> None:
+        """Move the followed point toward the robot at (x, z) (m) and slide the world to match."""
+        if not self.enabled:
+            return
         self.x += (x - self.x) * (1.0 - math.exp(-dt / FOLLOW_TAU_X))
         self.z += (z - self.z) * (1.0 - math.exp(-dt / FOLLOW_TAU_Z))
-        now = time.monotonic()
-        self._homing = {cid: until for cid, until in self._homing.items() if cid in clients and until > now}
-        look = self.look_at
-        for cid, client in clients.items():
-            if not self.enabled and cid not in self._homing:
-                continue
-            try:
-                camera = client.camera
-                if cid in self._homing:
-                    self._aim(client, CAMERA_OFFSET)
-                elif float(np.abs(camera.look_at - look).max()) > 5e-4:
-                    self._aim(client, camera.position - camera.look_at)
-            except (AssertionError, ValueError):  # no camera report yet, or a degenerate pose
-                continue
+        self._move_world()

@@ -41,6 +41,8 @@ log = logging.getLogger(__name__)
 FRAME_S = 1 / 30  # s of wall time between pose updates
 MAX_SLEEP_S = 0.005  # s; the loop wakes at least this often to step (5 steps a wake at 1x)
 STATUS_S = 0.2  # s between status-strip updates
+END_MARGIN_M = 1.0  # m before the end of the terrain strip where a run is restarted
+OFF_WORLD_Z_M = -3.0  # m; a torso below this has left the terrain
 FALL_RESET_S = 2.0  # s of (running) wall time a fallen robot stays down before the auto reset
 
 
@@ -98,13 +100,13 @@ class Dashboard:
 
     def _build(self) -> None:
         sim, config = self.sim, self.config
+        self.camera = CameraFollow(self.server.scene, sim.physics.x, sim.physics.z)  # the parent frame first
+        self.camera.configure_initial(self.server)
         configure_lighting(self.server.scene)
         add_ground(self.server.scene, sim.config.craters)
         self.terrain = add_terrain(self.server.scene, sim.heights, sim.config.craters)
         self.robot = RobotView(self.server.scene, sim.model)
         self.trail = Trail(self.server.scene)
-        self.camera = CameraFollow(sim.physics.x, sim.physics.z)
-        self.camera.set_initial(self.server)
         self.layout: Layout = build_layout(
             self.server,
             PanelContext(self.server, sim.submit, self),
@@ -119,7 +121,6 @@ class Dashboard:
             robot=self.robot,
         )
         self.recorder.listeners.append(self._recording_changed)
-        self.server.on_client_connect(self._client_connected)
         sim.listeners.append(self)
 
     @property
@@ -196,7 +197,7 @@ class Dashboard:
                 extra, self._single_steps = self._single_steps, 0
             self._step(budgeted + extra)
             self.pacer.done(budgeted, now, extra)
-            self._after_fall(now)
+            self._watchdog(now)
             if now >= next_frame:
                 try:
                     self._publish(now, now - last_frame, now - last_status >= STATUS_S)
@@ -228,15 +229,23 @@ class Dashboard:
             notify_all(self.server, "Simulation error", f"{type(exc).__name__}: {exc}; the robot was reset", "error")
             self.sim.reset(reason="error")
 
-    def _after_fall(self, now: float) -> None:
-        if not self.sim.fallen or self.stay_fallen or self.pacer.paused:
-            self._fallen_since = None
+    def _watchdog(self, now: float) -> None:
+        """Keep a dashboard that runs for hours going: restart after a fall (unless asked not to)
+        and when the robot runs off the end of the terrain strip, which the core does not watch."""
+        sim = self.sim
+        if sim.fallen and not self.stay_fallen and not self.pacer.paused:
+            if self._fallen_since is None:
+                self._fallen_since = now
+            elif now - self._fallen_since >= FALL_RESET_S:
+                self._fallen_since = None
+                sim.reset(reason="after fall")
             return
-        if self._fallen_since is None:
-            self._fallen_since = now
-        elif now - self._fallen_since >= FALL_RESET_S:
-            self._fallen_since = None
-            self.sim.reset(reason="after fall")
+        self._fallen_since = None
+        s, craters = sim.physics, sim.config.craters
+        s.refresh()
+        if s.x > craters.x0 + craters.length - END_MARGIN_M or s.z < OFF_WORLD_Z_M:
+            sim.reset(reason="end of terrain")
+            notify_all(self.server, "End of the terrain", "The robot went back to the start.")
 
     def _publish(self, now: float, dt: float, with_status: bool) -> None:
         sim, s = self.sim, self.sim.physics
@@ -246,12 +255,11 @@ class Dashboard:
         level = saturation(s.wheel_torque, s.wheel_speed)
         with self.server.atomic():
             self.robot.update(sim.model, sim.data, level, sim.phase.label)
+            self.camera.update(s.x, s.z, dt)
         self.trail.publish()
         self.layout.plots.publish(now)
-        self.camera.update(self.server.get_clients(), s.x, s.z, dt)
         self.frames += 1
         if with_status:
-            self.camera.set_initial(self.server)
             self.layout.status.show(
                 Status(
                     phase=sim.phase.label,
@@ -290,12 +298,6 @@ class Dashboard:
             layout.plots.clear()
             layout.hops.clear()
             self.trail.clear()
-
-    def _client_connected(self, client: viser.ClientHandle) -> None:
-        try:
-            self.camera.home(client)
-        except Exception:  # the client may already be gone
-            log.debug("could not place the camera of client %s", client.client_id, exc_info=True)
 
     def _recording_changed(self, state: str, path: object, message: str) -> None:
         if state == "saved" and path is not None:

@@ -28,7 +28,7 @@ class SimulationPanel:
     def set_paused(self, paused: bool) -> None:
         self.loop.set_paused(paused)
         self.pause.visible, self.resume.visible = not paused, paused
-        self.step.disabled = not paused
+        self.step.visible = paused  # viser button groups cannot be disabled after creation
 
     def reset(self) -> None:
         """Defaults: running at 1x, auto reset after a fall."""
@@ -43,7 +43,7 @@ def build_simulation_panel(gui: viser.GuiApi, ctx: PanelContext, speed: float = 
         loop=ctx.loop,
         pause=gui.add_button("Pause", icon=viser.Icon.PLAYER_PAUSE),
         resume=gui.add_button("Resume", icon=viser.Icon.PLAYER_PLAY, color="green", visible=False),
-        step=gui.add_button_group("Step", tuple(STEPS), hint="Single 1 ms control ticks, while paused", disabled=True),
+        step=gui.add_button_group("Step", tuple(STEPS), hint="Single 1 ms control ticks", visible=False),
         reset_robot=gui.add_button(
             "Reset robot", icon=viser.Icon.REFRESH, color="gray", hint="Stand the robot at the start"
         ),

@@ -41,7 +41,8 @@ def status_html(s: Status) -> str:
         "<table>"
         f"<tr><td>time</td><td>{s.time:8.2f} s</td><td>real time</td><td>{rtf}</td></tr>"
         f"<tr><td>pitch</td><td>{s.pitch_deg:+6.1f}°</td><td>hops</td><td>{s.hops}</td></tr>"
-        f"<tr><td>wheel</td><td>{s.wheel_rpm:+5.0f} rpm</td><td>limit</td><td>{s.saturation * 100:3.0f} %</td></tr>"
+        f"<tr><td>wheel</td><td>{s.wheel_rpm:+5.0f} rpm</td>"
+        f"<td>limit used</td><td>{s.saturation * 100:3.0f} %</td></tr>"
         f"<tr><td>gravity</td><td>{s.gravity:g} m/s²</td><td></td><td></td></tr>"
         "</table></div>"
     )

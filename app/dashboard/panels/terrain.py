@@ -68,7 +68,9 @@ def build_terrain_panel(
         seed=gui.add_number("Seed", seed, min=0, max=MAX_SEED, step=1),
         flat=gui.add_checkbox("Flat ground", kind == "flat"),
         regenerate=gui.add_button("Regenerate", icon=viser.Icon.REFRESH, hint="Rebuild the terrain, restart the robot"),
-        next_seed=gui.add_button("Next seed", icon=viser.Icon.PLAYER_TRACK_NEXT, hint="Seed + 1, then regenerate"),
+        next_seed=gui.add_button(
+            "Next seed", icon=viser.Icon.PLAYER_TRACK_NEXT, color="gray", hint="Seed + 1, then regenerate"
+        ),
         gravity=gui.add_dropdown(
             "Gravity",
             tuple(name.capitalize() for name in GRAVITY_PRESETS),

@@ -7,7 +7,7 @@ import dataclasses
 import viser
 
 from app.dashboard.feedback import guarded
-from app.dashboard.scene import CameraFollow, RobotView, Trail
+from app.dashboard.scene import CameraFollow, RobotView, Trail, configure_lighting
 
 
 @dataclasses.dataclass
@@ -16,19 +16,28 @@ class ViewPanel:
     home: viser.GuiButtonHandle
     trail: viser.GuiCheckboxHandle
     label: viser.GuiCheckboxHandle
+    shadows: viser.GuiCheckboxHandle
 
     def reset(self) -> None:
-        self.follow.value = self.trail.value = self.label.value = True
+        self.follow.value = self.trail.value = self.label.value = self.shadows.value = True
 
 
-def build_view_panel(gui: viser.GuiApi, camera: CameraFollow, trail: Trail, robot: RobotView) -> ViewPanel:
+def build_view_panel(
+    gui: viser.GuiApi, scene: viser.SceneApi, camera: CameraFollow, trail: Trail, robot: RobotView
+) -> ViewPanel:
     """Scene options only: nothing here reaches the simulation."""
     panel = ViewPanel(
-        follow=gui.add_checkbox("Follow robot", True, hint="Off: free camera"),
-        home=gui.add_button("Side view", icon=viser.Icon.CAMERA, hint="Put your camera back beside the robot"),
+        follow=gui.add_checkbox("Follow robot", True, hint="Off: the world holds still (free camera)"),
+        home=gui.add_button(
+            "Side view", icon=viser.Icon.CAMERA, color="gray", hint="Put your camera back beside the robot"
+        ),
         trail=gui.add_checkbox("Torso trail", True),
         label=gui.add_checkbox("Phase label", True),
+        shadows=gui.add_checkbox("Shadows", True, hint="Untick on software-rendered (no GPU) browsers"),
     )
+
+    def on_shadows(_: viser.GuiEvent) -> None:
+        configure_lighting(scene, shadows=bool(panel.shadows.value))
 
     def on_follow(_: viser.GuiEvent) -> None:
         camera.enabled = bool(panel.follow.value)
@@ -46,5 +55,6 @@ def build_view_panel(gui: viser.GuiApi, camera: CameraFollow, trail: Trail, robo
     panel.follow.on_update(guarded(on_follow))
     panel.trail.on_update(guarded(on_trail))
     panel.label.on_update(guarded(on_label))
+    panel.shadows.on_update(guarded(on_shadows))
     panel.home.on_click(guarded(on_home))
     return panel

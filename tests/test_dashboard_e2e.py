@@ -1,0 +1,168 @@
+"""End to end: a real headless Chromium drives the dashboard page against an in-process server.
+
+Skips without /usr/bin/chromium, except under CI=true, where a missing browser is a failure.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import socket
+import time
+from pathlib import Path
+
+import pytest
+from PIL import Image
+
+from app.dashboard.config import DashboardConfig
+from app.dashboard.server import Dashboard
+from hopper.sim import Event, Simulation
+
+CHROMIUM = Path("/usr/bin/chromium")
+CHROMIUM_ARGS = [
+    "--headless=new",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+]
+MIN_CANVAS_COLOURS = 500  # a blank or single-colour canvas has a handful; the scene has thousands
+
+
+def _unavailable(reason: str) -> None:
+    if os.environ.get("CI") == "true":
+        pytest.fail(f"{reason}: CI must run the browser test")
+    pytest.skip(reason)
+
+
+@pytest.fixture(scope="module")
+def browser():
+    if not CHROMIUM.exists():
+        _unavailable(f"no Chromium at {CHROMIUM}")
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError as exc:
+        _unavailable(f"playwright is not installed ({exc})")
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+        yield browser
+        browser.close()
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def wait_until(predicate, timeout: float) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.1)
+    return False
+
+
+class PitchProbe:
+    """A listener (attached on the loop thread) that keeps pitch samples and events."""
+
+    def __init__(self) -> None:
+        self.samples: list[tuple[float, float]] = []  # (time s, pitch rad)
+        self.events: list[Event] = []
+
+    def tick(self, sim: Simulation) -> None:
+        if not self.samples or sim.data.time - self.samples[-1][0] >= 0.005:
+            self.samples.append((sim.data.time, float(sim.data.joint("pitch").qpos[0])))
+
+    def event(self, sim: Simulation, event: Event) -> None:
+        self.events.append(event)
+
+
+def distinct_colours(path: Path) -> int:
+    image = Image.open(path).convert("RGB")
+    return len(image.getcolors(maxcolors=image.width * image.height))
+
+
+HOP_ROWS_JS = """() => [...document.querySelectorAll('table.hd-hops tr:not(.hd-mean)')]
+    .slice(1).map(row => row.innerText.trim().split(/\\s+/))"""
+LARGEST_CANVAS_JS = """() => { const cs = [...document.querySelectorAll('canvas')];
+    const area = c => c.clientWidth * c.clientHeight;
+    return cs.reduce((best, c, i) => area(c) > area(cs[best]) ? i : best, 0); }"""
+
+
+def test_dashboard_in_a_real_browser(browser, tmp_path: Path) -> None:
+    dashboard = Dashboard(
+        DashboardConfig(port=free_port(), speed=4.0, sessions_dir=tmp_path / "sessions"), verbose=False
+    ).start()
+    # Start paused, before any hop: the page is checked at rest, then resumed from the page. (A
+    # software-rendered page is also far more responsive while nothing moves.)
+    dashboard.layout.simulation.set_paused(True)
+    page = browser.new_page(viewport={"width": 1280, "height": 800})
+    started = time.monotonic()
+
+    def elapsed() -> str:
+        return f"{time.monotonic() - started:.0f} s in"
+
+    try:
+        # The page loads and registers as a client.
+        page.goto(dashboard.url)
+        page.get_by_text("Kp", exact=True).first.wait_for(timeout=30_000)
+        assert wait_until(lambda: len(dashboard.server.get_clients()) == 1, timeout=30)
+
+        # The 3D canvas is not blank. Software WebGL needs a few seconds for the first frame, so poll;
+        # viser's notice about software rendering is closed first so that it is not counted.
+        close_notice = page.locator(".mantine-Notification-root").get_by_role("button")
+        if close_notice.count():
+            close_notice.first.click()
+        scene = page.locator("canvas").nth(page.evaluate(LARGEST_CANVAS_JS))
+        shot, colours = tmp_path / "canvas.png", 0
+        deadline = time.monotonic() + 60
+        while colours < MIN_CANVAS_COLOURS and time.monotonic() < deadline:
+            time.sleep(1.0)
+            scene.screenshot(path=str(shot))
+            colours = distinct_colours(shot)
+        print(f"\n3D canvas: {colours} distinct colours ({elapsed()})")
+        assert colours >= MIN_CANVAS_COLOURS, f"the 3D canvas looks blank ({colours} colours)"
+
+        # Typing a gain in the Kp box reaches the controller (commands apply while paused too).
+        row = page.locator("label", has_text="Kp").locator("xpath=ancestor::div[contains(@style,'padding-inline')][1]")
+        kp_box = row.locator("input.mantine-NumberInput-input")
+        kp_box.click()
+        kp_box.press("Control+a")
+        kp_box.press_sequentially("620", delay=50)
+        kp_box.press("Tab")
+        assert wait_until(lambda: dashboard.sim.gains.kp == 620.0, timeout=10), dashboard.sim.gains
+        print(f"Kp typed in the page reached the controller ({elapsed()})")
+
+        # The per-hop table fills in once resumed (4x real time: a hop is about 3 s of simulation).
+        assert page.evaluate(HOP_ROWS_JS) == [["no", "hops", "yet"]]
+        page.get_by_role("button", name="Resume").click()
+        assert wait_until(lambda: len(page.evaluate(HOP_ROWS_JS)) >= 2, timeout=60), page.evaluate(HOP_ROWS_JS)
+        first, second = page.evaluate(HOP_ROWS_JS)[:2]
+        assert first[0] == "1" and second[0] == "2", (first, second)
+        assert len(first) == 9 and all(math.isfinite(float(v)) for v in first[1:]), first
+        assert 0.3 < float(first[1]) < 1.5, f"hop distance {first[1]} m"
+        sim_hop = dashboard.sim.hops[0]
+        assert first[1] == f"{sim_hop.distance_m:.2f}" and first[4] == f"{sim_hop.peak_pitch_deg:.1f}"
+        print(f"hop table filled: {first} ({elapsed()})")
+
+        # Clicking Pitch kick kicks the torso: the pitch moves away from where it was.
+        probe = PitchProbe()
+        dashboard.sim.submit(lambda sim: sim.listeners.append(probe))
+        page.get_by_role("tab", name="Disturb").click()
+        page.get_by_role("button", name="Pitch kick").click()
+        assert wait_until(lambda: any(e.kind == "disturbance" for e in probe.events), timeout=20)
+        kick = next(e for e in probe.events if e.kind == "disturbance")
+        assert kick.data["kind"] == "pitch_kick" and kick.data["magnitude"] == 1.0
+        assert wait_until(lambda: probe.samples and probe.samples[-1][0] > kick.time + 0.3, timeout=10)
+        at_kick = min(probe.samples, key=lambda s: abs(s[0] - kick.time))[1]
+        excursion = max(abs(p - at_kick) for t, p in probe.samples if kick.time <= t <= kick.time + 0.3)
+        print(f"pitch excursion after the kick: {math.degrees(excursion):.1f} deg ({elapsed()})")
+        assert math.degrees(excursion) > 1.5
+        page.get_by_text("pitch kick +1 N m s").first.wait_for(timeout=20_000)  # shown in the event log
+    finally:
+        page.close()
+        dashboard.stop()
