@@ -10,7 +10,9 @@ import os
 import signal
 import statistics
 import sys
+import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -56,6 +58,16 @@ def writable_file(text: str) -> Path:
     return path
 
 
+def rrd_file(text: str) -> Path:
+    """A .rrd path that can really be written (hopper.telemetry.check_writable opens it)."""
+    from hopper.telemetry import check_writable
+
+    try:
+        return check_writable(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def finite(text: str) -> float:
     value = float(text)
     if not math.isfinite(value):
@@ -96,7 +108,7 @@ def parser() -> Parser:
     common(run)
     run.add_argument("--seed", type=int, default=0, help="terrain seed (default 0)")
     run.add_argument("--no-wheel", action="store_true", help="zero wheel torque, wheel free to spin")
-    run.add_argument("--rrd", type=writable_file, metavar="PATH", help="record a rerun .rrd session")
+    run.add_argument("--rrd", type=rrd_file, metavar="PATH", help="record a rerun .rrd session")
     run.add_argument(
         "--rerun-viewer",
         choices=("spawn", "serve", "off"),
@@ -125,8 +137,17 @@ def make_config(args: argparse.Namespace, seed: int, wheel: bool) -> SimConfig:
     )
 
 
-def simulate(config: SimConfig, hops: int, rrd: Path | None = None, viewer: str = "off") -> dict[str, Any]:
-    """Run one episode (optionally recorded) and return its JSON-ready result."""
+def simulate(
+    config: SimConfig,
+    hops: int,
+    rrd: Path | None = None,
+    viewer: str = "off",
+    report: Callable[[dict[str, Any]], None] | None = None,
+) -> dict[str, Any]:
+    """Run one episode (optionally recorded), `report` its JSON-ready result and return it.
+
+    With a served viewer the recording stays open, served, after the report until Ctrl-C.
+    """
     from hopper.sim import Simulation  # keeps `--help` and argument errors fast
 
     sim = Simulation(config)
@@ -134,22 +155,30 @@ def simulate(config: SimConfig, hops: int, rrd: Path | None = None, viewer: str 
     if rrd is not None or viewer != "off":
         from hopper.telemetry import Telemetry
 
-        telemetry = Telemetry(sim, path=rrd, viewer=viewer)
-        sim.listeners.append(telemetry)
+        telemetry = Telemetry(sim, path=rrd, viewer=viewer)  # attaches itself to sim.listeners
+        if telemetry.viewer_url:
+            print(f"rerun web viewer: {telemetry.viewer_url}", file=sys.stderr)
     start = time.perf_counter()
     try:
         sim.run(hops)
+        result = {
+            "seed": config.seed,
+            "wheel": config.wheel,
+            "fell": sim.fallen,
+            "sim_time_s": sim.time,
+            "wall_time_s": time.perf_counter() - start,
+            "hops": [hop.as_dict() for hop in sim.hops],
+        }
+        if report is not None:
+            report(result)
+        if telemetry is not None and telemetry.viewer_url:  # the server lives in this process
+            telemetry.flush()
+            print("serving the recording until Ctrl-C", file=sys.stderr)
+            threading.Event().wait()
     finally:  # Ctrl-C or SIGTERM still leave a valid recording
         if telemetry is not None:
             telemetry.close()
-    return {
-        "seed": config.seed,
-        "wheel": config.wheel,
-        "fell": sim.fallen,
-        "sim_time_s": sim.time,
-        "wall_time_s": time.perf_counter() - start,
-        "hops": [hop.as_dict() for hop in sim.hops],
-    }
+    return result
 
 
 def hop_table(hops: list[dict[str, Any]]) -> str:
@@ -191,14 +220,15 @@ def peak_deviation(result: dict[str, Any]) -> float:
 
 
 def command_run(args: argparse.Namespace) -> int:
-    config = make_config(args, args.seed, wheel=not args.no_wheel)
-    result = simulate(config, args.hops, args.rrd, args.rerun_viewer)
-    print(hop_table(result["hops"]))
-    print(summary(result))
-    if args.rrd:
-        print(f"recording: {args.rrd}")
-    if args.json:
-        args.json.write_text(json.dumps(result, indent=2))
+    def report(result: dict[str, Any]) -> None:
+        print(hop_table(result["hops"]))
+        print(summary(result))
+        if args.rrd:
+            print(f"recording: {args.rrd}")
+        if args.json:
+            args.json.write_text(json.dumps(result, indent=2))
+
+    simulate(make_config(args, args.seed, wheel=not args.no_wheel), args.hops, args.rrd, args.rerun_viewer, report)
     return 0
 
 

@@ -1,6 +1,6 @@
 """Closed-loop simulation speed against bare mj_step replaying the very same controls.
 
-Run: python benchmarks/bench_sim.py [--seed 0] [--hops 7]
+Run: python -m benchmarks.bench_sim [--seed 0] [--hops 7]
 Everything is measured in this one run, interleaved, on one core: these machines are noisy,
 so only the ratios are meaningful across machines.
 """
@@ -14,6 +14,7 @@ import time
 import mujoco
 import numpy as np
 
+from benchmarks import telemetry_rate
 from hopper.config import SimConfig
 from hopper.sim import Simulation
 
@@ -82,12 +83,8 @@ def main() -> None:
     print(f"raw replay (same controls, bare mj_step):              {best_raw:9.0f} steps/s")
     print(f"ratio closed / raw: {best_closed / best_raw:.3f}   (target >= 0.7)")
     print(f"one {args.hops}-hop episode, wall time incl. setup: {min(episode):.3f} s   (target < 1 s)")
-    try:
-        from benchmarks.telemetry_rate import measure
-    except ImportError:
-        return
-    print()
-    for line in measure(seed=args.seed, hops=args.hops):
+    print("\nwith rerun recording (benchmarks/telemetry_rate.py):")
+    for line in telemetry_rate.report(telemetry_rate.measure(seed=args.seed, hops=args.hops, repeats=args.repeats)):
         print(line)
 
 

@@ -84,18 +84,23 @@ def main() -> None:
     parser.add_argument("--terrain", choices=("crater", "flat"), default="crater")
     parser.add_argument("--batch-ticks", type=int, default=BATCH_TICKS, help="ticks per rerun send")
     args = parser.parse_args()
-    r = measure(args.seed, args.hops, args.repeats, args.terrain, args.batch_ticks)
-    print(f"ticks/s without recording {r['rate_off']:9.0f}")
-    print(f"ticks/s with recording    {r['rate_on']:9.0f}")
-    print(f"ratio with/without        {r['ratio']:9.3f}   (target >= 0.85)")
-    print(f"telemetry cost per tick   {r['tick_cost_us']:9.2f} us")
-    print(f"same from CPU time        {r['cpu_ratio']:9.3f}   ({r['cpu_tick_cost_us']:.2f} us a tick)")
-    print(
-        f"recording                 {r['mb']:9.2f} MB for {r['sim_s']:.1f} s simulated ({r['static_mb']:.2f} MB static)"
-    )
-    print(
-        f"MB per simulated minute   {r['mb_per_sim_min']:9.2f}   (data only {r['data_mb_per_sim_min']:.2f}; target < 5)"
-    )
+    for line in report(measure(args.seed, args.hops, args.repeats, args.terrain, args.batch_ticks)):
+        print(line)
+
+
+def report(r: dict[str, float]) -> list[str]:
+    """The measurement as printed lines."""
+    return [
+        f"ticks/s without recording {r['rate_off']:9.0f}",
+        f"ticks/s with recording    {r['rate_on']:9.0f}",
+        f"ratio with/without        {r['ratio']:9.3f}   (target >= 0.85)",
+        f"telemetry cost per tick   {r['tick_cost_us']:9.2f} us",
+        f"same from CPU time        {r['cpu_ratio']:9.3f}   ({r['cpu_tick_cost_us']:.2f} us a tick)",
+        f"recording                 {r['mb']:9.2f} MB for {r['sim_s']:.1f} s simulated"
+        f" ({r['static_mb']:.2f} MB static)",
+        f"MB per simulated minute   {r['mb_per_sim_min']:9.2f}"
+        f"   (data only {r['data_mb_per_sim_min']:.2f}; target < 5)",
+    ]
 
 
 if __name__ == "__main__":
