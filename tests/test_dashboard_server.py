@@ -149,7 +149,8 @@ def test_a_port_in_use_gives_one_line_and_exit_2() -> None:
     assert "cannot serve on 127.0.0.1" in result.stderr and "Traceback" not in result.stderr
 
 
-def test_sigterm_stops_cleanly_finalizes_the_recording_and_frees_the_port(tmp_path: Path) -> None:
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_a_signal_stops_cleanly_finalizes_the_recording_and_frees_the_port(tmp_path: Path, signum: int) -> None:
     pytest.importorskip("hopper.telemetry")
     port, rrd = free_port(), tmp_path / "run.rrd"
     process = subprocess.Popen(
@@ -162,7 +163,7 @@ def test_sigterm_stops_cleanly_finalizes_the_recording_and_frees_the_port(tmp_pa
     try:
         assert wait_until(lambda: not port_is_free(port), timeout=60), "the dashboard never started"
         time.sleep(1.5)  # some simulation into the recording
-        process.send_signal(signal.SIGTERM)
+        process.send_signal(signum)
         out, err = process.communicate(timeout=60)
     finally:
         if process.poll() is None:
@@ -263,6 +264,26 @@ def test_commands_apply_while_paused(dashboard: Dashboard, client: ProbeClient) 
     assert wait_until(lambda: dashboard.sim.time > t + 0.2)
 
 
+def test_regenerating_the_terrain_re_sends_its_mesh_only(dashboard: Dashboard, client: ProbeClient) -> None:
+    meshes = client.counts["GlbMessage"]
+    assert meshes >= 1  # the terrain and the multi-colour bodies, once each
+    client.set_gui_value("Seed", 7)
+    client.set_gui_value("Regenerate", True)
+    assert wait_until(lambda: dashboard.sim.config.seed == 7)
+    assert client.wait_for(lambda p: p.counts["GlbMessage"] == meshes + 1)
+    mesh_count = client.counts["MeshMessage"]
+    time.sleep(1.0)  # the robot restarted on the new terrain: poses only, no new meshes
+    assert client.counts["GlbMessage"] == meshes + 1 and client.counts["MeshMessage"] == mesh_count
+    assert "terrain crater, seed 7" in dashboard.layout.events.html.content
+
+
+def test_poses_stream_at_30_hz_inside_atomic_frames(dashboard: Dashboard, client: ProbeClient) -> None:
+    _, _, poses0 = client.snapshot()
+    time.sleep(3.0)
+    _, _, poses1 = client.snapshot()
+    assert (poses1 - poses0) / 3.0 > 27.0
+
+
 # -- simulation trouble ----------------------------------------------------------------------------
 def test_a_fall_is_notified_and_reset_unless_stay_fallen(dashboard: Dashboard, client: ProbeClient) -> None:
     def topple(sim) -> None:
@@ -278,6 +299,12 @@ def test_a_fall_is_notified_and_reset_unless_stay_fallen(dashboard: Dashboard, c
     assert dashboard.sim.fallen, "Stay fallen must keep the robot down"
     client.set_gui_value("Stay fallen", False)
     assert wait_until(lambda: not dashboard.sim.fallen, timeout=5.0), "no auto reset after the fall"
+
+
+def test_the_end_of_the_terrain_restarts_the_run(dashboard: Dashboard, client: ProbeClient) -> None:
+    dashboard.sim.submit(lambda sim: sim.data.joint("root_x").qpos.__setitem__(0, 40.0))
+    assert client.wait_for(lambda p: "End of the terrain" in titles(p))
+    assert wait_until(lambda: dashboard.sim.physics.x < 5.0)
 
 
 def test_a_diverging_simulation_resets_with_a_notification(dashboard: Dashboard, client: ProbeClient) -> None:

@@ -71,7 +71,9 @@ def main(args: Sequence[str] | None = None) -> None:
     def on_signal(signum: int, _frame: object) -> None:
         dashboard.stop()
 
+    # Both stop the same way, even where SIGINT arrives ignored (e.g. a background job of a script).
     signal.signal(signal.SIGTERM, on_signal)
+    signal.signal(signal.SIGINT, on_signal)
     try:
         dashboard.start()
         print(f"{PROG}: serving {dashboard.url}  (Ctrl-C to stop)", flush=True)

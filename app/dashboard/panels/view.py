@@ -17,6 +17,7 @@ class ViewPanel:
     trail: viser.GuiCheckboxHandle
     label: viser.GuiCheckboxHandle
     shadows: viser.GuiCheckboxHandle
+    reset_button: viser.GuiButtonHandle
 
     def reset(self) -> None:
         self.follow.value = self.trail.value = self.label.value = self.shadows.value = True
@@ -34,6 +35,7 @@ def build_view_panel(
         trail=gui.add_checkbox("Torso trail", True),
         label=gui.add_checkbox("Phase label", True),
         shadows=gui.add_checkbox("Shadows", True, hint="Untick on software-rendered (no GPU) browsers"),
+        reset_button=gui.add_button("Default view", icon=viser.Icon.RESTORE, color="dark"),
     )
 
     def on_shadows(_: viser.GuiEvent) -> None:
@@ -57,4 +59,5 @@ def build_view_panel(
     panel.label.on_update(guarded(on_label))
     panel.shadows.on_update(guarded(on_shadows))
     panel.home.on_click(guarded(on_home))
+    panel.reset_button.on_click(guarded(lambda _: panel.reset()))
     return panel
