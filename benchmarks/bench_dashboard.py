@@ -109,6 +109,7 @@ def main() -> None:
         dashboard.stop()
 
     print(f"\nhopper-dashboard load, {args.seconds:g} s windows at {args.speed:g}x real time (target RTF >= 0.98)")
+    print("RTF = simulated s per wall s, divided by the asked speed")
     print(f"{'clients':>7}  {'RTF':>6}  {'server frames/s':>15}  {'updates/s/client':>16}  {'kB/s/client':>11}  "
           f"{'initial scene kB':>16}")  # fmt: skip
     for r in results:
