@@ -143,6 +143,11 @@ class Simulation:
         """Queue a command from any thread; the next step applies it (deque appends are atomic)."""
         self._commands.append(command)
 
+    def apply_pending(self) -> None:
+        """Apply queued commands now, without stepping (a paused front end shows them at once)."""
+        if self._commands:
+            self._drain()
+
     def _drain(self) -> None:
         while self._commands:
             command = self._commands.popleft()

@@ -38,6 +38,7 @@ import rerun.blueprint as rrb
 from rerun.blueprint.encodings import ComponentSourceKind, VisualizerComponentMapping
 
 from hopper.config import WHEEL_TORQUE_LIMIT
+from hopper.controller import K_PHASE
 from hopper.meshes import body_meshes, terrain_mesh
 from hopper.model import LEG_JOINTS
 from hopper.phases import Phase
@@ -386,7 +387,8 @@ class Telemetry:
         self._flush_due = time.monotonic() + FLUSH_WALL_S
         self._frames: dict[int, pa.Array] = {}  # child_frame columns by pose count
         self._hops = 0
-        self._phase_view, self._phase_exact = self._phase_source(sim)
+        # The kernel's phase slot, appended to every row: phases exact to the tick at no cost.
+        self._phase_view = memoryview(sim.controller.state[K_PHASE : K_PHASE + 1]).cast("B")
         self._phase = int(sim.phase)
 
         self.rec = rr.RecordingStream(APPLICATION_ID)
@@ -401,7 +403,6 @@ class Telemetry:
         self._log_static(sim)
         self._phases.append((self._next_ns, 0, sim.phase.label))
         sim.listeners.append(self)
-        self.tick = self._first_tick  # type: ignore[method-assign]  # one-off check, then the plain tick
         _open.add(self)
 
     # -- setup -----------------------------------------------------------------------------
@@ -501,35 +502,7 @@ class Telemetry:
         mesh = terrain_mesh(sim.heights, sim.config.craters)
         self.rec.log("world/terrain", _mesh3d(mesh.vertices, mesh.faces, mesh.visual.vertex_colors), static=True)
 
-    @staticmethod
-    def _phase_source(sim: Simulation) -> tuple[memoryview, bool]:
-        """A byte view of the control kernel's phase slot, appended to every tick's row.
-
-        Phases then cost nothing per tick and are exact to the tick (sim.phase costs ~2 us a call).
-        Without that slot (the kernel changed) phases are read at events only: (view of 0, False).
-        """
-        from hopper import controller
-
-        state, slot = getattr(sim.controller, "state", None), getattr(controller, "K_PHASE", None)
-        if isinstance(state, np.ndarray) and state.dtype == np.float64 and isinstance(slot, int):
-            return memoryview(state[slot : slot + 1]).cast("B"), True
-        log.warning("hopper.controller has no K_PHASE state slot: phases are recorded at events only")
-        return memoryview(np.zeros(1)).cast("B"), False
-
     # -- Listener --------------------------------------------------------------------------
-    def _first_tick(self, sim: Simulation) -> None:
-        """Drop a second registration (an extra `sim.listeners.append`), which would double every row."""
-        del self.tick
-        listeners = sim.listeners
-        if self in listeners:
-            first = listeners.index(self)
-            extra = [i for i in range(len(listeners) - 1, first, -1) if listeners[i] is self]
-            for i in extra:  # later than us in the list: the loop calling us simply never reaches them
-                del listeners[i]
-            if extra:
-                log.warning("Telemetry attaches itself to sim.listeners; ignoring the extra registration")
-        self.tick(sim)
-
     def tick(self, sim: Simulation) -> None:
         """Buffer one tick. The hot path: four byte-view appends and a counter."""
         b = self._ticks
@@ -563,9 +536,6 @@ class Telemetry:
             self._hops += 1
             self._hop_rows.append((t_ns, self._hops, hop.as_dict()))
         self._events.append((t_ns, self._hops, event.kind, EVENT_LEVELS.get(event.kind, "INFO"), _describe(event)))
-        if not self._phase_exact and int(sim.phase) != self._phase:
-            self._phase = int(sim.phase)
-            self._phases.append((t_ns, self._hops, sim.phase.label))
 
     # -- sending ---------------------------------------------------------------------------
     def flush(self, wait: bool = True) -> None:
@@ -598,8 +568,7 @@ class Telemetry:
             self._next_ns += n * self._dt_ns
             table = ticks[: n * width].reshape(n, width)
             self._send_signals(times, table[:, :-1])
-            if self._phase_exact:
-                phases = sorted(phases + self._phase_changes(times, table[:, -1], hop_rows))
+            phases = sorted(phases + self._phase_changes(times, table[:, -1], hop_rows))
             self._batches += 1
             if self._batches % LIMIT_EVERY_BATCHES == 0:
                 self._send_limits(times[-1:])

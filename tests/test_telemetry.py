@@ -248,18 +248,6 @@ def test_close_is_idempotent_and_detaches(tmp_path: Path) -> None:
     assert sim.listeners == [] and len(seconds(read(tmp_path / "c.rrd")["signals"])) == 30
 
 
-def test_an_extra_registration_does_not_double_rows(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
-    sim = Simulation(SimConfig(terrain="flat"))
-    with Telemetry(sim, path=tmp_path / "d.rrd") as telemetry:
-        sim.listeners.append(telemetry)  # as callers did before Telemetry attached itself
-        for _ in range(50):
-            sim.step()
-        assert sim.listeners == [telemetry]
-    assert "extra registration" in caplog.text
-    t = seconds(read(tmp_path / "d.rrd")["signals"])
-    assert len(t) == 50 and np.all(np.diff(t) > 0)
-
-
 def test_spawn_without_display_fails_clearly(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)

@@ -210,13 +210,9 @@ class Dashboard:
             self._stopping.wait(max(0.0, min(next_frame - time.perf_counter(), MAX_SLEEP_S)))
 
     def _apply_commands(self) -> None:
-        """While paused, apply queued commands without stepping (a reset or new gains show at once).
-
-        The core drains its queue only inside step(); `apply_pending` is the public name asked of it.
-        """
-        drain = getattr(self.sim, "apply_pending", None) or self.sim._drain
+        """While paused, apply queued commands without stepping (a reset or new gains show at once)."""
         try:
-            drain()
+            self.sim.apply_pending()
         except Exception:
             log.exception("applying commands while paused failed")
 
