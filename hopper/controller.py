@@ -528,9 +528,6 @@ class HopController:
         k[K_CONTACT_L] = k[K_CONTACT_R] = 1.0 if standing else 0.0
         k[K_PENDING_L] = k[K_PENDING_R] = -1.0
 
-    def fall(self, time: float) -> None:
-        enter(self.state, FALLEN, time)
-
     @property
     def phase(self) -> Phase:
         return Phase(int(self.state[K_PHASE]))
@@ -539,11 +536,3 @@ class HopController:
     def wheel_command(self) -> float:
         """Wheel torque asked this tick, N m."""
         return float(self.state[K_WHEEL_COMMAND])
-
-    @property
-    def saturated(self) -> bool:
-        return bool(self.state[K_SATURATED])
-
-    @property
-    def liftoff_speed(self) -> float:
-        return float(self.params[P_VZ_LIFTOFF])

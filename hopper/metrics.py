@@ -63,10 +63,6 @@ class MetricsTracker:
         self._liftoff_time, self._liftoff_z, self._liftoff_momentum = time, z, momentum
         self.acc[A_APEX_Z] = z
 
-    @property
-    def in_flight(self) -> bool:
-        return self._liftoff_time is not None
-
     def touchdown(self, time: float, x: float, pitch: float, completed: bool = True) -> HopMetrics | None:
         """Close the hop at a touchdown (or a fall in flight); None if no liftoff preceded it."""
         if self._liftoff_time is None:

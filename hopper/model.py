@@ -113,8 +113,3 @@ class Physics:
         """Total pitch angular momentum about the whole robot's CoM (kg m^2/s)."""
         mujoco.mj_subtreeVel(self.model, self.data)
         return float(self.data.subtree_angmom[self.model.body("torso").id, 1])
-
-    def leg_torques(self) -> tuple[float, float, float, float]:
-        """Applied leg joint torques (hip_L, knee_L, hip_R, knee_R), N m."""
-        f = self.data.actuator_force
-        return tuple(float(f[self.model.actuator(n).id]) for n in LEG_JOINTS)  # type: ignore[return-value]
