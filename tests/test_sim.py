@@ -128,3 +128,13 @@ def test_gravity_change_changes_the_hop() -> None:
     sim.run(1)
     assert sim.model.opt.gravity[2] == -3.72
     assert sim.hops[0].flight_time_s < 0.9  # 1.12 s on the Moon for the same apex
+
+
+def test_the_crater_strip_holds_twenty_hops() -> None:
+    sim = Simulation(SimConfig(seed=2))
+    sim.run(20)
+    assert len(sim.hops) == 20 and not sim.fallen
+    sim.physics.refresh()
+    craters = sim.config.craters
+    assert sim.physics.x < craters.x0 + craters.length - 2.0  # still on the strip, with room to spare
+    assert max(hop.landing_pitch_deg for hop in sim.hops) < 3.5
