@@ -482,12 +482,10 @@ class Telemetry:
         rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         self._log_terrain(sim)
         for mesh in self._meshes:  # each body mesh lives in its own frame, posed by world/tf
-            rec.log(
-                f"world/robot/{mesh.name}",
-                _mesh3d(mesh.vertices, mesh.faces, mesh.colors),
-                rr.CoordinateFrame(mesh.name),
-                static=True,
-            )
+            # rerun draws mesh vertex alpha opaque, and the torso box would hide the wheel inside
+            # it: draw the torso as a transparent box with its edges instead.
+            shape = _torso_box(sim.model) if mesh.name == "torso" else _mesh3d(mesh.vertices, mesh.faces, mesh.colors)
+            rec.log(f"world/robot/{mesh.name}", shape, rr.CoordinateFrame(mesh.name), static=True)
         rec.log("limits/wheel_torque", rr.SeriesLines(names=["+limit", "-limit"], colors=[RED, RED]), static=True)
         c = sim.config
         rec.send_property(
@@ -720,6 +718,17 @@ def _mesh3d(vertices: Any, faces: Any, colors: Any) -> rr.Mesh3D:
         vertex_positions=np.asarray(vertices, dtype=np.float32),
         triangle_indices=np.asarray(faces, dtype=np.uint32),
         vertex_colors=np.asarray(colors, dtype=np.uint8),
+    )
+
+
+def _torso_box(model: Any) -> rr.Boxes3D:
+    geom = model.geom("torso")
+    rgba = np.clip(np.asarray(geom.rgba) * 255, 0, 255).astype(np.uint8)
+    return rr.Boxes3D(
+        half_sizes=[geom.size],
+        centers=[geom.pos],
+        colors=[rgba],
+        fill_mode=rr.components.FillMode.TransparentFillMajorWireframe,
     )
 
 
