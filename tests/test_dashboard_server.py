@@ -14,6 +14,7 @@ import time
 from pathlib import Path
 
 import pytest
+from net import free_port, wait_until
 
 from app.dashboard.config import DashboardConfig
 from app.dashboard.pacing import MAX_LAG_S, Pacer
@@ -27,12 +28,6 @@ from hopper.sim import Event
 REPO = Path(__file__).resolve().parent.parent
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def port_is_free(port: int) -> bool:
     with socket.socket() as s:  # a plain bind, no SO_REUSEADDR: what any other program would do
         try:
@@ -40,15 +35,6 @@ def port_is_free(port: int) -> bool:
         except OSError:
             return False
     return True
-
-
-def wait_until(predicate, timeout: float = 10.0) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.05)
-    return False
 
 
 @pytest.fixture
