@@ -20,8 +20,6 @@ class Phase(enum.IntEnum):
         return self.name.lower()
 
 
-GROUND_PHASES = frozenset({Phase.LANDING, Phase.STANCE, Phase.CROUCH, Phase.PUSH})
-
 # The robot weighs 8.2 kg * 1.625 m/s^2 = 13.3 N on the Moon, about 6.7 N a foot: Earth-sized
 # thresholds of tens of newtons would never fire (PHYSICS.md).
 CONTACT_ON_N = 1.0  # N, normal force that starts a contact
