@@ -274,7 +274,7 @@ def command_compare(args: argparse.Namespace) -> int:
 
 
 def command_terrain(args: argparse.Namespace) -> int:
-    from terrain import CraterParams, generate, write_png
+    from hopper.terrain import CraterParams, generate, write_png
 
     params = CraterParams()
     heights = generate(params, np.random.default_rng(args.seed))

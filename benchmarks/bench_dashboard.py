@@ -30,7 +30,7 @@ def free_port() -> int:
 
 def probe_main(url: str, clients: int, settle: float, seconds: float) -> None:
     """Child process: connect `clients`, wait out the initial scene, measure, print JSON."""
-    from app.dashboard.probe import ProbeClient
+    from hopper.app.dashboard.probe import ProbeClient
 
     probes = [ProbeClient(url) for _ in range(clients)]
     for p in probes:
@@ -99,8 +99,8 @@ def main() -> None:
         probe_main(args.probe, args.clients, args.settle, args.seconds)
         return
 
-    from app.dashboard.config import DashboardConfig
-    from app.dashboard.server import Dashboard
+    from hopper.app.dashboard.config import DashboardConfig
+    from hopper.app.dashboard.server import Dashboard
 
     dashboard = Dashboard(DashboardConfig(port=free_port(), speed=args.speed), verbose=False).start()
     try:

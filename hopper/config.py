@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Literal
+from typing import Literal, NamedTuple
 
-from terrain import CraterParams
+from hopper.terrain import CraterParams
 
 MOON_GRAVITY = 1.625  # m/s^2, paper Table I
 GRAVITY_PRESETS: dict[str, float] = {  # m/s^2, PHYSICS.md
@@ -31,14 +31,32 @@ FOOT_RADIUS = 0.04  # m, Table I
 SATURATION_FRACTION = 0.98  # of the torque limit counts as saturated, paper Sec. V-D
 
 
+class GainRange(NamedTuple):
+    """The one allowed range of a flight gain: the core validates it, the CLIs and the dashboard show it."""
+
+    low: float
+    high: float
+    unit: str
+
+
+# Wide enough to reach a visibly unstable or saturating loop (PHYSICS.md's LQR range is kp 340 to
+# 850, kd 17 to 31), narrow enough for a slider.
+GAIN_RANGES: dict[str, GainRange] = {
+    "kp": GainRange(0.0, 2000.0, "N m/rad"),
+    "ki": GainRange(0.0, 500.0, "N m/(rad s)"),
+    "kd": GainRange(0.0, 100.0, "N m s/rad"),
+}
+
+
 class InvalidConfig(ValueError):
     """A configuration value outside its allowed range."""
 
 
-def require_finite(name: str, value: float, low: float = -math.inf, high: float = math.inf) -> None:
+def require_finite(name: str, value: float, low: float = -math.inf, high: float = math.inf, unit: str = "") -> None:
     """Raise InvalidConfig unless low <= value <= high and value is finite."""
     if not isinstance(value, (int, float)) or not math.isfinite(value) or not low <= value <= high:
-        raise InvalidConfig(f"{name} must be a finite number in [{low:g}, {high:g}], got {value!r}")
+        u = f" {unit}" if unit else ""
+        raise InvalidConfig(f"{name} must be a finite number in [{low:g}, {high:g}]{u}, got {value!r}")
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
@@ -54,14 +72,9 @@ class Gains:
     ki: float = 50.0  # N m / (rad s)
     kd: float = 30.0  # N m s / rad
 
-    MAX_KP = 5000.0
-    MAX_KI = 5000.0
-    MAX_KD = 500.0
-
     def __post_init__(self) -> None:
-        require_finite("kp", self.kp, 0.0, self.MAX_KP)
-        require_finite("ki", self.ki, 0.0, self.MAX_KI)
-        require_finite("kd", self.kd, 0.0, self.MAX_KD)
+        for name, (low, high, unit) in GAIN_RANGES.items():
+            require_finite(name, getattr(self, name), low, high, unit)
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)

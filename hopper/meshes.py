@@ -8,7 +8,7 @@ import mujoco
 import numpy as np
 import trimesh
 
-from terrain import CraterParams
+from hopper.terrain import CraterParams
 
 VISUAL_BODIES = ("torso", "wheel", "thigh_L", "shank_L", "thigh_R", "shank_R")
 

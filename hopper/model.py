@@ -2,15 +2,15 @@
 
 from __future__ import annotations
 
-from pathlib import Path
+from importlib import resources
 
 import mujoco
 import numpy as np
 
-import terrain
+from hopper import terrain
 from hopper.config import SimConfig
 
-MODEL_PATH = Path(__file__).resolve().parent.parent / "models" / "hopper.xml"
+MODEL_XML = resources.files("hopper.models") / "hopper.xml"  # models/hopper.xml, installed or not
 WHEEL_ACTUATOR_GROUP = 1  # models/hopper.xml: disabling this group turns the wheel off
 LEG_JOINTS = ("hip_L", "knee_L", "hip_R", "knee_R")
 # Named indices into qpos and qvel (nq == nv here) and sensordata; Physics checks the layout.
@@ -29,7 +29,7 @@ def build_model(config: SimConfig, heights: np.ndarray | None = None) -> mujoco.
     """Compile models/hopper.xml with the config's gravity, timestep and terrain."""
     if heights is None:
         heights = terrain_heights(config)
-    spec = mujoco.MjSpec.from_file(str(MODEL_PATH))
+    spec = mujoco.MjSpec.from_string(MODEL_XML.read_text(encoding="utf-8"))
     params = config.craters
     field = spec.hfield("terrain")
     field.nrow, field.ncol = heights.shape

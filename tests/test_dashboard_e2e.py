@@ -11,11 +11,11 @@ import time
 from pathlib import Path
 
 import pytest
+from hopper.app.dashboard.config import DashboardConfig
+from hopper.app.dashboard.server import Dashboard
 from net import free_port, wait_until
 from PIL import Image
 
-from app.dashboard.config import DashboardConfig
-from app.dashboard.server import Dashboard
 from hopper.sim import Event, Simulation
 
 CHROMIUM = Path("/usr/bin/chromium")

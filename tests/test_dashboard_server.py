@@ -14,14 +14,14 @@ import time
 from pathlib import Path
 
 import pytest
+from hopper.app.dashboard.config import DashboardConfig
+from hopper.app.dashboard.pacing import MAX_LAG_S, Pacer
+from hopper.app.dashboard.panels.events import describe
+from hopper.app.dashboard.panels.hops import hop_table_html
+from hopper.app.dashboard.probe import ProbeClient
+from hopper.app.dashboard.server import Dashboard, PortInUse
 from net import free_port, wait_until
 
-from app.dashboard.config import DashboardConfig
-from app.dashboard.pacing import MAX_LAG_S, Pacer
-from app.dashboard.panels.events import describe
-from app.dashboard.panels.hops import hop_table_html
-from app.dashboard.probe import ProbeClient
-from app.dashboard.server import Dashboard, PortInUse
 from hopper.metrics import HopMetrics
 from hopper.sim import Event
 
@@ -94,14 +94,18 @@ def test_a_taken_port_is_refused_not_silently_moved(tmp_path: Path) -> None:
 
 def cli(*args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [sys.executable, "-m", "app.dashboard.cli", *args], capture_output=True, text=True, timeout=timeout, cwd=REPO
+        [sys.executable, "-m", "hopper.app.dashboard.cli", *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        cwd=REPO,
     )
 
 
 @pytest.mark.parametrize(
     "args, message",
     [
-        (["--kp", "-1"], "kp must be a finite number in [0, 5000]"),
+        (["--kp", "-1"], "kp must be a finite number in [0, 2000] N m/rad"),
         (["--kd", "nan"], "kd must be a finite number"),
         (["--terrain", "moon"], "invalid choice 'moon'"),
         (["--port", "abc"], "--port"),
@@ -139,7 +143,7 @@ def test_a_signal_stops_cleanly_finalizes_the_recording_and_frees_the_port(tmp_p
     pytest.importorskip("hopper.telemetry")
     port, rrd = free_port(), tmp_path / "run.rrd"
     process = subprocess.Popen(
-        [sys.executable, "-m", "app.dashboard.cli", "--port", str(port), "--rrd", str(rrd)],
+        [sys.executable, "-m", "hopper.app.dashboard.cli", "--port", str(port), "--rrd", str(rrd)],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -333,7 +337,7 @@ def test_record_and_stop_write_a_session_file(dashboard: Dashboard, client: Prob
 
 
 def test_record_without_telemetry_says_so(dashboard: Dashboard, client: ProbeClient, monkeypatch) -> None:
-    import app.dashboard.recording as recording
+    import hopper.app.dashboard.recording as recording
 
     def missing() -> None:
         raise ValueError("recording needs hopper.telemetry, which is not available (test)")

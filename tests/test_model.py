@@ -9,18 +9,18 @@ import numpy as np
 import pytest
 
 from hopper.config import SimConfig
-from hopper.model import MODEL_PATH, Physics, build_model, set_wheel_enabled
+from hopper.model import MODEL_XML, Physics, build_model, set_wheel_enabled
 
 
 def test_loads_on_its_own_with_moon_gravity_and_1khz() -> None:
-    model = mujoco.MjModel.from_xml_path(str(MODEL_PATH))
+    model = mujoco.MjModel.from_xml_string(MODEL_XML.read_text())
     assert model.opt.gravity[2] == pytest.approx(-1.625)
     assert model.opt.timestep == pytest.approx(0.001)
     assert model.opt.integrator == mujoco.mjtIntegrator.mjINT_IMPLICIT
 
 
 def test_masses_match_table_one() -> None:
-    model = mujoco.MjModel.from_xml_path(str(MODEL_PATH))
+    model = mujoco.MjModel.from_xml_string(MODEL_XML.read_text())
     assert model.body_subtreemass[model.body("torso").id] == pytest.approx(8.2)
     masses = {n: model.body(n).mass[0] for n in ("torso", "wheel", "thigh_L", "shank_L", "thigh_R", "shank_R")}
     assert masses == pytest.approx(
@@ -31,7 +31,7 @@ def test_masses_match_table_one() -> None:
 
 
 def test_joint_ranges_and_foot_radius() -> None:
-    model = mujoco.MjModel.from_xml_path(str(MODEL_PATH))
+    model = mujoco.MjModel.from_xml_string(MODEL_XML.read_text())
     for side in "LR":
         assert np.degrees(model.joint(f"hip_{side}").range) == pytest.approx([-120, 120])
         assert np.degrees(model.joint(f"knee_{side}").range) == pytest.approx([-160, 0])

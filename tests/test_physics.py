@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from hopper.config import SimConfig
-from hopper.model import build_model
+from hopper.model import MODEL_XML, build_model
 
 
 def _airborne(model: mujoco.MjModel) -> mujoco.MjData:
@@ -50,7 +50,7 @@ def test_flight_conserves_pitch_momentum_while_the_wheel_and_legs_move() -> None
 
 def _locked_legs_model() -> mujoco.MjModel:
     """The robot with its leg joints removed: legs welded to the torso, as the reduced model assumes."""
-    spec = mujoco.MjSpec.from_file(str(build_model.__globals__["MODEL_PATH"]))
+    spec = mujoco.MjSpec.from_string(MODEL_XML.read_text())
     for name in ("hip_L", "knee_L", "hip_R", "knee_R"):
         spec.delete(spec.joint(name))
     for name in ("hip_L", "knee_L", "hip_R", "knee_R"):

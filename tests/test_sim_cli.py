@@ -21,7 +21,9 @@ HOP_KEYS = {
 
 
 def hopper_sim(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "app.sim_cli", *args], capture_output=True, text=True, timeout=300)
+    return subprocess.run(
+        [sys.executable, "-m", "hopper.app.sim_cli", *args], capture_output=True, text=True, timeout=300
+    )
 
 
 def test_run_prints_a_table_and_writes_json(tmp_path) -> None:
@@ -74,7 +76,7 @@ def test_bad_arguments_fail_in_one_line(args: list[str], message: str) -> None:
 
 
 def test_terrain_export_writes_the_png_the_paper_loads(tmp_path) -> None:
-    from terrain import CraterParams, generate, read_png
+    from hopper.terrain import CraterParams, generate, read_png
 
     out = tmp_path / "craters.png"
     result = hopper_sim("terrain", "--seed", "4", "--png", str(out))

@@ -5,8 +5,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import pytest
-
-from terrain import CraterParams, crater_profile, flat, generate, read_png, to_hfield, write_png
+from hopper.terrain import CraterParams, crater_profile, flat, generate, read_png, to_hfield, write_png
 
 
 def test_same_seed_same_terrain_and_seeds_differ() -> None:
@@ -41,7 +40,7 @@ def test_crater_profile_has_bowl_and_rim() -> None:
 
 
 def test_size_frequency_follows_inverse_square() -> None:
-    from terrain.craters import sample_diameters
+    from hopper.terrain.craters import sample_diameters
 
     d = sample_diameters(np.random.default_rng(0), 200_000, 0.3, 3.0)
     # Cumulative count above D ~ D^-2 (truncated): N(>0.6) / N(>0.3) = (0.6^-2 - 3^-2) / (0.3^-2 - 3^-2)

@@ -1,4 +1,4 @@
-"""The dashboard's own web assets, read from the repository's static/ folder."""
+"""The dashboard's own web assets: static/ (the package hopper.static), installed or not."""
 
 from __future__ import annotations
 
@@ -6,9 +6,9 @@ import base64
 import dataclasses
 import functools
 import json
-from pathlib import Path
+from importlib import resources
 
-STATIC_DIR = Path(__file__).resolve().parents[2] / "static"
+STATIC = resources.files("hopper.static")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -23,9 +23,9 @@ class Theme:
 
 
 def _read(name: str) -> str:
-    path = STATIC_DIR / name
+    path = STATIC / name
     if not path.is_file():
-        raise FileNotFoundError(f"missing dashboard asset {path}")
+        raise FileNotFoundError(f"missing dashboard asset {name} in the package hopper.static")
     return path.read_text(encoding="utf-8")
 
 

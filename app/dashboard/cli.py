@@ -11,8 +11,7 @@ import sys
 from collections.abc import Sequence
 
 import tyro
-
-from app.dashboard.config import DashboardConfig
+from hopper.app.dashboard.config import DashboardConfig
 
 PROG = "hopper-dashboard"
 _BOX = re.compile(r"[│╭╮╰╯─]+")
@@ -56,8 +55,8 @@ def main(args: Sequence[str] | None = None) -> None:
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     logging.getLogger("websockets").setLevel(logging.WARNING)  # one line per connection is noise
     # Import after parsing: --help and argument errors stay fast (no MuJoCo, no viser).
-    from app.dashboard.recording import telemetry_module
-    from app.dashboard.server import Dashboard, PortInUse
+    from hopper.app.dashboard.recording import telemetry_module
+    from hopper.app.dashboard.server import Dashboard, PortInUse
 
     try:
         if config.rrd is not None:

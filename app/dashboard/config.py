@@ -7,7 +7,8 @@ import ipaddress
 from pathlib import Path
 from typing import Literal
 
-from app.dashboard.pacing import MAX_SPEED, MIN_SPEED
+from hopper.app.dashboard.pacing import MAX_SPEED, MIN_SPEED
+
 from hopper.config import Gains, InvalidConfig, SimConfig
 
 _DEFAULT_GAINS = Gains()

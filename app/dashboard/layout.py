@@ -5,22 +5,22 @@ from __future__ import annotations
 import dataclasses
 
 import viser
+from hopper.app.dashboard import assets
+from hopper.app.dashboard.panels import PanelContext
+from hopper.app.dashboard.panels.disturbances import DisturbancesPanel, build_disturbances_panel
+from hopper.app.dashboard.panels.events import EventLog, build_event_log
+from hopper.app.dashboard.panels.gains import GainsPanel, build_gains_panel
+from hopper.app.dashboard.panels.help import build_help_button
+from hopper.app.dashboard.panels.hops import HopTable, build_hop_table
+from hopper.app.dashboard.panels.record import RecordPanel, build_record_panel
+from hopper.app.dashboard.panels.simulation import SimulationPanel, build_simulation_panel
+from hopper.app.dashboard.panels.status import StatusPanel, build_status_panel
+from hopper.app.dashboard.panels.terrain import TerrainPanel, build_terrain_panel
+from hopper.app.dashboard.panels.view import ViewPanel, build_view_panel
+from hopper.app.dashboard.plots import LivePlots
+from hopper.app.dashboard.recording import Recorder
+from hopper.app.dashboard.scene import CameraFollow, RobotView, Trail
 
-from app.dashboard import assets
-from app.dashboard.panels import PanelContext
-from app.dashboard.panels.disturbances import DisturbancesPanel, build_disturbances_panel
-from app.dashboard.panels.events import EventLog, build_event_log
-from app.dashboard.panels.gains import GainsPanel, build_gains_panel
-from app.dashboard.panels.help import build_help_button
-from app.dashboard.panels.hops import HopTable, build_hop_table
-from app.dashboard.panels.record import RecordPanel, build_record_panel
-from app.dashboard.panels.simulation import SimulationPanel, build_simulation_panel
-from app.dashboard.panels.status import StatusPanel, build_status_panel
-from app.dashboard.panels.terrain import TerrainPanel, build_terrain_panel
-from app.dashboard.panels.view import ViewPanel, build_view_panel
-from app.dashboard.plots import LivePlots
-from app.dashboard.recording import Recorder
-from app.dashboard.scene import CameraFollow, RobotView, Trail
 from hopper.config import Gains
 
 

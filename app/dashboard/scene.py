@@ -9,10 +9,10 @@ import mujoco
 import numpy as np
 import trimesh
 import viser
+from hopper.terrain import CraterParams
 
 from hopper.config import WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT
 from hopper.meshes import BodyMesh, body_meshes, body_poses, terrain_mesh
-from terrain import CraterParams
 
 # A client can leave between listing the clients and moving its camera; viser then warns that the
 # message will never be delivered, which is exactly right and not worth a warning per frame.

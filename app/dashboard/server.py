@@ -15,16 +15,15 @@ import threading
 import time
 
 import viser
-
-from app.dashboard.config import DashboardConfig
-from app.dashboard.feedback import notify_all
-from app.dashboard.layout import Layout, build_layout
-from app.dashboard.pacing import Pacer
-from app.dashboard.panels import PanelContext
-from app.dashboard.panels.status import Status
-from app.dashboard.plots import PLOT_SAMPLE_S
-from app.dashboard.recording import Recorder
-from app.dashboard.scene import (
+from hopper.app.dashboard.config import DashboardConfig
+from hopper.app.dashboard.feedback import notify_all
+from hopper.app.dashboard.layout import Layout, build_layout
+from hopper.app.dashboard.pacing import Pacer
+from hopper.app.dashboard.panels import PanelContext
+from hopper.app.dashboard.panels.status import Status
+from hopper.app.dashboard.plots import PLOT_SAMPLE_S
+from hopper.app.dashboard.recording import Recorder
+from hopper.app.dashboard.scene import (
     CameraFollow,
     RobotView,
     Trail,
@@ -33,6 +32,7 @@ from app.dashboard.scene import (
     configure_lighting,
     saturation,
 )
+
 from hopper.metrics import RAD_S_TO_RPM
 from hopper.sim import Event, Simulation
 

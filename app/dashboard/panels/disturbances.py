@@ -5,9 +5,9 @@ from __future__ import annotations
 import dataclasses
 
 import viser
+from hopper.app.dashboard.feedback import Refused, checked, guarded, keep_in_range, notify
+from hopper.app.dashboard.panels import PanelContext
 
-from app.dashboard.feedback import Refused, checked, guarded, keep_in_range, notify
-from app.dashboard.panels import PanelContext
 from hopper.sim import DISTURBANCE_LIMITS
 
 # Button label -> (core kind, magnitude label, default magnitude). Defaults are visible but recoverable.

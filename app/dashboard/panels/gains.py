@@ -5,15 +5,10 @@ from __future__ import annotations
 import dataclasses
 
 import viser
+from hopper.app.dashboard.feedback import Refused, checked, guarded, notify
+from hopper.app.dashboard.panels import PanelContext
 
-from app.dashboard.feedback import Refused, checked, guarded, notify
-from app.dashboard.panels import PanelContext
-from hopper.config import Gains
-
-# Slider ranges: inside the core's limits (Gains.MAX_*), wide enough to reach a visibly unstable loop.
-KP_RANGE = (0.0, 2000.0)  # N m/rad
-KI_RANGE = (0.0, 500.0)  # N m/(rad s)
-KD_RANGE = (0.0, 100.0)  # N m s/rad
+from hopper.config import GAIN_RANGES, Gains
 
 
 @dataclasses.dataclass
@@ -41,15 +36,18 @@ def build_gains_panel(gui: viser.GuiApi, ctx: PanelContext, initial: Gains, whee
         return gui.add_slider(label, low, high, step, min(max(value, low), high), marks=marks, hint=hint)
 
     panel = GainsPanel(
-        kp=slider("Kp", KP_RANGE, 5.0, initial.kp, "Proportional gain, N m/rad"),
-        ki=slider("Ki", KI_RANGE, 1.0, initial.ki, "Integral gain, N m/(rad s); reset at each liftoff"),
-        kd=slider("Kd", KD_RANGE, 0.5, initial.kd, "Derivative gain on the measured rate, N m s/rad"),
+        kp=slider("Kp", GAIN_RANGES["kp"][:2], 5.0, initial.kp, "Proportional gain, N m/rad"),
+        ki=slider("Ki", GAIN_RANGES["ki"][:2], 1.0, initial.ki, "Integral gain, N m/(rad s); reset at each liftoff"),
+        kd=slider("Kd", GAIN_RANGES["kd"][:2], 0.5, initial.kd, "Derivative gain on the measured rate, N m s/rad"),
         wheel=gui.add_checkbox("Wheel on", wheel, hint="Off: zero wheel torque, the wheel spins freely"),
         reset_button=gui.add_button("Default gains", icon=viser.Icon.RESTORE, color="dark"),
         defaults=initial,
         applied=initial,
     )
-    ranges = {"Kp": (panel.kp, KP_RANGE, "N m/rad"), "Ki": (panel.ki, KI_RANGE, ""), "Kd": (panel.kd, KD_RANGE, "")}
+    ranges = {
+        label: (handle, GAIN_RANGES[label.lower()][:2], GAIN_RANGES[label.lower()].unit)
+        for label, handle in (("Kp", panel.kp), ("Ki", panel.ki), ("Kd", panel.kd))
+    }
 
     @guarded
     def on_gain(event: viser.GuiEvent) -> None:

@@ -3,8 +3,7 @@
 from __future__ import annotations
 
 import viser
-
-from app.dashboard.feedback import guarded
+from hopper.app.dashboard.feedback import guarded
 
 
 def build_help_button(gui: viser.GuiApi, markdown: str) -> viser.GuiButtonHandle:

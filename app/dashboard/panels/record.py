@@ -7,9 +7,8 @@ import html
 from pathlib import Path
 
 import viser
-
-from app.dashboard.feedback import guarded, notify
-from app.dashboard.recording import Recorder
+from hopper.app.dashboard.feedback import guarded, notify
+from hopper.app.dashboard.recording import Recorder
 
 
 @dataclasses.dataclass

@@ -5,10 +5,9 @@ from __future__ import annotations
 import dataclasses
 
 import viser
-
-from app.dashboard.feedback import Refused, checked, guarded, notify
-from app.dashboard.pacing import MAX_SPEED, MIN_SPEED
-from app.dashboard.panels import LoopControls, PanelContext
+from hopper.app.dashboard.feedback import Refused, checked, guarded, notify
+from hopper.app.dashboard.pacing import MAX_SPEED, MIN_SPEED
+from hopper.app.dashboard.panels import LoopControls, PanelContext
 
 STEPS = {"+1 ms": 1, "+10 ms": 10, "+100 ms": 100}  # control ticks of 1 ms
 

@@ -5,9 +5,9 @@ from __future__ import annotations
 import dataclasses
 
 import viser
+from hopper.app.dashboard.feedback import Refused, checked, guarded, keep_in_range
+from hopper.app.dashboard.panels import PanelContext
 
-from app.dashboard.feedback import Refused, checked, guarded, keep_in_range
-from app.dashboard.panels import PanelContext
 from hopper.config import GRAVITY_PRESETS, MOON_GRAVITY
 
 MAX_SEED = 2**31 - 1

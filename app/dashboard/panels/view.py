@@ -5,9 +5,8 @@ from __future__ import annotations
 import dataclasses
 
 import viser
-
-from app.dashboard.feedback import guarded
-from app.dashboard.scene import CameraFollow, RobotView, Trail, configure_lighting
+from hopper.app.dashboard.feedback import guarded
+from hopper.app.dashboard.scene import CameraFollow, RobotView, Trail, configure_lighting
 
 
 @dataclasses.dataclass

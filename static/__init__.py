@@ -1,0 +1,1 @@
+"""Data package: the dashboard's help, stylesheet, logo and theme, read with importlib.resources."""
