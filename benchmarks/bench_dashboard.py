@@ -1,6 +1,6 @@
 """Dashboard load: real-time factor, scene updates and bandwidth with 0, 1 and 4 connected clients.
 
-Run: python benchmarks/bench_dashboard.py [--seconds 10] [--speed 1]
+Run: python -m benchmarks.bench_dashboard [--seconds 10] [--speed 1]
 
 The server runs in this process at the asked speed; the clients run in a child process (browsers
 are separate processes too) and speak viser's real protocol: subprotocol handshake, a camera
@@ -30,7 +30,7 @@ def free_port() -> int:
 
 def probe_main(url: str, clients: int, settle: float, seconds: float) -> None:
     """Child process: connect `clients`, wait out the initial scene, measure, print JSON."""
-    from hopper.app.dashboard.probe import ProbeClient
+    from benchmarks.probe import ProbeClient
 
     probes = [ProbeClient(url) for _ in range(clients)]
     for p in probes:
@@ -62,8 +62,8 @@ def measure(dashboard, clients: int, settle: float, seconds: float) -> dict:
     child = None
     if clients:
         child = subprocess.Popen(
-            [sys.executable, __file__, "--probe", dashboard.url, "--clients", str(clients), "--seconds", str(seconds),
-             "--settle", str(settle)],
+            [sys.executable, "-m", "benchmarks.bench_dashboard", "--probe", dashboard.url,
+             "--clients", str(clients), "--seconds", str(seconds), "--settle", str(settle)],
             stdout=subprocess.PIPE, text=True, cwd=ROOT,
         )  # fmt: skip
         line = child.stdout.readline()

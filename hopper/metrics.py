@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from hopper.controller import A_APEX_Z, A_FLIGHT_TICKS, A_PEAK_PITCH, A_PEAK_WHEEL, A_RATE_SQ, A_SATURATION, N_ACC
+from hopper.control.memory import ACC, FLIGHT_ACC
 
 RAD_S_TO_RPM = 60.0 / (2.0 * math.pi)
 MIN_HOP_FLIGHT_S = 0.05  # s; a shorter flight (a foot skipping after a weak push) is no hop
@@ -38,12 +38,12 @@ class HopMetrics:
 
 
 class MetricsTracker:
-    """The hop in progress: the control kernel accumulates into `acc` every tick (cheap), and
-    liftoff / touchdown turn it into a HopMetrics."""
+    """The hop in progress: the control kernel accumulates into the `acc_*` fields of its memory
+    record every tick (cheap), and liftoff / touchdown turn them into a HopMetrics."""
 
-    def __init__(self, acc: np.ndarray | None = None, x0: float = 0.0) -> None:
+    def __init__(self, mem: np.ndarray, x0: float = 0.0) -> None:
         self.hops: list[HopMetrics] = []
-        self.acc = np.zeros(N_ACC) if acc is None else acc  # shared with the control kernel
+        self.mem = mem  # the control kernel's MEMORY record, shared
         self.reset(x0)
 
     def reset(self, x0: float, time: float = 0.0) -> None:
@@ -52,37 +52,46 @@ class MetricsTracker:
         self._start_hop(time)
 
     def _start_hop(self, time: float) -> None:
-        self.acc[:] = 0.0
-        self.acc[A_APEX_Z] = -math.inf
+        self._clear(ACC)
         self._ground_start = time
         self._liftoff_time: float | None = None
         self._liftoff_z = 0.0
         self._liftoff_momentum = 0.0
 
+    def _clear(self, fields: tuple[str, ...]) -> None:
+        for name in fields:
+            self.mem[name] = -math.inf if name == "acc_apex_z" else 0.0
+
     def liftoff(self, time: float, z: float, momentum: float) -> None:
         self._liftoff_time, self._liftoff_z, self._liftoff_momentum = time, z, momentum
-        self.acc[A_APEX_Z] = z
+        self.mem["acc_apex_z"] = z
+
+    def _acc(self, name: str) -> float:
+        return float(self.mem[name][0])
 
     def touchdown(self, time: float, x: float, pitch: float, completed: bool = True) -> HopMetrics | None:
         """Close the hop at a touchdown (or a fall in flight); None if no liftoff preceded it."""
         if self._liftoff_time is None:
             return None
         if completed and time - self._liftoff_time < MIN_HOP_FLIGHT_S:
-            self._liftoff_time = None  # a skip off a rim, not a hop: the hop goes on
+            # A skip off a rim, not a hop: the hop goes on, and the skip's flight ticks must not
+            # count toward the real flight's peak pitch and RMS rate.
+            self._liftoff_time = None
+            self._clear(FLIGHT_ACC)
             return None
-        acc = self.acc
-        ticks = max(acc[A_FLIGHT_TICKS], 1.0)
+        acc = self._acc
+        ticks = max(acc("acc_flight_ticks"), 1.0)
         hop = HopMetrics(
             index=len(self.hops) + 1,
             distance_m=x - self._last_touchdown_x,
-            apex_height_m=float(acc[A_APEX_Z]) - self._liftoff_z,
+            apex_height_m=acc("acc_apex_z") - self._liftoff_z,
             flight_time_s=time - self._liftoff_time,
             stance_time_s=self._liftoff_time - self._ground_start,
-            peak_pitch_deg=math.degrees(acc[A_PEAK_PITCH]),
-            rms_pitch_rate_deg_s=math.degrees(math.sqrt(acc[A_RATE_SQ] / ticks)),
+            peak_pitch_deg=math.degrees(acc("acc_peak_pitch")),
+            rms_pitch_rate_deg_s=math.degrees(math.sqrt(acc("acc_rate_sq") / ticks)),
             landing_pitch_deg=math.degrees(abs(pitch)),
-            saturation_time_s=float(acc[A_SATURATION]),
-            peak_wheel_rpm=float(acc[A_PEAK_WHEEL]) * RAD_S_TO_RPM,
+            saturation_time_s=acc("acc_saturation"),
+            peak_wheel_rpm=acc("acc_peak_wheel") * RAD_S_TO_RPM,
             liftoff_momentum=self._liftoff_momentum,
             touchdown_time_s=time,
             completed=completed,

@@ -1,7 +1,7 @@
 """The simulation: model, controller, phases and metrics stepped together at 1 kHz.
 
 The headless runner and the dashboard both drive this class. Only its `step()` touches MjData;
-other threads `submit()` commands that the next step applies.
+other threads `submit()` named commands (hopper.commands) that the next step applies.
 """
 
 from __future__ import annotations
@@ -10,28 +10,39 @@ import collections
 import dataclasses
 import logging
 import math
-from collections.abc import Callable
-from typing import Any, Literal, Protocol
+from typing import Literal, Protocol
 
 import mujoco
 import numpy as np
 
-from hopper.config import (
-    FOOT_RADIUS,
-    HIP_OFFSET_Z,
-    THIGH_LENGTH,
-    Gains,
-    SimConfig,
-    require_finite,
+from hopper.commands import Command
+from hopper.config import FOOT_RADIUS, HIP_OFFSET_Z, THIGH_LENGTH, Gains, SimConfig, require_finite
+from hopper.control import EV_APEX, EV_FALL, EV_LIFTOFF, EV_TOUCHDOWN, HopController, Phase, control_tick
+from hopper.events import (
+    Apex,
+    CommandFailed,
+    Disturbance,
+    DisturbanceArmed,
+    DisturbanceKind,
+    Diverged,
+    Event,
+    Fall,
+    GainsChanged,
+    GravityChanged,
+    Liftoff,
+    Payload,
+    Reset,
+    TerrainChanged,
+    Touchdown,
+    WheelChanged,
 )
-from hopper.controller import EV_APEX, EV_FALL, EV_LIFTOFF, EV_TOUCHDOWN, HopController, control_tick
+from hopper.layout import ModelLayout
 from hopper.metrics import HopMetrics, MetricsTracker
-from hopper.model import Physics, build_model, set_terrain, set_wheel_enabled, terrain_heights
-from hopper.phases import Phase
+from hopper.model import build_model, set_terrain, set_wheel_enabled, terrain_heights
+from hopper.state import RobotState, angular_momentum, read_state
 
 log = logging.getLogger(__name__)
 
-DisturbanceKind = Literal["pitch_kick", "push_forward", "push_backward", "torque_pulse"]
 DISTURBANCE_LIMITS: dict[str, tuple[float, str]] = {  # largest magnitude, unit
     "pitch_kick": (5.0, "N m s"),  # angular impulse on the torso
     "push_forward": (20.0, "N s"),  # linear impulse on the torso
@@ -43,15 +54,6 @@ TORQUE_PULSE_DELAY_S = 0.15  # s after liftoff, when armed on the ground
 HEALTH_CHECK_TICKS = 50  # ticks between checks for a diverged state
 
 
-@dataclasses.dataclass(frozen=True)
-class Event:
-    """Something that happened at a simulation time: a phase event, a disturbance, a change."""
-
-    time: float
-    kind: str
-    data: dict[str, Any] = dataclasses.field(default_factory=dict)
-
-
 class Listener(Protocol):
     """Sees every tick (after mj_step) and every event; telemetry and the dashboard implement it."""
 
@@ -61,27 +63,28 @@ class Listener(Protocol):
 
 
 class Simulation:
-    """One robot on one terrain, stepped one control tick at a time."""
+    """One robot on one terrain, stepped one control tick at a time.
+
+    `config` is the live configuration: gain, wheel, gravity and terrain changes replace it, so
+    whatever reads it (recordings, run reports) sees what the robot runs now.
+    """
 
     def __init__(self, config: SimConfig) -> None:
         self.config = config
         self.heights = terrain_heights(config)
         self.model = build_model(config, self.heights)
         self.data = mujoco.MjData(self.model)
-        self.physics = Physics(self.model, self.data)
-        x0, _, z0 = self.model.body("torso").pos.tolist()
-        self.controller = HopController(
-            config.gains, config.gait, config.gravity, config.wheel, x0, z0, self.model.opt.timestep
-        )
-        self.metrics = MetricsTracker(self.controller.acc)
+        self.layout = ModelLayout.of(self.model)
+        self.controller = HopController(self.layout, config)
+        self.metrics = MetricsTracker(self.controller.mem)
         self.events: list[Event] = []
         self.listeners: list[Listener] = []
-        self._commands: collections.deque[Callable[[Simulation], None]] = collections.deque()
+        self.run_index = -1  # counts resets: the one at construction makes it 0
+        self._commands: collections.deque[Command] = collections.deque()
         # MjData's array properties build a new numpy view per access: keep one of each.
         d = self.data
         self._qpos, self._qvel, self._sensors, self._ctrl = d.qpos, d.qvel, d.sensordata, d.ctrl
         self._mem, self._dt = self.controller.mem, self.model.opt.timestep
-        self._torso = self.model.body("torso").id
         self.ticks = 0  # control ticks stepped since construction
         self.reset(reason="start")
 
@@ -100,17 +103,21 @@ class Simulation:
 
     @property
     def gains(self) -> Gains:
-        return self.controller.gains
+        return self.config.gains
 
     @property
     def fallen(self) -> bool:
         return self.controller.phase is Phase.FALLEN
 
+    def state(self) -> RobotState:
+        """The robot now (a snapshot; read it on the simulation's thread)."""
+        return read_state(self.data, self.layout)
+
     # -- stepping --------------------------------------------------------------------------
     def step(self) -> int:
         """One control tick: apply queued commands, control (kernel), mj_step, notify listeners.
 
-        Returns the tick's event bits (hopper.controller.EV_*), 0 on most ticks.
+        Returns the tick's event bits (hopper.control.EV_*), 0 on most ticks.
         """
         if self._commands:
             self._drain()
@@ -139,7 +146,7 @@ class Simulation:
                     break
         return self.hops
 
-    def submit(self, command: Callable[[Simulation], None]) -> None:
+    def submit(self, command: Command) -> None:
         """Queue a command from any thread; the next step applies it (deque appends are atomic)."""
         self._commands.append(command)
 
@@ -152,42 +159,46 @@ class Simulation:
         while self._commands:
             command = self._commands.popleft()
             try:
-                command(self)
+                command.apply(self)
             except Exception as exc:  # a bad command must never stop the loop
-                log.exception("command failed")
-                self._emit("error", message=f"{type(exc).__name__}: {exc}")
+                log.exception("command %r failed", command)
+                self._emit(CommandFailed(type(command).__name__, f"{type(exc).__name__}: {exc}"))
 
     # -- events ----------------------------------------------------------------------------
-    def _emit(self, kind: str, /, **data: Any) -> Event:
-        event = Event(self.time, kind, data)
+    def emit(self, payload: Payload) -> Event:
+        """Record an event now and tell every listener (also for front ends: recordings, ...)."""
+        return self._emit(payload)
+
+    def _emit(self, payload: Payload) -> Event:
+        event = Event(self.time, self.run_index, payload)
         self.events.append(event)
         for listener in self.listeners:
             listener.event(self, event)
         return event
 
     def _controller_events(self, events: int) -> None:
-        s = self.physics
-        s.refresh()
+        s = self.state()
         if events & EV_LIFTOFF:
-            momentum = s.angular_momentum()
+            momentum = angular_momentum(self.model, self.data, self.layout)
             self.metrics.liftoff(s.time, s.z, momentum)
-            self._emit("liftoff", momentum=momentum)
+            self._emit(Liftoff(momentum))
             if self._pulse_armed:
                 self._pulse_at, self._pulse_magnitude = s.time + TORQUE_PULSE_DELAY_S, self._pulse_armed
                 self._pulse_armed = 0.0
         if events & EV_APEX:
-            self._emit("apex", height_m=s.z)
+            self._emit(Apex(s.z))
         if events & EV_TOUCHDOWN:
-            self._emit("touchdown", hop=self.metrics.touchdown(s.time, s.x, s.pitch))
+            self._emit(Touchdown(self.metrics.touchdown(s.time, s.x, s.pitch)))
         if events & EV_FALL:
             hop = self.metrics.touchdown(s.time, s.x, s.pitch, completed=False)
-            self._emit("fall", pitch_deg=math.degrees(s.pitch), hop=hop)
+            c = self.controller
+            self._emit(Fall(c.fall_cause, math.degrees(s.pitch), c.fall_height, hop))
 
     # -- commands (call from the loop, or submit() them) ----------------------------------
     def reset(self, reason: str = "user") -> None:
-        """Stand the robot at the start of the terrain, at rest."""
+        """Stand the robot at the start of the terrain, at rest; a new run begins."""
         mujoco.mj_resetData(self.model, self.data)
-        gait = self.controller.gait
+        gait = self.config.gait
         stand = gait.stand_height
         for side, offset in (("L", gait.foot_spread / 2), ("R", -gait.foot_spread / 2)):
             knee = -2.0 * math.acos(min(math.hypot(offset, stand) / (2 * THIGH_LENGTH), 1.0))
@@ -199,32 +210,36 @@ class Simulation:
         mujoco.mj_forward(self.model, self.data)
         self._pulse_armed, self._pulse_magnitude, self._pulse_at = 0.0, 0.0, math.inf
         self._warnings = int(self.data.warning.number.sum())
-        self.physics.refresh()
         self.controller.reset(self.time, standing=True)
-        self.metrics.reset(self.physics.x, self.time)
-        self._emit("reset", reason=reason)
+        self.metrics.reset(self.state().x, self.time)
+        self.run_index += 1
+        self._emit(Reset(reason))
+
+    def _reconfigure(self, **changes: object) -> None:
+        self.config = dataclasses.replace(self.config, **changes)  # validates
+        self.controller.configure(self.config)
 
     def set_gains(self, gains: Gains) -> None:
-        self.controller.set_gains(gains)
-        self._emit("gains", kp=gains.kp, ki=gains.ki, kd=gains.kd)
+        self._reconfigure(gains=gains)
+        self._emit(GainsChanged(gains))
 
     def set_wheel(self, enabled: bool) -> None:
+        self._reconfigure(wheel=enabled)
         set_wheel_enabled(self.model, enabled)
-        self.controller.set_wheel(enabled)
-        self._emit("wheel", enabled=enabled)
+        self._emit(WheelChanged(enabled))
 
     def set_gravity(self, gravity: float) -> None:
-        require_finite("gravity", gravity, 0.05, 30.0)
+        require_finite("gravity", gravity, 0.05, 30.0, "m/s^2")
+        self._reconfigure(gravity=gravity)
         self.model.opt.gravity[2] = -gravity
-        self.controller.set_gravity(gravity)
-        self._emit("gravity", gravity=gravity)
+        self._emit(GravityChanged(gravity))
 
     def set_terrain(self, kind: Literal["crater", "flat"], seed: int) -> None:
         """Regenerate the heightfield in place (no recompile) and restart the robot on it."""
-        self.config = dataclasses.replace(self.config, terrain=kind, seed=seed)
+        self._reconfigure(terrain=kind, seed=seed)
         self.heights = terrain_heights(self.config)
         set_terrain(self.model, self.heights)
-        self._emit("terrain", kind=kind, seed=seed)
+        self._emit(TerrainChanged(kind, seed))
         self.reset(reason="terrain")
 
     def disturb(self, kind: DisturbanceKind, magnitude: float) -> None:
@@ -232,31 +247,32 @@ class Simulation:
         if kind not in DISTURBANCE_LIMITS:
             raise ValueError(f"unknown disturbance {kind!r}; choose from {', '.join(DISTURBANCE_LIMITS)}")
         limit, unit = DISTURBANCE_LIMITS[kind]
-        require_finite(f"{kind} magnitude ({unit})", magnitude, -limit, limit)
+        require_finite(f"{kind} magnitude", magnitude, -limit, limit, unit)
         if kind == "torque_pulse":
             if self.controller.phase is Phase.FLIGHT:
                 self._pulse_at, self._pulse_magnitude = self.time, magnitude
             else:
                 self._pulse_armed = magnitude
-                self._emit("disturbance_armed", kind=kind, magnitude=magnitude, unit=unit)
+                self._emit(DisturbanceArmed(kind, magnitude, unit))
             return
-        dof = self.model.joint("pitch" if kind == "pitch_kick" else "root_x").dofadr[0]
+        dof = self.layout.v_pitch if kind == "pitch_kick" else self.layout.v_x
         impulse = np.zeros(self.model.nv)
         impulse[dof] = -magnitude if kind == "push_backward" else magnitude
         dv = np.zeros(self.model.nv)
         mujoco.mj_solveM(self.model, self.data, dv.reshape(1, -1), impulse.reshape(1, -1))
         self.data.qvel += dv
-        self._emit("disturbance", kind=kind, magnitude=magnitude, unit=unit)
+        self._emit(Disturbance(kind, magnitude, unit))
 
     def _pulse_event(self) -> None:
         """Start a scheduled torque pulse (in flight only), or end the running one."""
         magnitude = self._pulse_magnitude
+        torso = self.layout.torso
         if magnitude and self.controller.phase is Phase.FLIGHT:
-            self.data.xfrc_applied[self._torso, 4] = magnitude  # pitch torque about world y
+            self.data.xfrc_applied[torso, 4] = magnitude  # pitch torque about world y
             self._pulse_at, self._pulse_magnitude = self.time + TORQUE_PULSE_S, 0.0
-            self._emit("disturbance", kind="torque_pulse", magnitude=magnitude, unit="N m", duration_s=TORQUE_PULSE_S)
+            self._emit(Disturbance("torque_pulse", magnitude, "N m", TORQUE_PULSE_S))
         else:
-            self.data.xfrc_applied[self._torso, 4] = 0.0
+            self.data.xfrc_applied[torso, 4] = 0.0
             self._pulse_at, self._pulse_magnitude = math.inf, 0.0
 
     # -- health ----------------------------------------------------------------------------
@@ -269,5 +285,5 @@ class Simulation:
 
     def _diverged(self, why: str) -> None:
         log.warning("simulation diverged (%s); resetting", why)
-        self._emit("diverged", reason=why)
+        self._emit(Diverged(why))
         self.reset(reason="diverged")

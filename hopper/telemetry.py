@@ -38,10 +38,10 @@ import rerun.blueprint as rrb
 from rerun.blueprint.encodings import ComponentSourceKind, VisualizerComponentMapping
 
 from hopper.config import WHEEL_TORQUE_LIMIT
-from hopper.controller import K_PHASE
+from hopper.control import Phase
+from hopper.events import EventKind
+from hopper.layout import LEG_JOINTS
 from hopper.meshes import body_meshes, terrain_mesh
-from hopper.model import LEG_JOINTS
-from hopper.phases import Phase
 
 if TYPE_CHECKING:
     from hopper.sim import Event, Simulation
@@ -62,7 +62,13 @@ RAD_S_TO_RPM = 60.0 / (2.0 * math.pi)
 SIGNALS_F32 = ("pitch_deg", "pitch_rate_deg_s", "wheel_rpm", "wheel_torque_nm")
 SIGNALS_F16 = (*(f"{j}_deg" for j in LEG_JOINTS), *(f"{j}_torque_nm" for j in LEG_JOINTS), "foot_L_n", "foot_R_n")
 SIGNALS = SIGNALS_F32 + SIGNALS_F16
-EVENT_LEVELS = {"fall": "ERROR", "error": "ERROR", "diverged": "WARN", "disturbance": "WARN"}
+EVENT_LEVELS = {
+    EventKind.FALL: "ERROR",
+    EventKind.COMMAND_FAILED: "ERROR",
+    EventKind.DIVERGED: "WARN",
+    EventKind.DISTURBANCE: "WARN",
+}
+SETTING_EVENTS = (EventKind.GAINS, EventKind.WHEEL, EventKind.GRAVITY, EventKind.TERRAIN)
 VIEWER_WAIT_S = 10.0  # s for a viewer process to start listening
 VIEWER_GRACE_S = 1.5  # s a spawned viewer must then stay alive (no display: it exits within ~0.5 s)
 BLUE, ORANGE, GREEN, RED, PURPLE = (31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189)
@@ -388,7 +394,7 @@ class Telemetry:
         self._frames: dict[int, pa.Array] = {}  # child_frame columns by pose count
         self._hops = 0
         # The kernel's phase slot, appended to every row: phases exact to the tick at no cost.
-        self._phase_view = memoryview(sim.controller.state[K_PHASE : K_PHASE + 1]).cast("B")
+        self._phase_view = memoryview(sim.controller.field("phase")).cast("B")  # int64
         self._phase = int(sim.phase)
 
         self.rec = rr.RecordingStream(APPLICATION_ID)
@@ -407,25 +413,19 @@ class Telemetry:
 
     # -- setup -----------------------------------------------------------------------------
     def _layout(self, sim: Simulation) -> None:
-        """Indices into MjData's arrays, looked up by name so that reordering the model is harmless."""
-        m = sim.model
-        sensor = {n: int(m.sensor(n).adr[0]) for n in ("imu_pitch", "imu_gyro", "wheel_speed", "foot_L", "foot_R")}
+        """Columns of each signal in a buffered row, from the simulation's model layout."""
+        m, lay = sim.model, sim.layout
         self._nsens, self._nu, self._nq = m.nsensordata, m.nu, m.nq
-        self._i_pitch, self._i_rate, self._i_wheel = sensor["imu_pitch"], sensor["imu_gyro"] + 1, sensor["wheel_speed"]
-        self._i_feet = [sensor["foot_L"], sensor["foot_R"]]
-        self._i_wheel_force, self._wheel_gear = int(m.actuator("wheel").id), float(m.actuator("wheel").gear[0])
-        self._i_leg_force = [int(m.actuator(j).id) for j in LEG_JOINTS]
-        self._i_leg_qpos = [int(m.joint(j).qposadr[0]) for j in LEG_JOINTS]
         # Each signal as (column of [sensordata | actuator_force | qpos], scale from SI).
         sources = {
-            "pitch_deg": (self._i_pitch, math.degrees(1.0)),
-            "pitch_rate_deg_s": (self._i_rate, math.degrees(1.0)),
-            "wheel_rpm": (self._i_wheel, RAD_S_TO_RPM),
-            "wheel_torque_nm": (self._nsens + self._i_wheel_force, self._wheel_gear),
-            "foot_L_n": (self._i_feet[0], 1.0),
-            "foot_R_n": (self._i_feet[1], 1.0),
+            "pitch_deg": (lay.s_pitch, math.degrees(1.0)),
+            "pitch_rate_deg_s": (lay.s_gyro_pitch, math.degrees(1.0)),
+            "wheel_rpm": (lay.s_wheel_speed, RAD_S_TO_RPM),
+            "wheel_torque_nm": (self._nsens + lay.a_wheel, lay.wheel_gear),
+            "foot_L_n": (lay.s_foot_l, 1.0),
+            "foot_R_n": (lay.s_foot_r, 1.0),
         }
-        for j, qi, fi in zip(LEG_JOINTS, self._i_leg_qpos, self._i_leg_force, strict=True):
+        for j, qi, fi in zip(LEG_JOINTS, lay.q_legs, lay.a_legs, strict=True):
             sources[f"{j}_deg"] = (self._nsens + self._nu + qi, math.degrees(1.0))
             sources[f"{j}_torque_nm"] = (self._nsens + fi, 1.0)
         self._signal_source = np.array([sources[name][0] for name in SIGNALS])
@@ -487,12 +487,25 @@ class Telemetry:
             shape = _torso_box(sim.model) if mesh.name == "torso" else _mesh3d(mesh.vertices, mesh.faces, mesh.colors)
             rec.log(f"world/robot/{mesh.name}", shape, rr.CoordinateFrame(mesh.name), static=True)
         rec.log("limits/wheel_torque", rr.SeriesLines(names=["+limit", "-limit"], colors=[RED, RED]), static=True)
-        c = sim.config
-        rec.send_property(
-            "config",
-            rr.AnyValues(terrain=c.terrain, seed=c.seed, gravity=c.gravity, wheel=c.wheel, timestep=c.timestep),
-        )
+        self._send_config(sim)
         self._send_limits([self._next_ns])
+
+    def _send_config(self, sim: Simulation) -> None:
+        """The live settings (sim.config) as the recording's `config` property; re-sent at each change."""
+        c, g = sim.config, sim.config.gains
+        self.rec.send_property(
+            "config",
+            rr.AnyValues(
+                terrain=c.terrain,
+                seed=c.seed,
+                gravity=c.gravity,
+                wheel=c.wheel,
+                timestep=c.timestep,
+                kp=g.kp,
+                ki=g.ki,
+                kd=g.kd,
+            ),
+        )
 
     def _log_terrain(self, sim: Simulation) -> None:
         """Static, so a terrain change mid-recording shows its new terrain for the whole replay (the
@@ -521,19 +534,22 @@ class Telemetry:
         """Buffer an event's text (and a finished hop's metrics); a reset sends the ticks before it."""
         if self._closed:
             return
-        if event.kind == "terrain":
+        if event.kind == EventKind.TERRAIN:
             self._log_terrain(sim)
-        if event.kind == "reset":
+        if event.kind in SETTING_EVENTS:
+            self._send_config(sim)
+        if event.kind == EventKind.RESET:
             self._flush(wait=False, check_clock=False)  # rows before the reset keep their times
             self._offset_ns = self._next_ns - self._data_ns()
             self._carry_qpos = self._qpos.copy()
             self._last_torso = None
         t_ns = round(event.time * 1e9) + self._offset_ns
-        hop = event.data.get("hop")
+        hop = getattr(event.payload, "hop", None)
         if hop is not None:
             self._hops += 1
             self._hop_rows.append((t_ns, self._hops, hop.as_dict()))
-        self._events.append((t_ns, self._hops, event.kind, EVENT_LEVELS.get(event.kind, "INFO"), _describe(event)))
+        text = f"{event.kind}: {event.describe()}"
+        self._events.append((t_ns, self._hops, str(event.kind), EVENT_LEVELS.get(event.kind, "INFO"), text))
 
     # -- sending ---------------------------------------------------------------------------
     def flush(self, wait: bool = True) -> None:
@@ -566,7 +582,8 @@ class Telemetry:
             self._next_ns += n * self._dt_ns
             table = ticks[: n * width].reshape(n, width)
             self._send_signals(times, table[:, :-1])
-            phases = sorted(phases + self._phase_changes(times, table[:, -1], hop_rows))
+            codes = table[:, -1].view(np.int64)  # the phase field is an int64 in the kernel memory
+            phases = sorted(phases + self._phase_changes(times, codes, hop_rows))
             self._batches += 1
             if self._batches % LIMIT_EVERY_BATCHES == 0:
                 self._send_limits(times[-1:])
@@ -730,18 +747,3 @@ def _torso_box(model: Any) -> rr.Boxes3D:
         colors=[rgba],
         fill_mode=rr.components.FillMode.TransparentFillMajorWireframe,
     )
-
-
-def _describe(event: Event) -> str:
-    """One line for the event log, e.g. 'touchdown: hop 3, distance 0.950 m, ...'."""
-    data = event.data
-    if event.kind in ("touchdown", "fall") and data.get("hop") is not None:
-        h = data["hop"]
-        return (
-            f"{event.kind}: hop {h.index}{'' if h.completed else ' (fell)'}, distance {h.distance_m:.3f} m, "
-            f"apex {h.apex_height_m:.3f} m, flight {h.flight_time_s:.3f} s, peak pitch {h.peak_pitch_deg:.2f} deg, "
-            f"landing pitch {h.landing_pitch_deg:.2f} deg, saturation {h.saturation_time_s:.3f} s, "
-            f"peak wheel {h.peak_wheel_rpm:.0f} rpm"
-        )
-    parts = [f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in data.items() if k != "hop"]
-    return f"{event.kind}: {', '.join(parts)}" if parts else event.kind

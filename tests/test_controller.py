@@ -1,49 +1,65 @@
-"""The control kernel's pieces: PID sign and anti-windup, the torque-speed envelope, contacts."""
+"""The control kernel's pieces: PID sign and anti-windup, the torque-speed envelope, contacts, legs."""
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
 import pytest
 
-from hopper import controller as c
-from hopper.config import WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT, Gains, GaitParams, InvalidConfig
+from hopper.config import WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT, Gains, InvalidConfig, SimConfig
+from hopper.control import HopController, control_tick
+from hopper.control.contact import debounce
+from hopper.control.legs import leg_state
+from hopper.control.memory import MEMORY
+from hopper.control.wheel import WHEEL_DAMPING, wheel_ctrl, wheel_pid
+from hopper.layout import ModelLayout
+from hopper.model import MODEL_XML, build_model
 
 
-def _pid(gains: Gains) -> tuple[np.ndarray, np.ndarray]:
-    ctl = c.HopController(gains, GaitParams(), gravity=1.625)
-    return ctl.params, ctl.state
+def _memory(gains: Gains) -> np.ndarray:
+    model = build_model(SimConfig(terrain="flat"))
+    return HopController(ModelLayout.of(model), SimConfig(terrain="flat", gains=gains)).mem
+
+
+def test_the_memory_is_one_named_record() -> None:
+    mem = _memory(Gains(kp=400, ki=10, kd=20))
+    assert mem.dtype == MEMORY and mem.shape == (1,)
+    assert (mem["kp"][0], mem["ki"][0], mem["kd"][0]) == (400, 10, 20)
+    assert mem["phase"].dtype == np.int64 and mem["wheel_on"].dtype == np.bool_
 
 
 def test_pid_pushes_the_torso_back_toward_upright() -> None:
-    p, k = _pid(Gains(kp=400, ki=0, kd=20))
+    m = _memory(Gains(kp=400, ki=0, kd=20))[0]
     # Nose down (positive pitch): the motor spins the wheel positive, the torso takes the negative reaction.
-    assert c.wheel_pid(0.05, 0.0, 0.0, 0.001, p, k) == pytest.approx(400 * 0.05)
-    assert c.wheel_pid(0.0, -0.5, 0.0, 0.001, p, k) == pytest.approx(20 * -0.5)
+    assert wheel_pid(m, 0.05, 0.0, 0.0) == pytest.approx(400 * 0.05)
+    assert wheel_pid(m, 0.0, -0.5, 0.0) == pytest.approx(20 * -0.5)
 
 
 def test_pid_clamps_to_the_envelope_and_stops_integrating_when_saturated() -> None:
-    p, k = _pid(Gains(kp=400, ki=100, kd=20))
-    torque = c.wheel_pid(1.0, 0.0, 0.0, 0.001, p, k)  # 400 N m asked
+    mem = _memory(Gains(kp=400, ki=100, kd=20))
+    m = mem[0]
+    torque = wheel_pid(m, 1.0, 0.0, 0.0)  # 400 N m asked
     assert torque == pytest.approx(WHEEL_TORQUE_LIMIT)
-    assert k[c.K_INTEGRAL] == 0.0 and k[c.K_SATURATED] == 1.0
-    c.wheel_pid(0.01, 0.0, 0.0, 0.001, p, k)  # 4 N m: inside the envelope, integrates
-    assert k[c.K_INTEGRAL] == pytest.approx(0.01 * 0.001)
+    assert mem["integral"][0] == 0.0 and mem["saturated"][0]
+    wheel_pid(m, 0.01, 0.0, 0.0)  # 4 N m: inside the envelope, integrates
+    assert mem["integral"][0] == pytest.approx(0.01 * 0.001) and not mem["saturated"][0]
     # At half the no-load speed only half the torque is left in the direction of motion.
-    assert c.wheel_pid(1.0, 0.0, WHEEL_NO_LOAD_SPEED / 2, 0.001, p, k) == pytest.approx(WHEEL_TORQUE_LIMIT / 2)
+    assert wheel_pid(m, 1.0, 0.0, WHEEL_NO_LOAD_SPEED / 2) == pytest.approx(WHEEL_TORQUE_LIMIT / 2)
 
 
 def test_wheel_ctrl_inverts_the_motor_model() -> None:
     for speed in (-20.0, 0.0, 15.0):
         for torque in (-10.0, 0.0, 5.0):
-            u = c.wheel_ctrl(torque, speed)
-            assert WHEEL_TORQUE_LIMIT * u - c.WHEEL_DAMPING * speed == pytest.approx(torque)
+            u = wheel_ctrl(torque, speed)
+            assert WHEEL_TORQUE_LIMIT * u - WHEEL_DAMPING * speed == pytest.approx(torque)
 
 
 def test_contact_debounce_and_hysteresis() -> None:
-    k = np.zeros(c.N_STATE)
-    k[c.K_PENDING_L] = -1.0
+    on, pending, seen = False, -1.0, []
     forces = [5, 5, 5, 0.5] + [0.1] * 10 + [5] + [0.1] * 16
-    seen = [c.debounce(f, i * 0.001, k, c.K_CONTACT_L, c.K_PENDING_L) for i, f in enumerate(forces)]
+    for i, force in enumerate(forces):
+        on, pending = debounce(force, i * 0.001, on, pending)
+        seen.append(on)
     assert seen[:3] == [False, False, True]  # on after 2 ms above 1 N
     assert seen[3] is True  # 0.5 N is above the 0.2 N off threshold
     assert all(seen[4:15])  # a 10 ms gap, then a tap: the foot is still down
@@ -52,13 +68,42 @@ def test_contact_debounce_and_hysteresis() -> None:
 
 def test_leg_jacobian_matches_finite_differences() -> None:
     pitch, hip, knee, eps = 0.1, 0.5, -1.1, 1e-6
-    px, pz, jx, jz = c.leg_kinematics(pitch, hip, knee)
-    px_h, pz_h, _, _ = c.leg_kinematics(pitch, hip + eps, knee)
-    px_k, pz_k, _, _ = c.leg_kinematics(pitch, hip, knee + eps)
-    assert (px_h - px) / eps == pytest.approx(pz, abs=1e-5)
-    assert (pz_h - pz) / eps == pytest.approx(-px, abs=1e-5)
-    assert (px_k - px) / eps == pytest.approx(jx, abs=1e-5)
-    assert (pz_k - pz) / eps == pytest.approx(jz, abs=1e-5)
+    leg = leg_state(pitch, hip, knee, 0.0, 0.0, False)
+    by_hip = leg_state(pitch, hip + eps, knee, 0.0, 0.0, False)
+    by_knee = leg_state(pitch, hip, knee + eps, 0.0, 0.0, False)
+    assert (by_hip.px - leg.px) / eps == pytest.approx(leg.pz, abs=1e-5)
+    assert (by_hip.pz - leg.pz) / eps == pytest.approx(-leg.px, abs=1e-5)
+    assert (by_knee.px - leg.px) / eps == pytest.approx(leg.jx, abs=1e-5)
+    assert (by_knee.pz - leg.pz) / eps == pytest.approx(leg.jz, abs=1e-5)
+
+
+def test_the_kernel_finds_its_sensors_by_name_in_any_order() -> None:
+    """A model whose sensors and actuators are declared in another order gets the same commands."""
+    xml = MODEL_XML.read_text()
+    sensors = xml[xml.index("<sensor>") + len("<sensor>") : xml.index("</sensor>")]
+    lines = [
+        line for line in sensors.splitlines() if line.strip().startswith("<") and not line.strip().startswith("<!--")
+    ]
+    reordered = xml.replace(sensors, "\n" + "\n".join(reversed(lines)) + "\n")
+    actuators = xml[xml.index("<actuator>") : xml.index("</actuator>")]
+    motors = [line for line in actuators.splitlines() if line.strip().startswith("<motor")]
+    reordered = reordered.replace("\n".join(motors), "\n".join(reversed(motors)))
+    commands = []
+    for text in (xml, reordered):
+        model = mujoco.MjModel.from_xml_string(text)
+        data = mujoco.MjData(model)
+        data.qpos[model.joint("pitch").qposadr[0]] = 0.2  # airborne, tilted: the flight law and the swing act
+        data.qvel[model.joint("pitch").dofadr[0]] = -0.3
+        data.qvel[model.joint("root_x").dofadr[0]] = 0.4
+        mujoco.mj_forward(model, data)
+        controller = HopController(ModelLayout.of(model), SimConfig(terrain="flat"))
+        controller.reset(standing=False)
+        controller.mem["phase"] = 4  # FLIGHT
+        control_tick(data.qpos, data.qvel, data.sensordata, data.ctrl, controller.mem)
+        commands.append({model.actuator(i).name: data.ctrl[i] for i in range(model.nu)})
+    assert model.sensor("imu_pitch").adr[0] != 0  # the reorder really moved things
+    assert commands[0] == commands[1]
+    assert commands[0]["wheel"] != 0 and commands[0]["hip_L"] != 0
 
 
 @pytest.mark.parametrize("bad", [{"kp": -1.0}, {"ki": float("nan")}, {"kd": float("inf")}, {"kp": 1e9}])

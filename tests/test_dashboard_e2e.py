@@ -11,12 +11,14 @@ import time
 from pathlib import Path
 
 import pytest
+from calls import Call
 from hopper.app.dashboard.config import DashboardConfig
 from hopper.app.dashboard.server import Dashboard
 from net import free_port, wait_until
 from PIL import Image
 
-from hopper.sim import Event, Simulation
+from hopper.events import Disturbance, Event, EventKind
+from hopper.sim import Simulation
 
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMIUM_ARGS = [
@@ -136,12 +138,12 @@ def test_dashboard_in_a_real_browser(browser, tmp_path: Path) -> None:
 
         # Clicking Pitch kick kicks the torso: the pitch moves away from where it was.
         probe = PitchProbe()
-        dashboard.sim.submit(lambda sim: sim.listeners.append(probe))
+        dashboard.sim.submit(Call(lambda sim: sim.listeners.append(probe)))
         page.get_by_role("tab", name="Disturb").click()
         page.get_by_role("button", name="Pitch kick").click()
-        assert wait_until(lambda: any(e.kind == "disturbance" for e in probe.events), timeout=20)
-        kick = next(e for e in probe.events if e.kind == "disturbance")
-        assert kick.data["kind"] == "pitch_kick" and kick.data["magnitude"] == 1.0
+        assert wait_until(lambda: any(e.kind is EventKind.DISTURBANCE for e in probe.events), timeout=20)
+        kick = next(e for e in probe.events if e.kind is EventKind.DISTURBANCE)
+        assert kick.payload == Disturbance("pitch_kick", 1.0, "N m s")
         assert wait_until(lambda: probe.samples and probe.samples[-1][0] > kick.time + 0.3, timeout=10)
         at_kick = min(probe.samples, key=lambda s: abs(s[0] - kick.time))[1]
         excursion = max(abs(p - at_kick) for t, p in probe.samples if kick.time <= t <= kick.time + 0.3)

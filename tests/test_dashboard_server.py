@@ -14,16 +14,17 @@ import time
 from pathlib import Path
 
 import pytest
+from calls import Call
 from hopper.app.dashboard.config import DashboardConfig
 from hopper.app.dashboard.pacing import MAX_LAG_S, Pacer
 from hopper.app.dashboard.panels.events import describe
 from hopper.app.dashboard.panels.hops import hop_table_html
-from hopper.app.dashboard.probe import ProbeClient
 from hopper.app.dashboard.server import Dashboard, PortInUse
 from net import free_port, wait_until
 
+from benchmarks.probe import ProbeClient
+from hopper.events import Disturbance, Event, EventKind, Liftoff
 from hopper.metrics import HopMetrics
-from hopper.sim import Event
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -220,11 +221,11 @@ def test_an_exception_in_a_callback_is_reported_and_never_stops_the_loop(
 
 def test_a_pitch_kick_is_applied_and_logged(dashboard: Dashboard, client: ProbeClient) -> None:
     seen: list[Event] = []
-    dashboard.sim.submit(lambda sim: sim.listeners.append(_Recorder(seen)))
+    dashboard.sim.submit(Call(lambda sim: sim.listeners.append(_Recorder(seen))))
     client.set_gui_value("Apply", "Pitch kick")
-    assert wait_until(lambda: any(e.kind == "disturbance" for e in seen))
-    kick = next(e for e in seen if e.kind == "disturbance")
-    assert kick.data["kind"] == "pitch_kick" and kick.data["magnitude"] == 1.0
+    assert wait_until(lambda: any(e.kind is EventKind.DISTURBANCE for e in seen))
+    kick = next(e for e in seen if e.kind is EventKind.DISTURBANCE)
+    assert kick.payload == Disturbance("pitch_kick", 1.0, "N m s")
     assert wait_until(lambda: "pitch kick +1 N m s" in dashboard.layout.events.html.content)
 
 
@@ -281,7 +282,7 @@ def test_a_fall_is_notified_and_reset_unless_stay_fallen(dashboard: Dashboard, c
 
     client.set_gui_value("Stay fallen", True)
     assert wait_until(lambda: dashboard.stay_fallen)
-    dashboard.sim.submit(topple)
+    dashboard.sim.submit(Call(topple))
     assert client.wait_for(lambda p: "The robot fell" in titles(p))
     assert "stays down" in client.notifications[-1]["body"]
     time.sleep(2.5)
@@ -291,15 +292,15 @@ def test_a_fall_is_notified_and_reset_unless_stay_fallen(dashboard: Dashboard, c
 
 
 def test_the_end_of_the_terrain_restarts_the_run(dashboard: Dashboard, client: ProbeClient) -> None:
-    dashboard.sim.submit(lambda sim: sim.data.joint("root_x").qpos.__setitem__(0, 40.0))
+    dashboard.sim.submit(Call(lambda sim: sim.data.joint("root_x").qpos.__setitem__(0, 40.0)))
     assert client.wait_for(lambda p: "End of the terrain" in titles(p))
-    assert wait_until(lambda: dashboard.sim.physics.x < 5.0)
+    assert wait_until(lambda: dashboard.sim.state().x < 5.0)
 
 
 def test_a_diverging_simulation_resets_with_a_notification(dashboard: Dashboard, client: ProbeClient) -> None:
-    dashboard.sim.submit(lambda sim: sim.data.qvel.__setitem__(0, math.nan))
+    dashboard.sim.submit(Call(lambda sim: sim.data.qvel.__setitem__(0, math.nan)))
     assert client.wait_for(lambda p: "Simulation diverged" in titles(p))
-    assert wait_until(lambda: math.isfinite(dashboard.sim.physics.x) and dashboard.sim.time > 0.1)
+    assert wait_until(lambda: math.isfinite(dashboard.sim.state().x) and dashboard.sim.time > 0.1)
 
 
 def test_eight_clients_coming_and_going_leave_the_simulation_in_real_time(dashboard: Dashboard) -> None:
@@ -386,7 +387,5 @@ def test_hop_table_and_event_log_text() -> None:
     table = hop_table_html([hop])
     assert "0.80" in table and "12.0" in table and "250" in table and "hd-mean" in table
     assert "no hops yet" in hop_table_html([])
-    assert describe(Event(1.0, "disturbance", {"kind": "push_forward", "magnitude": 4.0, "unit": "N s"})) == (
-        "push ▶ +4 N s"
-    )
-    assert describe(Event(1.0, "liftoff", {})) is None
+    assert describe(Event(1.0, 2, Disturbance("push_forward", 4.0, "N s"))) == "push ▶ +4 N s"
+    assert describe(Event(1.0, 2, Liftoff(0.1))) is None

@@ -8,8 +8,11 @@ import mujoco
 import numpy as np
 import pytest
 
+from hopper import config
 from hopper.config import SimConfig
-from hopper.model import MODEL_XML, Physics, build_model, set_wheel_enabled
+from hopper.layout import LEG_JOINTS, ModelLayout
+from hopper.model import MODEL_XML, build_model, set_wheel_enabled
+from hopper.state import read_state
 
 
 def test_loads_on_its_own_with_moon_gravity_and_1khz() -> None:
@@ -64,14 +67,38 @@ def test_wheel_motor_envelope() -> None:
     assert torque(5.0, 1.0) == 0.0  # wheel off: no torque, and no back-EMF braking either
 
 
-def test_physics_accessors_read_named_state() -> None:
+def test_the_state_reader_names_what_it_reads() -> None:
     model = build_model(SimConfig(terrain="flat"))
     data = mujoco.MjData(model)
     data.joint("pitch").qpos = 0.1
     data.joint("wheel").qvel = 7.0
+    data.joint("hip_R").qpos = 0.3
+    data.joint("root_x").qvel = 0.25
     mujoco.mj_forward(model, data)
-    physics = Physics(model, data)
-    assert physics.pitch == pytest.approx(0.1)
-    assert physics.wheel_speed == pytest.approx(7.0)
-    assert physics.z == pytest.approx(model.body("torso").pos[2])
-    assert not math.isnan(physics.foot_force_L)
+    state = read_state(data, ModelLayout.of(model))
+    assert state.pitch == pytest.approx(0.1)
+    assert state.wheel_speed == pytest.approx(7.0)
+    assert state.vx == pytest.approx(0.25)
+    assert state.legs[2] == pytest.approx(0.3) and state.legs[:2] == (0.0, 0.0)
+    assert (state.x, state.z) == pytest.approx((model.body("torso").pos[0], model.body("torso").pos[2]))
+    assert not math.isnan(state.foot_force_l)
+
+
+def test_config_constants_match_the_model() -> None:
+    """hopper.config mirrors models/hopper.xml for the controller's kinematics: they must agree."""
+    model = mujoco.MjModel.from_xml_string(MODEL_XML.read_text())
+    wheel, thigh, shank = model.body("wheel"), model.body("thigh_L"), model.body("shank_L")
+    assert model.body_subtreemass[model.body("torso").id] == pytest.approx(config.TOTAL_MASS)
+    assert wheel.inertia.max() == pytest.approx(config.WHEEL_INERTIA)
+    assert model.actuator("wheel").gear[0] == pytest.approx(config.WHEEL_GEAR)
+    stall = model.actuator("wheel").gainprm[0] * config.WHEEL_GEAR
+    assert stall == pytest.approx(config.WHEEL_TORQUE_LIMIT, rel=1e-3)
+    # No-load speed at the wheel: where the motor's back-EMF cancels the stall torque.
+    no_load = model.actuator("wheel").gainprm[0] / -model.actuator("wheel").biasprm[2] / config.WHEEL_GEAR
+    assert no_load == pytest.approx(config.WHEEL_NO_LOAD_SPEED, rel=1e-3)
+    assert thigh.pos[2] == pytest.approx(config.HIP_OFFSET_Z)
+    assert -shank.pos[2] == pytest.approx(config.THIGH_LENGTH)
+    assert -model.site("foot_L").pos[2] == pytest.approx(config.SHANK_LENGTH)
+    assert model.geom("foot_L").size[0] == pytest.approx(config.FOOT_RADIUS)
+    for leg in LEG_JOINTS:
+        assert model.actuator(leg).ctrlrange == pytest.approx([-config.LEG_TORQUE_LIMIT, config.LEG_TORQUE_LIMIT])

@@ -143,8 +143,8 @@ def test_events_include_gains_disturbance_and_phase_events(run) -> None:
     sim, _, _, tables = run
     events = tables["events"]
     kinds, texts = cells(events, "kind"), cells(events, "TextLog:text")
-    assert "gains: kp=500, ki=40, kd=28" in texts
-    assert "disturbance: kind=pitch_kick, magnitude=0.5, unit=N m s" in texts
+    assert "gains: gains Kp 500 N m/rad, Ki 40 N m/(rad s), Kd 28 N m s/rad" in texts
+    assert "disturbance: pitch kick +0.5 N m s" in texts
     assert kinds.count("liftoff") == kinds.count("touchdown") == 2 and kinds.count("apex") == 2
     touchdowns = [text for text in texts if text.startswith("touchdown")]
     assert f"distance {sim.hops[1].distance_m:.3f} m" in touchdowns[1]
@@ -166,7 +166,7 @@ def test_reset_keeps_sim_time_monotonic(tmp_path: Path) -> None:
     t = seconds(tables["signals"])
     assert len(t) == 400
     np.testing.assert_allclose(np.diff(t), sim.model.opt.timestep, atol=1e-9)
-    reset = cells(tables["events"], "TextLog:text").index("reset: reason=test")
+    reset = cells(tables["events"], "TextLog:text").index("reset: reset (test)")
     assert seconds(tables["events"])[reset] == pytest.approx(t[250])
 
 

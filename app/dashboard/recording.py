@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import threading
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Literal
 
+from hopper.commands import Command
+from hopper.events import Recording as RecordingEvent
 from hopper.sim import Simulation
 
 log = logging.getLogger(__name__)
@@ -24,13 +27,37 @@ def telemetry_module() -> Any:
     return telemetry
 
 
+@dataclasses.dataclass(frozen=True)
+class AttachRecording:
+    """Command: start recording the simulation (on the loop thread, between steps)."""
+
+    recorder: Recorder
+    path: Path | None
+    viewer: Viewer = "off"
+    name: str | None = None
+
+    def apply(self, sim: Simulation) -> None:
+        self.recorder.attach(sim, self.path, self.viewer, self.name)
+
+
+@dataclasses.dataclass(frozen=True)
+class DetachRecording:
+    """Command: stop the recording and finalise its file (on the loop thread)."""
+
+    recorder: Recorder
+
+    def apply(self, sim: Simulation) -> None:
+        self.recorder.detach(sim)
+
+
 class Recorder:
     """At most one Telemetry listener on the simulation; attached and detached by queued commands.
 
-    `changed(state, path, message)` is called with state "recording", "saved" or "failed".
+    Listeners are called as `changed(state, path, message)` with state "recording", "saved" or
+    "failed"; every change is also a Recording event in the simulation's log (and recordings).
     """
 
-    def __init__(self, submit: Callable[[Callable[[Simulation], None]], None], sessions_dir: Path) -> None:
+    def __init__(self, submit: Callable[[Command], None], sessions_dir: Path) -> None:
         self._submit = submit
         self.sessions_dir = sessions_dir
         self._lock = threading.Lock()
@@ -44,7 +71,9 @@ class Recorder:
     def active(self) -> bool:
         return self._telemetry is not None or self._pending
 
-    def _changed(self, state: str, message: str = "") -> None:
+    def _changed(self, sim: Simulation, state: str, message: str = "") -> None:
+        where = str(self.path) if self.path is not None else None
+        sim.emit(RecordingEvent({"recording": "started", "saved": "stopped"}.get(state, "failed"), where, message))
         for listener in self.listeners:
             try:
                 listener(state, self.path, message)
@@ -62,26 +91,21 @@ class Recorder:
             if path is not None:
                 path = Path(telemetry.check_writable(path))
             self._pending, self.path = True, path
-
-        def attach(sim: Simulation) -> None:
-            try:
-                self._attach(sim, telemetry, path, viewer, name)
-            except Exception as exc:
-                self._changed("failed", f"{type(exc).__name__}: {exc}")
-                raise  # the simulation logs it and emits an "error" event
-            finally:
-                self._pending = False
-            self._changed("recording")
-
-        self._submit(attach)
+        self._submit(AttachRecording(self, path, viewer, name))
         return path
 
-    def _attach(self, sim: Simulation, telemetry: Any, path: Path | None, viewer: Viewer, name: str | None) -> None:
-        recording = telemetry.Telemetry(sim, path=path, viewer=viewer, recording_name=name)
-        if recording not in sim.listeners:  # Telemetry attaches itself; older versions did not
-            sim.listeners.append(recording)
+    def attach(self, sim: Simulation, path: Path | None, viewer: Viewer = "off", name: str | None = None) -> None:
+        """Start recording now; on the loop thread (AttachRecording) or before the loop starts."""
+        try:
+            recording = telemetry_module().Telemetry(sim, path=path, viewer=viewer, recording_name=name)
+        except Exception as exc:
+            self._changed(sim, "failed", f"{type(exc).__name__}: {exc}")
+            raise  # the simulation logs it as a failed command
+        finally:
+            self._pending = False
         self._telemetry = recording
         self.viewer_url = getattr(recording, "viewer_url", None)
+        self._changed(sim, "recording")
 
     def start_now(self, sim: Simulation, path: Path | None, viewer: Viewer = "off", name: str | None = None) -> None:
         """Attach at once, raising on failure; only while the simulation loop is not running (startup)."""
@@ -90,36 +114,27 @@ class Recorder:
             if self.active:
                 raise ValueError(f"already recording to {self.path}")
             self.path = Path(telemetry.check_writable(path)) if path is not None else None
-        self._attach(sim, telemetry, self.path, viewer, name)
-        self._changed("recording")
+        self.attach(sim, self.path, viewer, name)
 
     def stop(self) -> None:
         """Queue closing the recording: Telemetry.close() runs on the simulation thread, as it asks."""
+        self._submit(DetachRecording(self))
 
-        def detach(sim: Simulation) -> None:
-            telemetry, self._telemetry = self._telemetry, None
-            if telemetry is None:
-                return
-            if telemetry in sim.listeners:
-                sim.listeners.remove(telemetry)
-            self._close(telemetry)  # flushes and writes the footer: a short stall the pacer catches up
-
-        self._submit(detach)
-
-    def _close(self, telemetry: Any) -> None:
-        try:
-            telemetry.close()
-        except Exception as exc:
-            log.exception("closing the recording failed")
-            self._changed("failed", f"{type(exc).__name__}: {exc}")
-            return
-        self._changed("saved")
-
-    def close_now(self, sim: Simulation) -> None:
-        """Detach and finalize at once; only while the simulation loop is not running (shutdown)."""
+    def detach(self, sim: Simulation) -> None:
+        """Detach and finalise now; on the loop thread, or while it is not running (shutdown)."""
         telemetry, self._telemetry = self._telemetry, None
         if telemetry is None:
             return
         if telemetry in sim.listeners:
             sim.listeners.remove(telemetry)
-        self._close(telemetry)
+        try:
+            telemetry.close()  # flushes and writes the footer: a short stall the pacer catches up
+        except Exception as exc:
+            log.exception("closing the recording failed")
+            self._changed(sim, "failed", f"{type(exc).__name__}: {exc}")
+            return
+        self._changed(sim, "saved")
+
+    def close_now(self, sim: Simulation) -> None:
+        """Detach and finalise at once; only while the simulation loop is not running (shutdown)."""
+        self.detach(sim)

@@ -33,8 +33,9 @@ from hopper.app.dashboard.scene import (
     saturation,
 )
 
+from hopper.events import Event, EventKind, Fall
 from hopper.metrics import RAD_S_TO_RPM
-from hopper.sim import Event, Simulation
+from hopper.sim import Simulation
 
 log = logging.getLogger(__name__)
 
@@ -100,7 +101,8 @@ class Dashboard:
 
     def _build(self) -> None:
         sim, config = self.sim, self.config
-        self.camera = CameraFollow(self.server.scene, sim.physics.x, sim.physics.z)  # the parent frame first
+        start = sim.state()
+        self.camera = CameraFollow(self.server.scene, start.x, start.z)  # the parent frame first
         self.camera.configure_initial(self.server)
         configure_lighting(self.server.scene)
         add_ground(self.server.scene, sim.config.craters)
@@ -171,13 +173,11 @@ class Dashboard:
 
     # -- Listener (called on the loop thread by sim.step) -------------------------------------
     def tick(self, sim: Simulation) -> None:
-        # Cheap on most ticks: the core refreshes sim.physics only at events, so read it here only
-        # when a plot sample is due.
+        # Cheap on most ticks: read the state only when a plot sample is due.
         if sim.data.time < self._next_sample:
             return
         self._next_sample = sim.data.time + PLOT_SAMPLE_S
-        s = sim.physics
-        s.refresh()
+        s = sim.state()
         self.layout.plots.sample(s.time, s.pitch, s.wheel_speed, s.wheel_torque, sim.controller.wheel_command)
         self.trail.sample(s.time, s.x, s.z)
 
@@ -237,15 +237,13 @@ class Dashboard:
                 sim.reset(reason="after fall")
             return
         self._fallen_since = None
-        s, craters = sim.physics, sim.config.craters
-        s.refresh()
+        s, craters = sim.state(), sim.config.craters
         if s.x > craters.x0 + craters.length - END_MARGIN_M or s.z < OFF_WORLD_Z_M:
             sim.reset(reason="end of terrain")
             notify_all(self.server, "End of the terrain", "The robot went back to the start.")
 
     def _publish(self, now: float, dt: float, with_status: bool) -> None:
-        sim, s = self.sim, self.sim.physics
-        s.refresh()
+        sim, s = self.sim, self.sim.state()
         while self._events:
             self._handle(self._events.popleft())
         level = saturation(s.wheel_torque, s.wheel_speed)
@@ -268,28 +266,29 @@ class Dashboard:
                     pitch_deg=math.degrees(s.pitch),
                     wheel_rpm=s.wheel_speed * RAD_S_TO_RPM,
                     saturation=level,
-                    gravity=-float(sim.model.opt.gravity[2]),  # set_gravity changes the model, not the config
+                    gravity=sim.config.gravity,
                     recording=self.recorder.active,
                 )
             )
 
     def _handle(self, event: Event) -> None:
         """React to one simulation event (on the loop thread)."""
-        layout, kind, data = self.layout, event.kind, event.data
+        layout, kind, payload = self.layout, event.kind, event.payload
         layout.events.add(event)
-        if kind in ("touchdown", "fall") and data.get("hop") is not None:
-            layout.hops.add(data["hop"])
-        if kind == "fall":
+        hop = getattr(payload, "hop", None)
+        if hop is not None:
+            layout.hops.add(hop)
+        if isinstance(payload, Fall):
             then = "stays down (Stay fallen is ticked)" if self.stay_fallen else f"resets in {FALL_RESET_S:g} s"
-            body = f"pitch {data.get('pitch_deg', 0.0):+.0f}° at t = {event.time:.2f} s; it {then}"
+            body = f"{payload.describe()} at t = {event.time:.2f} s; it {then}"
             notify_all(self.server, "The robot fell", body, "warning")
-        elif kind == "diverged":
-            notify_all(self.server, "Simulation diverged", f"{data.get('reason', '')}: the robot was reset", "warning")
-        elif kind == "error":
-            notify_all(self.server, "Command failed", str(data.get("message", "")), "error")
-        elif kind == "terrain":
+        elif kind == EventKind.DIVERGED:
+            notify_all(self.server, "Simulation diverged", f"{payload.describe()}: the robot was reset", "warning")
+        elif kind == EventKind.COMMAND_FAILED:
+            notify_all(self.server, "Command failed", payload.describe(), "error")
+        elif kind == EventKind.TERRAIN:
             self.terrain = add_terrain(self.server.scene, self.sim.heights, self.sim.config.craters)
-        elif kind == "reset":
+        elif kind == EventKind.RESET:
             self._next_sample = 0.0
             layout.plots.clear()
             layout.hops.clear()

@@ -8,9 +8,7 @@ from typing import Protocol
 
 import viser
 
-from hopper.sim import Simulation
-
-Command = Callable[[Simulation], None]
+from hopper.commands import Command
 
 
 class LoopControls(Protocol):

@@ -8,6 +8,7 @@ import viser
 from hopper.app.dashboard.feedback import Refused, checked, guarded, keep_in_range, notify
 from hopper.app.dashboard.panels import PanelContext
 
+from hopper.commands import Disturb
 from hopper.sim import DISTURBANCE_LIMITS
 
 # Button label -> (core kind, magnitude label, default magnitude). Defaults are visible but recoverable.
@@ -56,7 +57,7 @@ def build_disturbances_panel(gui: viser.GuiApi, ctx: PanelContext) -> Disturbanc
         if message:
             notify(event.client, "Magnitude clamped", message, "warning")
             handle.value = magnitude
-        ctx.submit(lambda sim: sim.disturb(kind, magnitude))
+        ctx.submit(Disturb(kind, magnitude))
 
     panel.apply.on_click(on_apply)
     panel.reset_button.on_click(guarded(lambda _: panel.reset()))

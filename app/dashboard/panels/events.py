@@ -1,48 +1,41 @@
-"""Event log: disturbances and setting changes with their simulation time and size, newest first."""
+"""Event log: disturbances, setting changes, falls and recordings, newest first, with run and time."""
 
 from __future__ import annotations
 
 import collections
 import dataclasses
 import html
-import math
 
 import viser
 
-from hopper.sim import Event
+from hopper.events import Event, EventKind, Reset
 
 LINES = 7
-_NAMES = {
-    "pitch_kick": "pitch kick",
-    "push_forward": "push ▶",
-    "push_backward": "push ◀",
-    "torque_pulse": "torque pulse",
-}
+SHOWN = frozenset(
+    {
+        EventKind.DISTURBANCE,
+        EventKind.DISTURBANCE_ARMED,
+        EventKind.GAINS,
+        EventKind.WHEEL,
+        EventKind.GRAVITY,
+        EventKind.TERRAIN,
+        EventKind.FALL,
+        EventKind.DIVERGED,
+        EventKind.RESET,
+        EventKind.COMMAND_FAILED,
+        EventKind.RECORDING,
+    }
+)
+QUIET_RESETS = ("start", "terrain", "diverged")  # the event that caused them is shown already
 
 
 def describe(event: Event) -> str | None:
-    """One line for the log, or None for events it does not show."""
-    d = event.data
-    if event.kind == "disturbance":
-        extra = f" for {d['duration_s']:g} s" if "duration_s" in d else ""
-        return f"{_NAMES.get(d['kind'], d['kind'])} {d['magnitude']:+g} {d['unit']}{extra}"
-    if event.kind == "disturbance_armed":
-        return f"{_NAMES.get(d['kind'], d['kind'])} {d['magnitude']:+g} {d['unit']} armed for the next flight"
-    if event.kind == "gains":
-        return f"gains Kp {d['kp']:g}, Ki {d['ki']:g}, Kd {d['kd']:g}"
-    if event.kind == "wheel":
-        return "wheel on" if d["enabled"] else "wheel off (free spinning)"
-    if event.kind == "gravity":
-        return f"gravity {d['gravity']:g} m/s²"
-    if event.kind == "terrain":
-        return f"terrain {d['kind']}, seed {d['seed']}"
-    if event.kind == "fall":
-        return f"fell (pitch {d['pitch_deg']:+.0f}°)" if math.isfinite(d.get("pitch_deg", 0.0)) else "fell"
-    if event.kind == "diverged":
-        return f"diverged ({d.get('reason', '?')}), reset"
-    if event.kind == "reset" and d.get("reason") not in ("start", "terrain", "diverged"):
-        return f"reset ({d.get('reason', 'user')})"
-    return None
+    """One line for the log, or None for events it does not show (hops have their own table)."""
+    if event.kind not in SHOWN:
+        return None
+    if isinstance(event.payload, Reset) and event.payload.reason in QUIET_RESETS:
+        return None
+    return event.describe()
 
 
 @dataclasses.dataclass
@@ -54,7 +47,9 @@ class EventLog:
         text = describe(event)
         if text is None:
             return
-        self.lines.appendleft(f"<tr><td>{event.time:.2f} s</td><td>{html.escape(text)}</td></tr>")
+        # Simulation time restarts at every reset: the run number says which run a time belongs to.
+        when = f"<span class='hd-dim'>run {event.run}</span> {event.time:.2f} s"
+        self.lines.appendleft(f"<tr><td>{when}</td><td>{html.escape(text)}</td></tr>")
         self.html.content = _html(self.lines)
 
 

@@ -8,6 +8,7 @@ import viser
 from hopper.app.dashboard.feedback import Refused, checked, guarded, notify
 from hopper.app.dashboard.panels import PanelContext
 
+from hopper.commands import SetGains, SetWheel
 from hopper.config import GAIN_RANGES, Gains
 
 
@@ -66,12 +67,12 @@ def build_gains_panel(gui: viser.GuiApi, ctx: PanelContext, initial: Gains, whee
         if gains == panel.applied:
             return
         panel.applied = gains
-        ctx.submit(lambda sim: sim.set_gains(gains))
+        ctx.submit(SetGains(gains))
 
     @guarded
     def on_wheel(_: viser.GuiEvent) -> None:
         enabled = bool(panel.wheel.value)
-        ctx.submit(lambda sim: sim.set_wheel(enabled))
+        ctx.submit(SetWheel(enabled))
 
     for handle in (panel.kp, panel.ki, panel.kd):
         handle.on_update(on_gain)

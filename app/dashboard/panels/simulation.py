@@ -9,6 +9,8 @@ from hopper.app.dashboard.feedback import Refused, checked, guarded, notify
 from hopper.app.dashboard.pacing import MAX_SPEED, MIN_SPEED
 from hopper.app.dashboard.panels import LoopControls, PanelContext
 
+from hopper.commands import Reset
+
 STEPS = {"+1 ms": 1, "+10 ms": 10, "+100 ms": 100}  # control ticks of 1 ms
 
 
@@ -56,7 +58,7 @@ def build_simulation_panel(gui: viser.GuiApi, ctx: PanelContext, speed: float = 
     panel.pause.on_click(guarded(lambda _: panel.set_paused(True)))
     panel.resume.on_click(guarded(lambda _: panel.set_paused(False)))
     panel.step.on_click(guarded(lambda _: ctx.loop.request_steps(STEPS.get(panel.step.value, 0))))
-    panel.reset_robot.on_click(guarded(lambda _: ctx.submit(lambda sim: sim.reset(reason="user"))))
+    panel.reset_robot.on_click(guarded(lambda _: ctx.submit(Reset("user"))))
     panel.reset_button.on_click(guarded(lambda _: panel.reset()))
 
     @guarded

@@ -8,6 +8,7 @@ import viser
 from hopper.app.dashboard.feedback import Refused, checked, guarded, keep_in_range
 from hopper.app.dashboard.panels import PanelContext
 
+from hopper.commands import SetGravity, SetTerrain
 from hopper.config import GRAVITY_PRESETS, MOON_GRAVITY
 
 MAX_SEED = 2**31 - 1
@@ -40,14 +41,14 @@ class TerrainPanel:
             self.seed.value = self.default_seed
             raise
         seed, kind = int(value), "flat" if self.flat.value else "crater"
-        self.ctx.submit(lambda sim: sim.set_terrain(kind, seed))
+        self.ctx.submit(SetTerrain(kind, seed))
 
     def apply_gravity(self) -> None:
         name = str(self.gravity.value).lower()
         if name not in GRAVITY_PRESETS:  # only preset names may reach the core
             raise Refused(f"unknown gravity preset {self.gravity.value!r}")
         gravity = GRAVITY_PRESETS[name]
-        self.ctx.submit(lambda sim: sim.set_gravity(gravity))
+        self.ctx.submit(SetGravity(gravity))
 
     def reset(self) -> None:
         """Back to the starting terrain on the Moon (one rebuild)."""

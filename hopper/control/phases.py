@@ -1,8 +1,9 @@
-"""The hop cycle's phases and the foot contact thresholds that drive them."""
+"""The hop cycle's phases, why a fall was called, and the foot contact thresholds that drive them."""
 
 from __future__ import annotations
 
 import enum
+import math
 
 
 class Phase(enum.IntEnum):
@@ -19,6 +20,25 @@ class Phase(enum.IntEnum):
     def label(self) -> str:
         return self.name.lower()
 
+
+class FallCause(enum.IntEnum):
+    """What tripped the fall detector (the kernel stores the code)."""
+
+    NONE = 0
+    PITCH_LIMIT = 1  # |pitch| beyond FALL_PITCH
+    HIP_HEIGHT = 2  # hip closer than FALL_HIP_HEIGHT to the feet while on the ground
+
+    def describe(self) -> str:
+        return {
+            FallCause.NONE: "no fall",
+            FallCause.PITCH_LIMIT: f"pitch beyond the {math.degrees(FALL_PITCH):.0f}° limit",
+            FallCause.HIP_HEIGHT: f"hip lower than {FALL_HIP_HEIGHT:g} m above the feet (legs collapsed)",
+        }[self]
+
+
+# Fall: beyond these the legs cannot recover the body.
+FALL_PITCH = math.radians(60.0)
+FALL_HIP_HEIGHT = 0.35  # m, hip above the feet in stance
 
 # The robot weighs 8.2 kg * 1.625 m/s^2 = 13.3 N on the Moon, about 6.7 N a foot: Earth-sized
 # thresholds of tens of newtons would never fire (PHYSICS.md).

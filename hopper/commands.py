@@ -1,0 +1,68 @@
+"""Named commands: what other threads may ask of the simulation, applied by its loop between steps."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import TYPE_CHECKING, Literal, Protocol
+
+from hopper.config import Gains
+from hopper.events import DisturbanceKind
+
+if TYPE_CHECKING:
+    from hopper.sim import Simulation
+
+
+class Command(Protocol):
+    """Anything with apply(sim); Simulation.submit() queues it, the loop applies it."""
+
+    def apply(self, sim: Simulation) -> None: ...
+
+
+@dataclasses.dataclass(frozen=True)
+class SetGains:
+    gains: Gains
+
+    def apply(self, sim: Simulation) -> None:
+        sim.set_gains(self.gains)
+
+
+@dataclasses.dataclass(frozen=True)
+class SetWheel:
+    enabled: bool
+
+    def apply(self, sim: Simulation) -> None:
+        sim.set_wheel(self.enabled)
+
+
+@dataclasses.dataclass(frozen=True)
+class SetGravity:
+    gravity: float  # m/s^2
+
+    def apply(self, sim: Simulation) -> None:
+        sim.set_gravity(self.gravity)
+
+
+@dataclasses.dataclass(frozen=True)
+class SetTerrain:
+    terrain: Literal["crater", "flat"]
+    seed: int
+
+    def apply(self, sim: Simulation) -> None:
+        sim.set_terrain(self.terrain, self.seed)
+
+
+@dataclasses.dataclass(frozen=True)
+class Disturb:
+    disturbance: DisturbanceKind
+    magnitude: float  # in the disturbance's unit (hopper.sim.DISTURBANCE_LIMITS)
+
+    def apply(self, sim: Simulation) -> None:
+        sim.disturb(self.disturbance, self.magnitude)
+
+
+@dataclasses.dataclass(frozen=True)
+class Reset:
+    reason: str = "user"
+
+    def apply(self, sim: Simulation) -> None:
+        sim.reset(reason=self.reason)

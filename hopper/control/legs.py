@@ -1,0 +1,76 @@
+"""Leg kinematics in the sagittal plane and the torques that support or swing a leg."""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+from numba import njit
+
+from hopper.config import LEG_TORQUE_LIMIT, SHANK_LENGTH, THIGH_LENGTH
+
+L1, L2 = THIGH_LENGTH, SHANK_LENGTH
+# Flight: the legs swing as a virtual leg (length, angle) with PD gains about the hip.
+SWING_K, SWING_D = 15.0, 2.5  # N m/rad, N m s/rad  (wn ~ 10 rad/s for ~0.15 kg m^2)
+KNEE_K, KNEE_D = 20.0, 1.5  # N m/rad, N m s/rad (wn ~ 10 rad/s for the shank about the knee)
+
+
+class Leg(NamedTuple):
+    """One leg this tick: foot centre relative to the hip in world axes (m), d(px, pz)/d(knee),
+    the joint angles and rates, and whether the foot is (debounced) on the ground.
+
+    d(px)/d(hip) = pz and d(pz)/d(hip) = -px, so they need no field.
+    """
+
+    px: float
+    pz: float
+    jx: float
+    jz: float
+    knee: float
+    hip_rate: float
+    knee_rate: float
+    on: bool
+
+
+@njit(cache=True)
+def clamp(value: float, limit: float) -> float:
+    return value if -limit < value < limit else (limit if value > 0 else -limit)
+
+
+@njit(cache=True)
+def leg_state(pitch: float, hip: float, knee: float, hip_rate: float, knee_rate: float, on: bool) -> Leg:
+    """The leg's kinematics at torso `pitch` and joint angles `hip`, `knee` (rad)."""
+    a1 = pitch + hip
+    a2 = a1 + knee
+    s2, c2 = math.sin(a2), math.cos(a2)
+    return Leg(
+        -L1 * math.sin(a1) - L2 * s2, -L1 * math.cos(a1) - L2 * c2, -L2 * c2, L2 * s2, knee, hip_rate, knee_rate, on
+    )
+
+
+@njit(cache=True)
+def push_torques(leg: Leg, fx: float, fz: float) -> tuple[float, float]:
+    """Hip and knee torques that make the ground push on the foot with (fx, fz): tau = -J^T f."""
+    return (
+        clamp(leg.px * fz - leg.pz * fx, LEG_TORQUE_LIMIT),
+        clamp(-(leg.jx * fx + leg.jz * fz), LEG_TORQUE_LIMIT),
+    )
+
+
+@njit(cache=True)
+def swing_torques(
+    leg: Leg, length: float, foot_x: float, max_knee_torque: float = LEG_TORQUE_LIMIT
+) -> tuple[float, float]:
+    """PD toward a foot `foot_x` ahead of the hip, `length` from it (a swing, not a support).
+
+    The virtual leg (hip to foot) bisects the knee, so its world angle is servoed by the hip
+    (the knee takes half of that torque to keep the bisection) and its length by the knee, in
+    joint space: length = 2 L cos(knee / 2) has no gradient at a straight knee, where a
+    Cartesian length servo would lock the leg straight. Damping acts on the joint rates so the
+    legs do not fight the torso's rotation. `max_knee_torque` caps the length servo (N m).
+    """
+    angle = -math.asin(clamp(foot_x / length, 0.9))  # world angle, + = foot behind the hip
+    torque = SWING_K * (angle - math.atan2(-leg.px, -leg.pz)) - SWING_D * (leg.hip_rate + leg.knee_rate / 2)
+    knee_target = -2.0 * math.acos(min(length / (L1 + L2), 0.999))
+    bend = clamp(KNEE_K * (knee_target - leg.knee) - KNEE_D * leg.knee_rate, max_knee_torque)
+    return clamp(torque, LEG_TORQUE_LIMIT), clamp(torque / 2 + bend, LEG_TORQUE_LIMIT)

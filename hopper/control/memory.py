@@ -1,0 +1,85 @@
+"""The control kernel's memory: one numpy record with a named field per parameter, state and metric.
+
+One record (a structured array of length 1) passes as a single argument (each array argument
+costs the compiled kernel ~0.3 us of dispatch), and every reader names what it reads:
+`mem["phase"][0]` in Python, `m.phase` inside the kernel.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hopper.layout import ModelLayout
+
+_PARAMS = [
+    ("kp", "f8"),  # N m/rad, flight PID
+    ("ki", "f8"),  # N m/(rad s)
+    ("kd", "f8"),  # N m s/rad
+    ("gravity", "f8"),  # m/s^2, magnitude
+    ("wheel_on", "?"),  # False: zero wheel torque, wheel free to spin
+    ("vz_liftoff", "f8"),  # m/s, push-off vertical speed
+    ("forward_speed", "f8"),  # m/s at liftoff
+    ("stand", "f8"),  # m, hip height above the feet in stance
+    ("crouch", "f8"),  # m, before the push
+    ("push", "f8"),  # m, leg length where the push stops
+    ("flight_length", "f8"),  # m, leg length held in flight
+    ("spread", "f8"),  # m between the feet at landing
+    ("placement", "f8"),  # s, feet midpoint ahead of the hip = placement * forward speed
+    ("lean", "f8"),  # m, torso CoM ahead of the feet midpoint before the push
+    ("stance_time", "f8"),  # s, minimum stabilisation time
+    ("friction", "f8"),  # friction coefficient the stance forces assume
+    ("z0", "f8"),  # m, torso z in the XML (root_z measures from it)
+    ("dt", "f8"),  # s, control period = timestep
+]
+_LAYOUT = [  # hopper.layout.ModelLayout, flattened
+    *((name, "i8") for name in ("q_x", "q_z", "q_pitch", "q_wheel", "q_hip_l", "q_knee_l", "q_hip_r", "q_knee_r")),
+    *((name, "i8") for name in ("v_x", "v_z", "v_wheel", "v_hip_l", "v_knee_l", "v_hip_r", "v_knee_r")),
+    *((name, "i8") for name in ("s_gyro", "s_foot_l", "s_foot_r", "s_wheel_torque")),
+    *((name, "i8") for name in ("a_wheel", "a_hip_l", "a_knee_l", "a_hip_r", "a_knee_r")),
+    ("wheel_gear", "f8"),
+]
+_STATE = [
+    ("phase", "i8"),  # hopper.control.phases.Phase
+    ("phase_start", "f8"),  # s
+    ("push_done", "?"),  # the push reached its speed or length; the legs now swing
+    ("integral", "f8"),  # rad s, flight PID integral
+    ("saturated", "?"),  # the wheel command was clamped this tick
+    ("contact_l", "?"),  # debounced foot contact
+    ("pending_l", "f8"),  # s since a contact change started, < 0: none pending
+    ("contact_r", "?"),
+    ("pending_r", "f8"),
+    ("wheel_command", "f8"),  # N m asked of the wheel this tick
+    ("prev_vz", "f8"),  # m/s, for the apex
+    ("last_contact", "f8"),  # s, last tick with a foot down
+    ("clock", "f8"),  # s, the kernel's own copy of data.time
+    ("fall_cause", "i8"),  # hopper.control.phases.FallCause
+    ("fall_height", "f8"),  # m, hip above the supporting feet when the fall was called (0 in flight)
+]
+# Metric accumulators of the hop in progress (hopper.metrics reads and clears them).
+_ACC = [
+    ("acc_saturation", "f8"),  # s with |wheel torque| >= 98 % of the limit, ground and flight
+    ("acc_peak_wheel", "f8"),  # rad/s, max |wheel speed|
+    ("acc_peak_pitch", "f8"),  # rad, max |pitch| in flight
+    ("acc_rate_sq", "f8"),  # rad^2/s^2, sum of pitch rate squared over flight ticks
+    ("acc_flight_ticks", "f8"),
+    ("acc_apex_z", "f8"),  # m, highest torso z in flight
+]
+ACC = tuple(name for name, _ in _ACC)
+FLIGHT_ACC = ("acc_peak_pitch", "acc_rate_sq", "acc_flight_ticks", "acc_apex_z")  # flight ticks only
+MEMORY = np.dtype(_PARAMS + _LAYOUT + _STATE + _ACC, align=True)
+
+
+def new_memory(layout: ModelLayout) -> np.ndarray:
+    """A zeroed record (shape (1,), dtype MEMORY) holding the model layout's indices."""
+    mem = np.zeros(1, dtype=MEMORY)
+    names = {"q_x": layout.q_x, "q_z": layout.q_z, "q_pitch": layout.q_pitch, "q_wheel": layout.q_wheel}
+    names |= {"v_x": layout.v_x, "v_z": layout.v_z, "v_wheel": layout.v_wheel}
+    for side, (hip, knee) in (("l", (0, 1)), ("r", (2, 3))):
+        names |= {f"q_hip_{side}": layout.q_legs[hip], f"q_knee_{side}": layout.q_legs[knee]}
+        names |= {f"v_hip_{side}": layout.v_legs[hip], f"v_knee_{side}": layout.v_legs[knee]}
+        names |= {f"a_hip_{side}": layout.a_legs[hip], f"a_knee_{side}": layout.a_legs[knee]}
+    names |= {"s_gyro": layout.s_gyro_pitch, "s_foot_l": layout.s_foot_l, "s_foot_r": layout.s_foot_r}
+    names |= {"s_wheel_torque": layout.s_wheel_torque, "a_wheel": layout.a_wheel, "wheel_gear": layout.wheel_gear}
+    for name, value in names.items():
+        mem[name] = value
+    return mem

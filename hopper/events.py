@@ -1,0 +1,213 @@
+"""Typed simulation events: a kind, a small payload dataclass each, and one describe() for every log."""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import math
+from typing import ClassVar, Literal
+
+from hopper.config import Gains
+from hopper.control.phases import FallCause
+from hopper.metrics import HopMetrics
+
+
+class EventKind(enum.StrEnum):
+    LIFTOFF = "liftoff"
+    APEX = "apex"
+    TOUCHDOWN = "touchdown"
+    FALL = "fall"
+    RESET = "reset"
+    GAINS = "gains"
+    WHEEL = "wheel"
+    GRAVITY = "gravity"
+    TERRAIN = "terrain"
+    DISTURBANCE = "disturbance"
+    DISTURBANCE_ARMED = "disturbance_armed"
+    DIVERGED = "diverged"
+    COMMAND_FAILED = "command_failed"
+    RECORDING = "recording"
+
+
+DisturbanceKind = Literal["pitch_kick", "push_forward", "push_backward", "torque_pulse"]
+DISTURBANCE_NAMES: dict[str, str] = {
+    "pitch_kick": "pitch kick",
+    "push_forward": "push ▶",
+    "push_backward": "push ◀",
+    "torque_pulse": "torque pulse",
+}
+
+
+def _hop_text(hop: HopMetrics) -> str:
+    return (
+        f"hop {hop.index}{'' if hop.completed else ' (fell)'}, distance {hop.distance_m:.3f} m, "
+        f"apex {hop.apex_height_m:.3f} m, flight {hop.flight_time_s:.3f} s, peak pitch {hop.peak_pitch_deg:.2f}°, "
+        f"landing pitch {hop.landing_pitch_deg:.2f}°, saturation {hop.saturation_time_s:.3f} s, "
+        f"peak wheel {hop.peak_wheel_rpm:.0f} rpm"
+    )
+
+
+@dataclasses.dataclass(frozen=True)
+class Liftoff:
+    kind: ClassVar[EventKind] = EventKind.LIFTOFF
+    momentum: float  # kg m^2/s, total pitch angular momentum
+
+    def describe(self) -> str:
+        return f"liftoff, pitch momentum {self.momentum:+.3f} N m s"
+
+
+@dataclasses.dataclass(frozen=True)
+class Apex:
+    kind: ClassVar[EventKind] = EventKind.APEX
+    height_m: float  # torso z
+
+    def describe(self) -> str:
+        return f"apex at {self.height_m:.3f} m"
+
+
+@dataclasses.dataclass(frozen=True)
+class Touchdown:
+    kind: ClassVar[EventKind] = EventKind.TOUCHDOWN
+    hop: HopMetrics | None  # None: a skip too short to be a hop
+
+    def describe(self) -> str:
+        return f"touchdown: {_hop_text(self.hop)}" if self.hop else "touchdown (a skip, not a hop)"
+
+
+@dataclasses.dataclass(frozen=True)
+class Fall:
+    kind: ClassVar[EventKind] = EventKind.FALL
+    cause: FallCause
+    pitch_deg: float
+    hip_height_m: float  # hip above the feet, m (0 in flight)
+    hop: HopMetrics | None  # the flight that ended in the fall, if any
+
+    def describe(self) -> str:
+        pitch = f"{self.pitch_deg:+.0f}°" if math.isfinite(self.pitch_deg) else "?"
+        return f"fell: {self.cause.describe()} (pitch {pitch}, hip {self.hip_height_m:.2f} m above the feet)"
+
+
+@dataclasses.dataclass(frozen=True)
+class Reset:
+    kind: ClassVar[EventKind] = EventKind.RESET
+    reason: str  # start, user, terrain, diverged, after fall, end of terrain, error
+
+    def describe(self) -> str:
+        return f"reset ({self.reason})"
+
+
+@dataclasses.dataclass(frozen=True)
+class GainsChanged:
+    kind: ClassVar[EventKind] = EventKind.GAINS
+    gains: Gains
+
+    def describe(self) -> str:
+        g = self.gains
+        return f"gains Kp {g.kp:g} N m/rad, Ki {g.ki:g} N m/(rad s), Kd {g.kd:g} N m s/rad"
+
+
+@dataclasses.dataclass(frozen=True)
+class WheelChanged:
+    kind: ClassVar[EventKind] = EventKind.WHEEL
+    enabled: bool
+
+    def describe(self) -> str:
+        return "wheel on" if self.enabled else "wheel off (zero torque, free to spin)"
+
+
+@dataclasses.dataclass(frozen=True)
+class GravityChanged:
+    kind: ClassVar[EventKind] = EventKind.GRAVITY
+    gravity: float  # m/s^2
+
+    def describe(self) -> str:
+        return f"gravity {self.gravity:g} m/s²"
+
+
+@dataclasses.dataclass(frozen=True)
+class TerrainChanged:
+    kind: ClassVar[EventKind] = EventKind.TERRAIN
+    terrain: str  # crater | flat
+    seed: int
+
+    def describe(self) -> str:
+        return f"terrain {self.terrain}, seed {self.seed}"
+
+
+@dataclasses.dataclass(frozen=True)
+class Disturbance:
+    kind: ClassVar[EventKind] = EventKind.DISTURBANCE
+    disturbance: DisturbanceKind
+    magnitude: float
+    unit: str
+    duration_s: float = 0.0  # 0: an impulse
+
+    def describe(self) -> str:
+        extra = f" for {self.duration_s:g} s" if self.duration_s else ""
+        return f"{DISTURBANCE_NAMES[self.disturbance]} {self.magnitude:+g} {self.unit}{extra}"
+
+
+@dataclasses.dataclass(frozen=True)
+class DisturbanceArmed:
+    kind: ClassVar[EventKind] = EventKind.DISTURBANCE_ARMED
+    disturbance: DisturbanceKind
+    magnitude: float
+    unit: str
+
+    def describe(self) -> str:
+        return f"{DISTURBANCE_NAMES[self.disturbance]} {self.magnitude:+g} {self.unit} armed for the next flight"
+
+
+@dataclasses.dataclass(frozen=True)
+class Diverged:
+    kind: ClassVar[EventKind] = EventKind.DIVERGED
+    reason: str
+
+    def describe(self) -> str:
+        return f"diverged ({self.reason}), reset"
+
+
+@dataclasses.dataclass(frozen=True)
+class CommandFailed:
+    kind: ClassVar[EventKind] = EventKind.COMMAND_FAILED
+    command: str
+    message: str
+
+    def describe(self) -> str:
+        return f"{self.command} failed: {self.message}"
+
+
+@dataclasses.dataclass(frozen=True)
+class Recording:
+    kind: ClassVar[EventKind] = EventKind.RECORDING
+    state: Literal["started", "stopped", "failed"]
+    path: str | None  # None: a viewer only
+    message: str = ""
+
+    def describe(self) -> str:
+        where = self.path or "the rerun viewer"
+        if self.state == "failed":
+            return f"recording failed: {self.message}"
+        return f"recording {'started' if self.state == 'started' else 'saved'}: {where}"
+
+
+Payload = (
+    Liftoff | Apex | Touchdown | Fall | Reset | GainsChanged | WheelChanged | GravityChanged | TerrainChanged
+    | Disturbance | DisturbanceArmed | Diverged | CommandFailed | Recording
+)  # fmt: skip
+
+
+@dataclasses.dataclass(frozen=True)
+class Event:
+    """Something that happened at simulation `time` (s) in `run` (counts resets from 0)."""
+
+    time: float
+    run: int
+    payload: Payload
+
+    @property
+    def kind(self) -> EventKind:
+        return self.payload.kind
+
+    def describe(self) -> str:
+        return self.payload.describe()

@@ -1,0 +1,79 @@
+"""Where the robot's joints, sensors, actuators and bodies live in MjModel's arrays, resolved by name once."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import mujoco
+
+LEG_JOINTS = ("hip_L", "knee_L", "hip_R", "knee_R")
+
+
+@dataclasses.dataclass(frozen=True)
+class ModelLayout:
+    """Indices into MjData's arrays for the names in models/hopper.xml.
+
+    Every reader (the control kernel, the state reader, telemetry) takes its indices from here,
+    so reordering the model's joints or sensors is harmless. `q_*` index qpos, `v_*` qvel,
+    `s_*` sensordata, `a_*` ctrl and actuator_force.
+    """
+
+    q_x: int
+    q_z: int
+    q_pitch: int
+    q_wheel: int
+    q_legs: tuple[int, int, int, int]  # LEG_JOINTS order
+    v_x: int
+    v_z: int
+    v_pitch: int
+    v_wheel: int
+    v_legs: tuple[int, int, int, int]
+    s_pitch: int  # imu_pitch: the pitch joint's angle (ground truth)
+    s_gyro_pitch: int  # imu_gyro's body-y axis: pitch rate
+    s_wheel_speed: int
+    s_foot_l: int  # touch sensor, normal force (N)
+    s_foot_r: int
+    s_wheel_torque: int  # actuatorfrc of the wheel motor (motor side, before the gear)
+    a_wheel: int
+    a_legs: tuple[int, int, int, int]
+    torso: int  # body id
+    wheel_gear: float
+    torso_origin: tuple[float, float]  # torso (x, z) in the XML: the slide joints measure from it
+
+    @classmethod
+    def of(cls, model: mujoco.MjModel) -> ModelLayout:
+        """Look every name up in `model`; KeyError names anything missing."""
+
+        def q(name: str) -> int:
+            return int(model.joint(name).qposadr[0])
+
+        def v(name: str) -> int:
+            return int(model.joint(name).dofadr[0])
+
+        def s(name: str, axis: int = 0) -> int:
+            return int(model.sensor(name).adr[0]) + axis
+
+        x, _, z = model.body("torso").pos.tolist()
+        return cls(
+            q_x=q("root_x"),
+            q_z=q("root_z"),
+            q_pitch=q("pitch"),
+            q_wheel=q("wheel"),
+            q_legs=tuple(q(j) for j in LEG_JOINTS),  # type: ignore[arg-type]
+            v_x=v("root_x"),
+            v_z=v("root_z"),
+            v_pitch=v("pitch"),
+            v_wheel=v("wheel"),
+            v_legs=tuple(v(j) for j in LEG_JOINTS),  # type: ignore[arg-type]
+            s_pitch=s("imu_pitch"),
+            s_gyro_pitch=s("imu_gyro", 1),
+            s_wheel_speed=s("wheel_speed"),
+            s_foot_l=s("foot_L"),
+            s_foot_r=s("foot_R"),
+            s_wheel_torque=s("wheel_torque"),
+            a_wheel=int(model.actuator("wheel").id),
+            a_legs=tuple(int(model.actuator(j).id) for j in LEG_JOINTS),  # type: ignore[arg-type]
+            torso=int(model.body("torso").id),
+            wheel_gear=float(model.actuator("wheel").gear[0]),
+            torso_origin=(x, z),
+        )
