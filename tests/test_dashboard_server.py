@@ -335,6 +335,8 @@ def test_record_and_stop_write_a_session_file(dashboard: Dashboard, client: Prob
     assert client.wait_for(lambda p: "Recording saved" in titles(p), timeout=30)
     assert path.stat().st_size > 10_000
     assert not dashboard.recorder.active
+    log = dashboard.layout.events.html.content
+    assert f"recording started: {path}" in log and f"recording saved: {path}" in log
 
 
 def test_record_without_telemetry_says_so(dashboard: Dashboard, client: ProbeClient, monkeypatch) -> None:
@@ -389,3 +391,24 @@ def test_hop_table_and_event_log_text() -> None:
     assert "no hops yet" in hop_table_html([])
     assert describe(Event(1.0, 2, Disturbance("push_forward", 4.0, "N s"))) == "push ▶ +4 N s"
     assert describe(Event(1.0, 2, Liftoff(0.1))) is None
+
+
+# -- the event log ---------------------------------------------------------------------------------
+def test_the_event_log_says_which_run_a_time_belongs_to(dashboard: Dashboard, client: ProbeClient) -> None:
+    """Simulation time restarts at every reset; the run number keeps the log readable."""
+    client.set_gui_value("Apply", "Pitch kick")
+    assert wait_until(lambda: "pitch kick" in dashboard.layout.events.html.content)
+    assert "run 0</span>" in dashboard.layout.events.html.content
+    client.set_gui_value("Reset robot", True)
+    assert wait_until(lambda: "reset (user)" in dashboard.layout.events.html.content)
+    client.set_gui_value("Apply", "Pitch kick")
+    assert wait_until(lambda: dashboard.layout.events.html.content.count("pitch kick") == 2)
+    newest = dashboard.layout.events.html.content.split("</tr>")[0]
+    assert "run 1</span>" in newest and "pitch kick" in newest
+
+
+def test_a_fall_at_earth_gravity_says_what_tripped(dashboard: Dashboard, client: ProbeClient) -> None:
+    client.set_gui_value("Gravity", "Earth")
+    assert client.wait_for(lambda p: "The robot fell" in titles(p), timeout=30)
+    body = next(n["body"] for n in client.notifications if n.get("title") == "The robot fell")
+    assert "hip lower than 0.35 m above the feet" in body, body
