@@ -1,7 +1,8 @@
-"""Telemetry: recordings read back with rerun's own reader, interrupts, paths and the web viewer server."""
+"""Telemetry: recordings read back with rerun's own reader, interrupts, paths, the package's boundaries."""
 
 from __future__ import annotations
 
+import ast
 import math
 import os
 import signal
@@ -10,17 +11,15 @@ import sys
 import time
 from collections import defaultdict
 from pathlib import Path
-from urllib.parse import parse_qs, urlparse
 
 import numpy as np
-import psutil
 import pyarrow as pa
 import pytest
 from rerun.chunk import RrdReader
 
 from hopper.config import Gains, SimConfig
 from hopper.sim import Simulation
-from hopper.telemetry import SIGNALS, Telemetry, TelemetryError, check_writable, session_path
+from hopper.telemetry import SIGNALS, Telemetry, check_writable, session_path
 
 REPO = Path(__file__).resolve().parent.parent
 RERUN = [sys.executable, "-m", "rerun_cli"]
@@ -174,11 +173,11 @@ def test_reset_keeps_sim_time_monotonic(tmp_path: Path) -> None:
 def test_interrupt_leaves_a_verified_recording(tmp_path: Path, signum: int) -> None:
     path = tmp_path / "interrupted.rrd"
     script = (
-        "import sys\n"
+        "import signal, sys\n"
         "from hopper.config import SimConfig\n"
         "from hopper.sim import Simulation\n"
-        "from hopper.telemetry import Telemetry, exit_on_sigterm\n"
-        "exit_on_sigterm()\n"
+        "from hopper.telemetry import Telemetry\n"
+        "signal.signal(signal.SIGTERM, lambda signum, _: sys.exit(128 + signum))  # as a CLI does\n"
         "sim = Simulation(SimConfig(terrain='flat'))\n"
         "try:\n"
         "    with Telemetry(sim, path=sys.argv[1]):\n"
@@ -248,32 +247,33 @@ def test_close_is_idempotent_and_detaches(tmp_path: Path) -> None:
     assert sim.listeners == [] and len(seconds(read(tmp_path / "c.rrd")["signals"])) == 30
 
 
-def test_spawn_without_display_fails_clearly(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.delenv("DISPLAY", raising=False)
-    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
-    monkeypatch.setattr(sys, "platform", "linux")
+def test_on_close_runs_once_after_the_footer_or_when_starting_fails(tmp_path: Path) -> None:
     sim = Simulation(SimConfig(terrain="flat"))
-    with pytest.raises(TelemetryError, match="needs a display"):
-        Telemetry(sim, viewer="spawn")
-    assert sim.listeners == []
+    path, sizes = tmp_path / "c.rrd", []
+    telemetry = Telemetry(sim, path=path, on_close=lambda: sizes.append(path.stat().st_size))
+    for _ in range(30):
+        sim.step()
+    telemetry.close()
+    telemetry.close()
+    assert sizes == [path.stat().st_size]  # the file was final when it ran
+    failed = []
+    with pytest.raises(ValueError, match="nothing to record to"):
+        Telemetry(sim, on_close=lambda: failed.append(True))
+    assert failed == [True] and sim.listeners == []
 
 
-def _listening(port: int) -> list[str]:
-    return [c.laddr.ip for c in psutil.net_connections("tcp") if c.status == "LISTEN" and c.laddr.port == port]
-
-
-def test_serve_binds_loopback_only_and_frees_its_ports() -> None:
-    sim = Simulation(SimConfig(terrain="flat"))
-    with Telemetry(sim, viewer="serve") as telemetry:
-        url = urlparse(telemetry.viewer_url or "")
-        grpc = urlparse(parse_qs(url.query)["url"][0])
-        ports = (url.port, grpc.port)
-        assert url.hostname == grpc.hostname == "127.0.0.1"
-        for port in ports:
-            assert _listening(port) == ["127.0.0.1"], port
-        for _ in range(100):
-            sim.step()
-    deadline = time.monotonic() + 10
-    while any(_listening(p) for p in ports) and time.monotonic() < deadline:
-        time.sleep(0.1)
-    assert not any(_listening(p) for p in ports)
+def test_telemetry_package_starts_no_processes_and_imports_no_app() -> None:
+    """Viewer processes and ports belong to hopper.app.rerun_viewer; the core only takes sinks."""
+    modules = sorted((REPO / "hopper" / "telemetry").glob("*.py"))
+    assert len(modules) > 1
+    for module in modules:
+        for node in ast.walk(ast.parse(module.read_text())):
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                names = ["." * node.level + (node.module or "")]
+            else:
+                continue
+            for name in names:
+                assert name.split(".")[0] not in ("subprocess", "socket", "app"), f"{module.name} imports {name}"
+                assert not name.startswith(("hopper.app", ".")), f"{module.name} imports {name}"
