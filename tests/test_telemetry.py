@@ -9,7 +9,9 @@ import signal
 import subprocess
 import sys
 import time
+import typing
 from collections import defaultdict
+from decimal import Decimal
 from pathlib import Path
 
 import numpy as np
@@ -18,8 +20,9 @@ import pytest
 from rerun.chunk import RrdReader
 
 from hopper.config import Gains, SimConfig
+from hopper.metrics import HopMetrics
 from hopper.sim import Simulation
-from hopper.telemetry import SIGNALS, Telemetry, check_writable, session_path
+from hopper.telemetry import HOP_DECIMALS, SIGNALS, Telemetry, check_writable, session_path
 
 REPO = Path(__file__).resolve().parent.parent
 RERUN = [sys.executable, "-m", "rerun_cli"]
@@ -134,8 +137,22 @@ def test_each_touchdown_has_the_runner_metrics(run) -> None:
     assert hops.num_rows == len(sim.hops) == 2
     for row, hop in enumerate(sim.hops):
         for name, value in hop.as_dict().items():
-            assert cells(hops, name)[row] == float(value), name
+            half_unit = 0.5 * 10.0 ** -HOP_DECIMALS[name] if isinstance(value, float) else 0
+            assert abs(cells(hops, name)[row] - value) <= half_unit + 1e-12, name
+    assert cells(hops, "index") == [1, 2] and cells(hops, "completed") == [True, True]
     np.testing.assert_allclose(seconds(hops), [h.touchdown_time_s for h in sim.hops], atol=1e-9)
+
+
+def test_hop_table_floats_are_rounded_to_each_fields_resolution(run) -> None:
+    sim, _, _, tables = run
+    floats = [name for name, kind in typing.get_type_hints(HopMetrics).items() if kind is float]
+    assert sorted(floats) == sorted(HOP_DECIMALS)  # a new float field needs a resolution
+    for name in floats:
+        decimals = HOP_DECIMALS[name]
+        for value in cells(tables["hops"], name):
+            assert value == round(value, decimals), (name, value)
+            # What a dataframe view prints (the shortest repr): at most `decimals` decimals.
+            assert -Decimal(repr(value)).normalize().as_tuple().exponent <= decimals, (name, value)
 
 
 def test_events_include_gains_disturbance_and_phase_events(run) -> None:

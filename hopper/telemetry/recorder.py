@@ -42,7 +42,7 @@ from hopper.telemetry.columns import (
 from hopper.telemetry.files import check_writable
 from hopper.telemetry.interrupts import deferred_signals
 from hopper.telemetry.scene import log_robot, log_terrain
-from hopper.telemetry.schema import APPLICATION_ID, SIGNALS, SIGNALS_F32
+from hopper.telemetry.schema import APPLICATION_ID, SIGNALS, SIGNALS_F32, hop_values
 
 if TYPE_CHECKING:
     from rerun.sinks import LogSinkLike
@@ -90,7 +90,8 @@ class Telemetry:
       plots the fields through component mappings (selector `.pitch_deg`, ...).
     - `limits/wheel_torque`: +-WHEEL_TORQUE_LIMIT reference lines.
     - `phase`: StateChange at each change, exact to the tick. `events`: TextLog and a `kind`.
-    - `hops`: a row per touchdown (or fall in flight), a float64 component per HopMetrics field.
+    - `hops`: a row per touchdown (or fall in flight), a component per HopMetrics field, the
+      floats rounded to schema.HOP_DECIMALS (1 mm, 1 ms, 0.01 deg, ...) for a readable table.
     - `world/terrain`, `world/robot/<body>`: static meshes, bodies in named frames posed by
       `world/tf` (Transform3D rows with `child_frame`) at 50 Hz; `world/trail`: the torso path.
 
@@ -268,7 +269,7 @@ class Telemetry:
         hop = getattr(event.payload, "hop", None)
         if hop is not None:
             self._hops += 1
-            self._hop_rows.append((t_ns, self._hops, hop.as_dict()))
+            self._hop_rows.append((t_ns, self._hops, hop_values(hop)))
         text = f"{event.kind}: {event.describe()}"
         self._events.append((t_ns, self._hops, str(event.kind), EVENT_LEVELS.get(event.kind, "INFO"), text))
 
@@ -325,9 +326,7 @@ class Telemetry:
         if hop_rows:
             t, h, metrics = zip(*hop_rows, strict=True)
             columns = [
-                Column(
-                    rr.ComponentDescriptor(name, archetype=HOP_ARCHETYPE), pa.array([float(m[name]) for m in metrics])
-                )
+                Column(rr.ComponentDescriptor(name, archetype=HOP_ARCHETYPE), pa.array([m[name] for m in metrics]))
                 for name in metrics[0]
             ]
             rr.send_columns("hops", time_columns(t, h), columns, recording=self.rec)
