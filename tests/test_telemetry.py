@@ -66,6 +66,18 @@ def read(path: Path) -> dict[str, pa.Table]:
     return {entity: pa.Table.from_batches(b).combine_chunks() for entity, b in batches.items()}
 
 
+def property_rows(path: Path, name: str) -> list[dict]:
+    """Every value sent of the recording property `name`, oldest first (the viewer shows the last)."""
+    rows = [
+        row
+        for chunk in RrdReader(path).stream()
+        if chunk.entity_path == f"/__properties/{name}"
+        for row in chunk.to_record_batch().to_pylist()
+    ]
+    rows.sort(key=lambda row: row.pop("rerun.controls.RowId"))  # row ids grow with time
+    return [{field: cell[0] for field, cell in row.items()} for row in rows]
+
+
 def seconds(table: pa.Table) -> np.ndarray:
     return table.column("sim_time").cast(pa.int64()).to_numpy() / 1e9
 
@@ -167,6 +179,27 @@ def test_events_include_gains_disturbance_and_phase_events(run) -> None:
     states = cells(tables["phase"], "StateChange:state")
     assert states[0] == "stance" and states.count("flight") == 2
     assert all(a != b for a, b in zip(states, states[1:], strict=False))  # logged on change only
+
+
+def test_config_property_follows_the_live_settings(tmp_path: Path) -> None:
+    """A session switched to Mars with the wheel off is labelled so (it was once recorded as Moon)."""
+    sim = Simulation(SimConfig(terrain="flat"))
+    path = tmp_path / "mars.rrd"
+    with Telemetry(sim, path=path):
+        for _ in range(100):
+            sim.step()
+        sim.set_gravity(3.72)
+        sim.set_wheel(False)
+        for _ in range(100):
+            sim.step()
+    configs = property_rows(path, "config")
+    assert configs[0]["gravity"] == 1.625 and configs[0]["wheel"] is True
+    assert configs[-1]["gravity"] == 3.72 and configs[-1]["wheel"] is False
+    assert configs[-1]["terrain"] == "flat" and configs[-1]["kp"] == Gains().kp
+    events = read(path)["events"]
+    gravity = cells(events, "kind").index("gravity")
+    assert cells(events, "TextLog:text")[gravity] == "gravity: gravity 3.72 m/s²"
+    assert seconds(events)[gravity] == pytest.approx(0.1)
 
 
 def test_reset_keeps_sim_time_monotonic(tmp_path: Path) -> None:
