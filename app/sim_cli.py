@@ -151,13 +151,20 @@ def simulate(
     from hopper.sim import Simulation  # keeps `--help` and argument errors fast
 
     sim = Simulation(config)
-    telemetry = None
+    telemetry, url = None, None
     if rrd is not None or viewer != "off":
+        from hopper.app.rerun_viewer import ViewerError, open_viewer
+
         from hopper.telemetry import Telemetry
 
-        telemetry = Telemetry(sim, path=rrd, viewer=viewer)  # attaches itself to sim.listeners
-        if telemetry.viewer_url:
-            print(f"rerun web viewer: {telemetry.viewer_url}", file=sys.stderr)
+        try:
+            live = open_viewer(viewer)
+        except ViewerError as exc:
+            fail(str(exc))
+        telemetry = Telemetry(sim, path=rrd, sinks=live.sinks, on_close=live.close)  # attaches itself to sim
+        url = live.url
+        if url:
+            print(f"rerun web viewer: {url}", file=sys.stderr)
     start = time.perf_counter()
     try:
         sim.run(hops)
@@ -171,7 +178,7 @@ def simulate(
         }
         if report is not None:
             report(result)
-        if telemetry is not None and telemetry.viewer_url:  # the server lives in this process
+        if telemetry is not None and url:  # the server lives in this process
             telemetry.flush()
             print("serving the recording until Ctrl-C", file=sys.stderr)
             threading.Event().wait()

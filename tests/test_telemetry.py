@@ -1,26 +1,28 @@
-"""Telemetry: recordings read back with rerun's own reader, interrupts, paths and the web viewer server."""
+"""Telemetry: recordings read back with rerun's own reader, interrupts, paths, the package's boundaries."""
 
 from __future__ import annotations
 
+import ast
 import math
 import os
 import signal
 import subprocess
 import sys
 import time
+import typing
 from collections import defaultdict
+from decimal import Decimal
 from pathlib import Path
-from urllib.parse import parse_qs, urlparse
 
 import numpy as np
-import psutil
 import pyarrow as pa
 import pytest
 from rerun.chunk import RrdReader
 
 from hopper.config import Gains, SimConfig
+from hopper.metrics import HopMetrics
 from hopper.sim import Simulation
-from hopper.telemetry import SIGNALS, Telemetry, TelemetryError, check_writable, session_path
+from hopper.telemetry import HOP_DECIMALS, SIGNALS, Telemetry, check_writable, session_path
 
 REPO = Path(__file__).resolve().parent.parent
 RERUN = [sys.executable, "-m", "rerun_cli"]
@@ -62,6 +64,18 @@ def read(path: Path) -> dict[str, pa.Table]:
         if not chunk.is_static:
             batches[chunk.entity_path.lstrip("/")].append(chunk.to_record_batch())
     return {entity: pa.Table.from_batches(b).combine_chunks() for entity, b in batches.items()}
+
+
+def property_rows(path: Path, name: str) -> list[dict]:
+    """Every value sent of the recording property `name`, oldest first (the viewer shows the last)."""
+    rows = [
+        row
+        for chunk in RrdReader(path).stream()
+        if chunk.entity_path == f"/__properties/{name}"
+        for row in chunk.to_record_batch().to_pylist()
+    ]
+    rows.sort(key=lambda row: row.pop("rerun.controls.RowId"))  # row ids grow with time
+    return [{field: cell[0] for field, cell in row.items()} for row in rows]
 
 
 def seconds(table: pa.Table) -> np.ndarray:
@@ -135,8 +149,22 @@ def test_each_touchdown_has_the_runner_metrics(run) -> None:
     assert hops.num_rows == len(sim.hops) == 2
     for row, hop in enumerate(sim.hops):
         for name, value in hop.as_dict().items():
-            assert cells(hops, name)[row] == float(value), name
+            half_unit = 0.5 * 10.0 ** -HOP_DECIMALS[name] if isinstance(value, float) else 0
+            assert abs(cells(hops, name)[row] - value) <= half_unit + 1e-12, name
+    assert cells(hops, "index") == [1, 2] and cells(hops, "completed") == [True, True]
     np.testing.assert_allclose(seconds(hops), [h.touchdown_time_s for h in sim.hops], atol=1e-9)
+
+
+def test_hop_table_floats_are_rounded_to_each_fields_resolution(run) -> None:
+    sim, _, _, tables = run
+    floats = [name for name, kind in typing.get_type_hints(HopMetrics).items() if kind is float]
+    assert sorted(floats) == sorted(HOP_DECIMALS)  # a new float field needs a resolution
+    for name in floats:
+        decimals = HOP_DECIMALS[name]
+        for value in cells(tables["hops"], name):
+            assert value == round(value, decimals), (name, value)
+            # What a dataframe view prints (the shortest repr): at most `decimals` decimals.
+            assert -Decimal(repr(value)).normalize().as_tuple().exponent <= decimals, (name, value)
 
 
 def test_events_include_gains_disturbance_and_phase_events(run) -> None:
@@ -151,6 +179,27 @@ def test_events_include_gains_disturbance_and_phase_events(run) -> None:
     states = cells(tables["phase"], "StateChange:state")
     assert states[0] == "stance" and states.count("flight") == 2
     assert all(a != b for a, b in zip(states, states[1:], strict=False))  # logged on change only
+
+
+def test_config_property_follows_the_live_settings(tmp_path: Path) -> None:
+    """A session switched to Mars with the wheel off is labelled so (it was once recorded as Moon)."""
+    sim = Simulation(SimConfig(terrain="flat"))
+    path = tmp_path / "mars.rrd"
+    with Telemetry(sim, path=path):
+        for _ in range(100):
+            sim.step()
+        sim.set_gravity(3.72)
+        sim.set_wheel(False)
+        for _ in range(100):
+            sim.step()
+    configs = property_rows(path, "config")
+    assert configs[0]["gravity"] == 1.625 and configs[0]["wheel"] is True
+    assert configs[-1]["gravity"] == 3.72 and configs[-1]["wheel"] is False
+    assert configs[-1]["terrain"] == "flat" and configs[-1]["kp"] == Gains().kp
+    events = read(path)["events"]
+    gravity = cells(events, "kind").index("gravity")
+    assert cells(events, "TextLog:text")[gravity] == "gravity: gravity 3.72 m/s²"
+    assert seconds(events)[gravity] == pytest.approx(0.1)
 
 
 def test_reset_keeps_sim_time_monotonic(tmp_path: Path) -> None:
@@ -174,11 +223,11 @@ def test_reset_keeps_sim_time_monotonic(tmp_path: Path) -> None:
 def test_interrupt_leaves_a_verified_recording(tmp_path: Path, signum: int) -> None:
     path = tmp_path / "interrupted.rrd"
     script = (
-        "import sys\n"
+        "import signal, sys\n"
         "from hopper.config import SimConfig\n"
         "from hopper.sim import Simulation\n"
-        "from hopper.telemetry import Telemetry, exit_on_sigterm\n"
-        "exit_on_sigterm()\n"
+        "from hopper.telemetry import Telemetry\n"
+        "signal.signal(signal.SIGTERM, lambda signum, _: sys.exit(128 + signum))  # as a CLI does\n"
         "sim = Simulation(SimConfig(terrain='flat'))\n"
         "try:\n"
         "    with Telemetry(sim, path=sys.argv[1]):\n"
@@ -248,32 +297,33 @@ def test_close_is_idempotent_and_detaches(tmp_path: Path) -> None:
     assert sim.listeners == [] and len(seconds(read(tmp_path / "c.rrd")["signals"])) == 30
 
 
-def test_spawn_without_display_fails_clearly(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.delenv("DISPLAY", raising=False)
-    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
-    monkeypatch.setattr(sys, "platform", "linux")
+def test_on_close_runs_once_after_the_footer_or_when_starting_fails(tmp_path: Path) -> None:
     sim = Simulation(SimConfig(terrain="flat"))
-    with pytest.raises(TelemetryError, match="needs a display"):
-        Telemetry(sim, viewer="spawn")
-    assert sim.listeners == []
+    path, sizes = tmp_path / "c.rrd", []
+    telemetry = Telemetry(sim, path=path, on_close=lambda: sizes.append(path.stat().st_size))
+    for _ in range(30):
+        sim.step()
+    telemetry.close()
+    telemetry.close()
+    assert sizes == [path.stat().st_size]  # the file was final when it ran
+    failed = []
+    with pytest.raises(ValueError, match="nothing to record to"):
+        Telemetry(sim, on_close=lambda: failed.append(True))
+    assert failed == [True] and sim.listeners == []
 
 
-def _listening(port: int) -> list[str]:
-    return [c.laddr.ip for c in psutil.net_connections("tcp") if c.status == "LISTEN" and c.laddr.port == port]
-
-
-def test_serve_binds_loopback_only_and_frees_its_ports() -> None:
-    sim = Simulation(SimConfig(terrain="flat"))
-    with Telemetry(sim, viewer="serve") as telemetry:
-        url = urlparse(telemetry.viewer_url or "")
-        grpc = urlparse(parse_qs(url.query)["url"][0])
-        ports = (url.port, grpc.port)
-        assert url.hostname == grpc.hostname == "127.0.0.1"
-        for port in ports:
-            assert _listening(port) == ["127.0.0.1"], port
-        for _ in range(100):
-            sim.step()
-    deadline = time.monotonic() + 10
-    while any(_listening(p) for p in ports) and time.monotonic() < deadline:
-        time.sleep(0.1)
-    assert not any(_listening(p) for p in ports)
+def test_telemetry_package_starts_no_processes_and_imports_no_app() -> None:
+    """Viewer processes and ports belong to hopper.app.rerun_viewer; the core only takes sinks."""
+    modules = sorted((REPO / "hopper" / "telemetry").glob("*.py"))
+    assert len(modules) > 1
+    for module in modules:
+        for node in ast.walk(ast.parse(module.read_text())):
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                names = ["." * node.level + (node.module or "")]
+            else:
+                continue
+            for name in names:
+                assert name.split(".")[0] not in ("subprocess", "socket", "app"), f"{module.name} imports {name}"
+                assert not name.startswith(("hopper.app", ".")), f"{module.name} imports {name}"

@@ -96,15 +96,20 @@ class Recorder:
 
     def attach(self, sim: Simulation, path: Path | None, viewer: Viewer = "off", name: str | None = None) -> None:
         """Start recording now; on the loop thread (AttachRecording) or before the loop starts."""
+        from hopper.app.rerun_viewer import open_viewer
+
         try:
-            recording = telemetry_module().Telemetry(sim, path=path, viewer=viewer, recording_name=name)
+            live = open_viewer(viewer)
+            recording = telemetry_module().Telemetry(
+                sim, path=path, sinks=live.sinks, on_close=live.close, recording_name=name
+            )
         except Exception as exc:
             self._changed(sim, "failed", f"{type(exc).__name__}: {exc}")
             raise  # the simulation logs it as a failed command
         finally:
             self._pending = False
         self._telemetry = recording
-        self.viewer_url = getattr(recording, "viewer_url", None)
+        self.viewer_url = live.url
         self._changed(sim, "recording")
 
     def start_now(self, sim: Simulation, path: Path | None, viewer: Viewer = "off", name: str | None = None) -> None:

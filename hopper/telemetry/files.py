@@ -1,0 +1,37 @@
+"""Recording paths: check that a .rrd file can be written, name new session files."""
+
+from __future__ import annotations
+
+import datetime
+from pathlib import Path
+
+
+def check_writable(path: str | Path) -> Path:
+    """The absolute .rrd path, or ValueError with a one-line reason why it cannot be written."""
+    p = Path(path).expanduser().absolute()
+    if p.suffix != ".rrd":
+        raise ValueError(f"recording path {str(path)!r} must end in .rrd")
+    if p.is_dir():
+        raise ValueError(f"recording path {str(p)!r} is a directory")
+    if not p.parent.is_dir():
+        raise ValueError(f"cannot write recording {str(p)!r}: directory {str(p.parent)!r} does not exist")
+    existed = p.exists()
+    try:  # really open it: permission bits say little for root, read-only mounts or ACLs
+        with open(p, "ab"):
+            pass
+    except OSError as exc:
+        raise ValueError(f"cannot write recording {str(p)!r}: {exc.strerror or exc}") from None
+    if not existed:
+        p.unlink(missing_ok=True)
+    return p
+
+
+def session_path(folder: str | Path, prefix: str = "hopper") -> Path:
+    """A new path `folder/prefix-YYYYmmdd-HHMMSS.rrd` (folder created; never an existing file)."""
+    directory = Path(folder).expanduser()
+    directory.mkdir(parents=True, exist_ok=True)
+    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+    path, n = directory / f"{prefix}-{stamp}.rrd", 2
+    while path.exists():
+        path, n = directory / f"{prefix}-{stamp}-{n}.rrd", n + 1
+    return path

@@ -1,0 +1,38 @@
+"""What a recording holds: its application id, timelines, signal fields and hop-table resolutions."""
+
+from __future__ import annotations
+
+from hopper.layout import LEG_JOINTS
+from hopper.metrics import HopMetrics
+
+APPLICATION_ID = "hopper"
+TIME = "sim_time"  # duration timeline: simulation time, monotonic across resets
+HOP = "hop"  # sequence timeline: hops completed in this recording
+SIGNALS_F32 = ("pitch_deg", "pitch_rate_deg_s", "wheel_rpm", "wheel_torque_nm")
+SIGNALS_F16 = (*(f"{j}_deg" for j in LEG_JOINTS), *(f"{j}_torque_nm" for j in LEG_JOINTS), "foot_L_n", "foot_R_n")
+SIGNALS = SIGNALS_F32 + SIGNALS_F16
+
+# Decimals each float HopMetrics field is rounded to in the hop table: a dataframe view prints a
+# float64 in full, and 0.812345678901234 m says no more than 0.812 m.
+HOP_DECIMALS = {
+    "distance_m": 3,  # 1 mm
+    "apex_height_m": 3,
+    "flight_time_s": 3,  # 1 ms
+    "stance_time_s": 3,
+    "peak_pitch_deg": 2,  # 0.01 deg
+    "rms_pitch_rate_deg_s": 1,  # 0.1 deg/s
+    "landing_pitch_deg": 2,
+    "saturation_time_s": 3,
+    "peak_wheel_rpm": 0,  # 1 rpm
+    "liftoff_momentum": 4,  # 1e-4 N m s
+    "touchdown_time_s": 3,
+}
+
+
+def hop_values(hop: HopMetrics) -> dict[str, float | int | bool]:
+    """One hop-table row: `hop`'s fields, the floats rounded to HOP_DECIMALS (KeyError names a new
+    float field without a resolution); `+ 0.0` turns a rounded -0.0 into 0.0."""
+    return {
+        name: round(value, HOP_DECIMALS[name]) + 0.0 if isinstance(value, float) else value
+        for name, value in hop.as_dict().items()
+    }
