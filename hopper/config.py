@@ -20,6 +20,7 @@ TIMESTEP = 0.001  # s, 1 kHz physics and control, paper Table I
 # Robot constants shared by the controller and the metrics (they mirror models/hopper.xml).
 TOTAL_MASS = 8.2  # kg, Table I
 WHEEL_INERTIA = 0.03375  # kg m^2, 3 kg disc of radius 0.15 m
+WHEEL_ARMATURE = 0.0045  # kg m^2, reflected rotor inertia N^2 J_m (models/hopper.xml): adds to the spin
 WHEEL_GEAR = 30.0  # Table I
 WHEEL_TORQUE_LIMIT = 29.5  # N m at the wheel, Table I
 WHEEL_NO_LOAD_SPEED = 400 * 2 * math.pi / 60  # rad/s at the wheel (12000 rpm motor / 30), ours
@@ -82,13 +83,13 @@ class GaitParams:
     """The hop cycle's targets. Lengths are hip heights above the feet, in metres."""
 
     apex_height: float = 0.25  # m above the liftoff height; v_z = sqrt(2 g h)
-    forward_speed: float = 0.4  # m/s at liftoff
+    forward_speed: float = 0.4  # m/s at liftoff on the Moon; sqrt(g) elsewhere (hopper.control.gait)
     stand_height: float = 0.85  # m
     crouch_height: float = 0.68  # m
     push_length: float = 0.96  # m, leg length where the push stops
-    flight_length: float = 0.86  # m, leg length held in flight for landing
+    flight_length: float = 0.86  # m, leg length held in flight for landing, after the apex
+    tuck_length: float = 0.75  # m, leg length while rising, for clearance over rims ahead
     foot_spread: float = 0.36  # m between the feet at landing, a support base for stance pitch
-    placement_gain: float = 0.3  # s, feet midpoint ahead of the hip = gain * forward speed
     crouch_lean: float = 0.1  # m, torso CoM ahead of the feet midpoint before the push
     stance_time: float = 0.25  # s, minimum stabilisation time before the crouch
     friction: float = 0.7  # friction coefficient the stance forces assume (model: 0.8)

@@ -34,6 +34,9 @@ class ModelLayout:
     s_foot_l: int  # touch sensor, normal force (N)
     s_foot_r: int
     s_wheel_torque: int  # actuatorfrc of the wheel motor (motor side, before the gear)
+    s_com: int  # subtreecom of the whole robot: world (x, y, z), m
+    s_com_vel: int  # subtreelinvel: (vx, vy, vz), m/s
+    s_angmom: int  # subtreeangmom about the robot's CoM, pitch (y) component, kg m^2/s
     a_wheel: int
     a_legs: tuple[int, int, int, int]
     torso: int  # body id
@@ -71,6 +74,9 @@ class ModelLayout:
             s_foot_l=s("foot_L"),
             s_foot_r=s("foot_R"),
             s_wheel_torque=s("wheel_torque"),
+            s_com=s("com"),
+            s_com_vel=s("com_vel"),
+            s_angmom=s("angmom", 1),
             a_wheel=int(model.actuator("wheel").id),
             a_legs=tuple(int(model.actuator(j).id) for j in LEG_JOINTS),  # type: ignore[arg-type]
             torso=int(model.body("torso").id),

@@ -136,7 +136,9 @@ class Simulation:
 
     def run(self, hops: int, max_time: float | None = None) -> list[HopMetrics]:
         """Step until `hops` hops are done, the robot falls, or `max_time` (s) of simulation."""
-        limit = self.time + (max_time if max_time is not None else 6.0 * hops + 5.0)
+        if max_time is None:
+            max_time = 5.0 + 2.0 * hops * self.controller.gait.hop_time_bound(self.config.gravity)
+        limit = self.time + max_time
         ticks_left = round((limit - self.time) / self._dt)
         step, done = self.step, EV_TOUCHDOWN | EV_FALL
         while len(self.hops) < hops and not self.fallen and ticks_left > 0:

@@ -58,7 +58,7 @@ def test_contact_debounce_and_hysteresis() -> None:
     on, pending, seen = False, -1.0, []
     forces = [5, 5, 5, 0.5] + [0.1] * 10 + [5] + [0.1] * 16
     for i, force in enumerate(forces):
-        on, pending = debounce(force, i * 0.001, on, pending)
+        on, pending = debounce(force, i * 0.001, on, pending, 1.0, 0.2)  # N: the Moon's thresholds
         seen.append(on)
     assert seen[:3] == [False, False, True]  # on after 2 ms above 1 N
     assert seen[3] is True  # 0.5 N is above the 0.2 N off threshold

@@ -90,6 +90,7 @@ def test_config_constants_match_the_model() -> None:
     wheel, thigh, shank = model.body("wheel"), model.body("thigh_L"), model.body("shank_L")
     assert model.body_subtreemass[model.body("torso").id] == pytest.approx(config.TOTAL_MASS)
     assert wheel.inertia.max() == pytest.approx(config.WHEEL_INERTIA)
+    assert model.dof_armature[model.joint("wheel").dofadr[0]] == pytest.approx(config.WHEEL_ARMATURE)
     assert model.actuator("wheel").gear[0] == pytest.approx(config.WHEEL_GEAR)
     stall = model.actuator("wheel").gainprm[0] * config.WHEEL_GEAR
     assert stall == pytest.approx(config.WHEEL_TORQUE_LIMIT, rel=1e-3)

@@ -4,17 +4,17 @@ from __future__ import annotations
 
 from numba import njit
 
-from hopper.control.phases import CONTACT_OFF_N, CONTACT_ON_N, DEBOUNCE_OFF_S, DEBOUNCE_ON_S
+from hopper.control.phases import DEBOUNCE_OFF_S, DEBOUNCE_ON_S
 
 
 @njit(cache=True)
-def debounce(force: float, time: float, on: bool, pending: float) -> tuple[bool, float]:
-    """One foot's contact: on above CONTACT_ON_N, off below CONTACT_OFF_N, believed after a hold
-    of DEBOUNCE_ON_S / DEBOUNCE_OFF_S. `pending` is when a change started (s), < 0 if none.
+def debounce(force: float, time: float, on: bool, pending: float, on_n: float, off_n: float) -> tuple[bool, float]:
+    """One foot's contact: on above `on_n`, off below `off_n` (N, hysteresis), believed after a
+    hold of DEBOUNCE_ON_S / DEBOUNCE_OFF_S. `pending` is when a change started (s), < 0 if none.
 
     Returns the new (on, pending).
     """
-    changing = force < CONTACT_OFF_N if on else force > CONTACT_ON_N
+    changing = force < off_n if on else force > on_n
     if not changing:
         return on, -1.0
     if pending < 0.0:

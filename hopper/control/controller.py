@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from hopper.config import SimConfig
+from hopper.control import gait as gaits
 from hopper.control.memory import new_memory
 from hopper.control.phases import FallCause, Phase
 from hopper.layout import ModelLayout
@@ -18,7 +17,7 @@ class HopController:
 
     def __init__(self, layout: ModelLayout, config: SimConfig) -> None:
         self.mem = new_memory(layout)  # passed to control_tick; everything in it has a name
-        self.mem["z0"], self.mem["dt"] = layout.torso_origin[1], config.timestep
+        (self.mem["x0"], self.mem["z0"]), self.mem["dt"] = layout.torso_origin, config.timestep
         self.configure(config)
         self.reset()
 
@@ -26,11 +25,14 @@ class HopController:
         m, g, gait = self.mem, config.gains, config.gait
         m["kp"], m["ki"], m["kd"] = g.kp, g.ki, g.kd
         m["gravity"], m["wheel_on"] = config.gravity, config.wheel
-        m["vz_liftoff"] = math.sqrt(2.0 * config.gravity * gait.apex_height)  # v_z = sqrt(2 g h)
-        m["forward_speed"], m["stand"], m["crouch"] = gait.forward_speed, gait.stand_height, gait.crouch_height
+        self.gait = gaits.derive(config.gravity, gait)
+        for name, value in self.gait.record().items():
+            m[name] = value
+        m["stand"], m["crouch"] = gait.stand_height, gait.crouch_height
         m["push"], m["flight_length"], m["spread"] = gait.push_length, gait.flight_length, gait.foot_spread
-        m["placement"], m["lean"] = gait.placement_gain, gait.crouch_lean
-        m["stance_time"], m["friction"] = gait.stance_time, gait.friction
+        m["tuck_length"] = gait.tuck_length
+        m["lean"] = gait.crouch_lean
+        m["friction"] = gait.friction
 
     def reset(self, time: float = 0.0, standing: bool = True) -> None:
         """Start in stance (feet believed on the ground when `standing`)."""

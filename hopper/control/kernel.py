@@ -17,14 +17,14 @@ from hopper.control.contact import debounce
 from hopper.control.legs import leg_state, swing_torques
 from hopper.control.phases import FALL_HIP_HEIGHT, FALL_PITCH, FallCause, Phase
 from hopper.control.stance import Body, stance
-from hopper.control.wheel import SATURATION_TORQUE, wheel_ctrl, wheel_pid
+from hopper.control.wheel import SATURATION_TORQUE, wheel_ctrl, wheel_pid, wheel_torque_bound
 
 LANDING, STANCE, CROUCH, PUSH, FLIGHT, FALLEN = (int(p) for p in Phase)
 PITCH_LIMIT, HIP_HEIGHT = int(FallCause.PITCH_LIMIT), int(FallCause.HIP_HEIGHT)
-# Phase timing, s.
-LANDING_MIN_S, STANCE_MAX_S, CROUCH_MIN_S, CROUCH_MAX_S, PUSH_MAX_S = 0.1, 2.0, 0.15, 1.2, 1.0
 LIFTOFF_CONFIRM_S = 0.01  # s both feet off after a push before the flight counts
 BOUNCE_CONFIRM_S = 0.08  # s both feet off in any other ground phase before it is a flight
+ASCENT_FRACTION = 0.3  # of the liftoff speed: a contact while rising faster than this is a graze
+LIMP_DAMPING = 0.5  # N m s/rad on each leg joint between the end of the push and the liftoff
 # Event bits returned by the kernel.
 EV_LIFTOFF, EV_TOUCHDOWN, EV_FALL, EV_APEX = 1, 2, 4, 8
 
@@ -45,13 +45,17 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
     time, dt = m.clock, m.dt
     pitch, rate = qpos[m.q_pitch], sensors[m.s_gyro]
     vx, vz, wheel_speed = qvel[m.v_x], qvel[m.v_z], qvel[m.v_wheel]
-    on_l, m.pending_l = debounce(sensors[m.s_foot_l], time, m.contact_l, m.pending_l)
-    on_r, m.pending_r = debounce(sensors[m.s_foot_r], time, m.contact_r, m.pending_r)
+    on_l, m.pending_l = debounce(sensors[m.s_foot_l], time, m.contact_l, m.pending_l, m.contact_on, m.contact_off)
+    on_r, m.pending_r = debounce(sensors[m.s_foot_r], time, m.contact_r, m.pending_r, m.contact_on, m.contact_off)
     m.contact_l, m.contact_r = on_l, on_r
     left = leg_state(pitch, qpos[m.q_hip_l], qpos[m.q_knee_l], qvel[m.v_hip_l], qvel[m.v_knee_l], on_l)
     right = leg_state(pitch, qpos[m.q_hip_r], qpos[m.q_knee_r], qvel[m.v_hip_r], qvel[m.v_knee_r], on_r)
     contact = on_l or on_r
-    # Support geometry: hip above the feet' centres, torso CoM ahead of the feet's midpoint.
+    # The whole robot's CoM relative to the torso's (the legs are 15 % of the mass).
+    com_dx = sensors[m.s_com] - (qpos[m.q_x] + m.x0)
+    com_dz = sensors[m.s_com + 2] - (qpos[m.q_z] + m.z0)
+    com_vz = sensors[m.s_com_vel + 2]  # ballistic in flight, unlike the torso's (the legs swing)
+    # Support geometry: hip above the feet' centres, the robot's CoM ahead of the feet's midpoint.
     if on_l and on_r:
         height, px = -0.5 * (left.pz + right.pz), 0.5 * (left.px + right.px)
     elif contact:
@@ -60,7 +64,7 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
         height, px = 0.0, 0.0
     if contact:
         m.last_contact = time
-    offset_x = -(HIP_OFFSET_Z * math.sin(pitch) + px)
+    offset_x = com_dx - (HIP_OFFSET_Z * math.sin(pitch) + px)
 
     # -- phase transitions --
     events = 0
@@ -76,7 +80,9 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
             m.fall_cause, m.fall_height = HIP_HEIGHT, height
             events |= EV_FALL
         elif phase == FLIGHT:
-            if contact:
+            # A foot that grazes a crater rim on the way up is not a landing: the body is still
+            # rising, the legs are tucked and keep swinging, the wheel keeps the attitude.
+            if contact and com_vz < ASCENT_FRACTION * m.vz_liftoff:
                 enter(m, LANDING, time)
                 events |= EV_TOUCHDOWN
         elif not contact:
@@ -89,32 +95,54 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
                 m.integral = 0.0  # integral reset at liftoff
                 events |= EV_LIFTOFF
         elif phase == LANDING:
-            if elapsed > LANDING_MIN_S and -0.1 < vz < 0.1:
+            if elapsed > m.landing_min and abs(vz) < 1.25 * m.settled_speed:
                 enter(m, STANCE, time)
         elif phase == STANCE:
-            settled = abs(vx) < 0.08 and abs(vz) < 0.08 and abs(pitch) < 0.05 and abs(rate) < 0.15
-            if elapsed > m.stance_time and (settled or elapsed > STANCE_MAX_S):
+            slow = m.settled_speed
+            settled = abs(vx) < slow and abs(vz) < slow and abs(pitch) < 0.05 and abs(rate) < 0.15
+            # No push with a wheel that has no room left for the flight: wait for the spin-down.
+            ready = abs(wheel_speed) < m.wheel_ready or elapsed > m.stance_max + m.wheel_wait
+            if elapsed > m.stance_min and ready and (settled or elapsed > m.stance_max):
                 enter(m, CROUCH, time)
         elif phase == CROUCH:
-            loaded = abs(height - m.crouch) < 0.03 and abs(offset_x - m.lean) < 0.04 and elapsed > CROUCH_MIN_S
-            if loaded or elapsed > CROUCH_MAX_S:
+            # Push off both feet only: one foot (the other over a crater) cannot push through
+            # the CoM and would start the flight spinning. Without both, stand and settle again.
+            both = on_l and on_r
+            loaded = abs(height - m.crouch) < 0.03 and abs(offset_x - m.lean) < 0.04 and elapsed > m.crouch_min
+            if both and (loaded or elapsed > m.crouch_max):
                 enter(m, PUSH, time)
-        elif phase == PUSH and m.push_done and elapsed > PUSH_MAX_S:
-            enter(m, STANCE, time)  # the feet never left: stand and try again
+            elif elapsed > m.crouch_max:
+                enter(m, STANCE, time)
+        elif phase == PUSH and (elapsed > m.push_max or (on_l != on_r and not m.push_done and vz < 0.5 * m.vz_liftoff)):
+            # The feet never left, or one lost the ground early in the push (a rim crumbling
+            # under it): stand and try again rather than leave spinning off one foot.
+            enter(m, STANCE, time)
     phase = m.phase
 
     # -- actuation --
     wheel = 0.0
-    if phase in (FLIGHT, FALLEN) or m.push_done or not contact:
-        # Legs swing to the landing pose, feet placed ahead by the Raibert term.
-        mid = m.placement * vx
+    if phase in (FLIGHT, FALLEN) or not contact:
+        # Legs swing to the landing pose: the feet's midpoint goes where the capture point lands
+        # inside the front half of the support (Raibert's placement, from the linear inverted
+        # pendulum), measured from the hip.
+        capture = vx * m.capture_time
+        mid = capture - min(max(capture, -m.capture_margin), m.capture_margin)
+        mid += com_dx - HIP_OFFSET_Z * math.sin(pitch)
         half = 0.5 * m.spread
-        hl, kl = swing_torques(left, m.flight_length, mid + half)
-        hr, kr = swing_torques(right, m.flight_length, mid - half)
+        # Tucked while rising, for clearance over rims ahead; reaching for the landing after the apex.
+        length = m.flight_length if com_vz < 0.0 or phase != FLIGHT else m.tuck_length
+        hl, kl = swing_torques(left, length, mid + half, m.swing_scale)
+        hr, kr = swing_torques(right, length, mid - half, m.swing_scale)
         if phase == FLIGHT:
             wheel = wheel_pid(m, pitch, rate, wheel_speed)
+    elif m.push_done:
+        # The push is over but a foot still touches: limp legs until it leaves, since swinging
+        # them against the ground now would push the body into a spin; the wheel holds the torso.
+        hl, kl = -LIMP_DAMPING * left.hip_rate, -LIMP_DAMPING * left.knee_rate
+        hr, kr = -LIMP_DAMPING * right.hip_rate, -LIMP_DAMPING * right.knee_rate
+        wheel = wheel_torque_bound(wheel_speed, m.kp_stance * pitch + m.kd_stance * rate)
     else:
-        body = Body(pitch, rate, vx, vz, wheel_speed, height, offset_x)
+        body = Body(pitch, rate, vx, vz, wheel_speed, height, offset_x, sensors[m.s_angmom], com_dx, com_dz)
         wheel, hl, kl, hr, kr = stance(m, phase, body, left, right)
     ctrl[m.a_hip_l], ctrl[m.a_knee_l], ctrl[m.a_hip_r], ctrl[m.a_knee_r] = hl, kl, hr, kr
     if not m.wheel_on:
@@ -132,8 +160,8 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
         m.acc_rate_sq += rate * rate
         m.acc_flight_ticks += 1.0
         m.acc_apex_z = max(m.acc_apex_z, qpos[m.q_z] + m.z0)
-        if m.prev_vz > 0.0 >= vz:
+        if m.prev_vz > 0.0 >= com_vz:
             events |= EV_APEX
-    m.prev_vz = vz
+    m.prev_vz = com_vz
     m.clock = time + dt
     return events

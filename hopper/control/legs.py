@@ -59,7 +59,7 @@ def push_torques(leg: Leg, fx: float, fz: float) -> tuple[float, float]:
 
 @njit(cache=True)
 def swing_torques(
-    leg: Leg, length: float, foot_x: float, max_knee_torque: float = LEG_TORQUE_LIMIT
+    leg: Leg, length: float, foot_x: float, scale: float = 1.0, max_knee_torque: float = LEG_TORQUE_LIMIT
 ) -> tuple[float, float]:
     """PD toward a foot `foot_x` ahead of the hip, `length` from it (a swing, not a support).
 
@@ -67,10 +67,12 @@ def swing_torques(
     (the knee takes half of that torque to keep the bisection) and its length by the knee, in
     joint space: length = 2 L cos(knee / 2) has no gradient at a straight knee, where a
     Cartesian length servo would lock the leg straight. Damping acts on the joint rates so the
-    legs do not fight the torso's rotation. `max_knee_torque` caps the length servo (N m).
+    legs do not fight the torso's rotation. `scale` (>= 1) multiplies the natural frequency for
+    short flights; `max_knee_torque` caps the length servo (N m).
     """
+    k, d = scale * scale, scale
     angle = -math.asin(clamp(foot_x / length, 0.9))  # world angle, + = foot behind the hip
-    torque = SWING_K * (angle - math.atan2(-leg.px, -leg.pz)) - SWING_D * (leg.hip_rate + leg.knee_rate / 2)
+    torque = k * SWING_K * (angle - math.atan2(-leg.px, -leg.pz)) - d * SWING_D * (leg.hip_rate + leg.knee_rate / 2)
     knee_target = -2.0 * math.acos(min(length / (L1 + L2), 0.999))
-    bend = clamp(KNEE_K * (knee_target - leg.knee) - KNEE_D * leg.knee_rate, max_knee_torque)
+    bend = clamp(k * KNEE_K * (knee_target - leg.knee) - d * KNEE_D * leg.knee_rate, max_knee_torque)
     return clamp(torque, LEG_TORQUE_LIMIT), clamp(torque / 2 + bend, LEG_TORQUE_LIMIT)

@@ -18,23 +18,57 @@ _PARAMS = [
     ("gravity", "f8"),  # m/s^2, magnitude
     ("wheel_on", "?"),  # False: zero wheel torque, wheel free to spin
     ("vz_liftoff", "f8"),  # m/s, push-off vertical speed
-    ("forward_speed", "f8"),  # m/s at liftoff
     ("stand", "f8"),  # m, hip height above the feet in stance
     ("crouch", "f8"),  # m, before the push
     ("push", "f8"),  # m, leg length where the push stops
-    ("flight_length", "f8"),  # m, leg length held in flight
+    ("flight_length", "f8"),  # m, leg length reaching for the landing, after the apex
+    ("tuck_length", "f8"),  # m, leg length while rising
     ("spread", "f8"),  # m between the feet at landing
-    ("placement", "f8"),  # s, feet midpoint ahead of the hip = placement * forward speed
     ("lean", "f8"),  # m, torso CoM ahead of the feet midpoint before the push
-    ("stance_time", "f8"),  # s, minimum stabilisation time
     ("friction", "f8"),  # friction coefficient the stance forces assume
+    ("x0", "f8"),  # m, torso x in the XML (root_x measures from it)
     ("z0", "f8"),  # m, torso z in the XML (root_z measures from it)
+    # The gait at this gravity (hopper.control.gait.Gait: units there).
+    *(
+        (name, "f8")
+        for name in (
+            "apex",
+            "push_accel",
+            "push_x_gain",
+            "push_x_accel",
+            "kz",
+            "dz",
+            "kx",
+            "dx",
+            "kp_stance",
+            "kd_stance",
+            "landing_damping",
+            "contact_on",
+            "contact_off",
+            "settled_speed",
+            "stance_min",
+            "landing_min",
+            "stance_max",
+            "crouch_min",
+            "crouch_max",
+            "push_max",
+            "desat_time",
+            "desat_torque",
+            "wheel_ready",
+            "wheel_wait",
+            "swing_scale",
+            "momentum_gain",
+            "forward_speed",
+            "capture_time",
+            "capture_margin",
+        )
+    ),  # fmt: skip
     ("dt", "f8"),  # s, control period = timestep
 ]
 _LAYOUT = [  # hopper.layout.ModelLayout, flattened
     *((name, "i8") for name in ("q_x", "q_z", "q_pitch", "q_wheel", "q_hip_l", "q_knee_l", "q_hip_r", "q_knee_r")),
     *((name, "i8") for name in ("v_x", "v_z", "v_wheel", "v_hip_l", "v_knee_l", "v_hip_r", "v_knee_r")),
-    *((name, "i8") for name in ("s_gyro", "s_foot_l", "s_foot_r", "s_wheel_torque")),
+    *((name, "i8") for name in ("s_gyro", "s_foot_l", "s_foot_r", "s_wheel_torque", "s_com", "s_com_vel", "s_angmom")),
     *((name, "i8") for name in ("a_wheel", "a_hip_l", "a_knee_l", "a_hip_r", "a_knee_r")),
     ("wheel_gear", "f8"),
 ]
@@ -49,7 +83,7 @@ _STATE = [
     ("contact_r", "?"),
     ("pending_r", "f8"),
     ("wheel_command", "f8"),  # N m asked of the wheel this tick
-    ("prev_vz", "f8"),  # m/s, for the apex
+    ("prev_vz", "f8"),  # m/s, the CoM's, for the apex
     ("last_contact", "f8"),  # s, last tick with a foot down
     ("clock", "f8"),  # s, the kernel's own copy of data.time
     ("fall_cause", "i8"),  # hopper.control.phases.FallCause
@@ -80,6 +114,7 @@ def new_memory(layout: ModelLayout) -> np.ndarray:
         names |= {f"a_hip_{side}": layout.a_legs[hip], f"a_knee_{side}": layout.a_legs[knee]}
     names |= {"s_gyro": layout.s_gyro_pitch, "s_foot_l": layout.s_foot_l, "s_foot_r": layout.s_foot_r}
     names |= {"s_wheel_torque": layout.s_wheel_torque, "a_wheel": layout.a_wheel, "wheel_gear": layout.wheel_gear}
+    names |= {"s_com": layout.s_com, "s_com_vel": layout.s_com_vel, "s_angmom": layout.s_angmom}
     for name, value in names.items():
         mem[name] = value
     return mem

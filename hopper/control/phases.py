@@ -40,10 +40,8 @@ class FallCause(enum.IntEnum):
 FALL_PITCH = math.radians(60.0)
 FALL_HIP_HEIGHT = 0.35  # m, hip above the feet in stance
 
-# The robot weighs 8.2 kg * 1.625 m/s^2 = 13.3 N on the Moon, about 6.7 N a foot: Earth-sized
-# thresholds of tens of newtons would never fire (PHYSICS.md).
-CONTACT_ON_N = 1.0  # N, normal force that starts a contact
-CONTACT_OFF_N = 0.2  # N, below this the contact ends (hysteresis)
+# Contact force thresholds scale with the weight (hopper.control.gait); the holds below do not:
+# they filter the contact's own bounce (its 5 ms solref time constant), not the gait.
 DEBOUNCE_ON_S = 0.002  # s a touch must hold before it is believed
 # A foot reaching for uneven ground taps it several times before it settles: leaving takes
 # longer to believe than arriving, or the stance controller would flicker between supports.
