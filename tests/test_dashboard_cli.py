@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import signal
 import socket
 import subprocess
@@ -10,6 +11,8 @@ import time
 from pathlib import Path
 
 import pytest
+from hopper.app.dashboard.cli import parse
+from hopper.app.dashboard.config import DashboardConfig
 from net import free_port, wait_until
 
 REPO = Path(__file__).resolve().parent.parent
@@ -48,7 +51,7 @@ def cli(*args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
         (["--rrd", "/nonexistent/dir/run.rrd"], "does not exist"),
         (["--rrd", "run.txt"], "must name a .rrd file"),
         (["--rerun-viewer", "sometimes"], "invalid choice"),
-        (["--bogus"], "Unrecognized options: --bogus"),
+        (["--bogus"], "unrecognized arguments: --bogus"),
     ],
 )
 def test_bad_arguments_give_one_line_and_exit_2(args: list[str], message: str) -> None:
@@ -58,6 +61,22 @@ def test_bad_arguments_give_one_line_and_exit_2(args: list[str], message: str) -
     assert len(lines) == 1, result.stderr
     assert lines[0].startswith("hopper-dashboard: error: ") and message in lines[0], lines[0]
     assert "Traceback" not in result.stderr + result.stdout
+
+
+def test_help_shows_every_setting_with_its_unit_and_default() -> None:
+    result = cli("--help")
+    assert result.returncode == 0, result.stderr
+    for field in dataclasses.fields(DashboardConfig):
+        assert f"--{field.name.replace('_', '-')}" in result.stdout, field.name
+    text = " ".join(result.stdout.split())  # as wrapped for any terminal width
+    assert "N m/rad (default: 450.0)" in text and "x real time (default: 1.0)" in text
+
+
+def test_no_flags_give_the_default_config_and_flags_reach_their_fields() -> None:
+    assert parse([]) == DashboardConfig()
+    config = parse(["--kp", "500", "--rerun-viewer", "serve", "--sessions-dir", "runs", "--rrd", "a.rrd"])
+    assert config.kp == 500.0 and config.rerun_viewer == "serve"
+    assert config.sessions_dir == Path("runs") and config.rrd == Path("a.rrd")
 
 
 def test_a_port_in_use_gives_one_line_and_exit_2() -> None:

@@ -2,50 +2,95 @@
 
 from __future__ import annotations
 
-import contextlib
-import io
+import argparse
 import logging
-import re
 import signal
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import NoReturn
 
-import tyro
 from hopper.app.dashboard.config import DashboardConfig
 
+from hopper.config import GAIN_RANGES
+
 PROG = "hopper-dashboard"
-_BOX = re.compile(r"[│╭╮╰╯─]+")
+DEFAULTS = DashboardConfig()
 
 
-def _one_line(tyro_output: str) -> str:
-    """tyro's boxed error as one line: the box's text up to its first rule."""
-    lines = []
-    for raw in tyro_output.splitlines()[1:]:  # the first line is the box title
-        if "───" in raw or raw.startswith("╰"):
-            break
-        text = _BOX.sub(" ", raw).strip()
-        if text:
-            lines.append(text)
-    message = " ".join(lines) or "invalid arguments (see --help)"
-    return re.sub(r"^Error parsing DashboardConfig: ", "", message)
+class Parser(argparse.ArgumentParser):
+    """argparse with errors on one line (no usage dump): `hopper-dashboard: error: ...`."""
+
+    def error(self, message: str) -> NoReturn:
+        fail(message)
+
+
+class Help(argparse.ArgumentDefaultsHelpFormatter):
+    """Defaults shown after each help text, except where there is none (e.g. no --rrd)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        return action.help if action.default is None else super()._get_help_string(action)
+
+
+def choice(*options: str) -> Callable[[str], str]:
+    """An argparse type accepting only `options` (argparse's own `choices` wording differs by version)."""
+
+    def check(text: str) -> str:
+        if text not in options:
+            raise argparse.ArgumentTypeError(f"invalid choice {text!r} (choose from {', '.join(options)})")
+        return text
+
+    return check
+
+
+def parser() -> Parser:
+    """The flags of DashboardConfig, one each, with units and defaults in the help."""
+    p = Parser(prog=PROG, description=DashboardConfig.__doc__, formatter_class=Help)
+    p.add_argument("--host", default=DEFAULTS.host, help="address to serve on (loopback by default)")
+    p.add_argument("--port", type=int, default=DEFAULTS.port, help="TCP port to serve on; refused if in use")
+    p.add_argument("--seed", type=int, default=DEFAULTS.seed, help="terrain seed, a non-negative integer")
+    p.add_argument(
+        "--terrain", type=choice("crater", "flat"), default=DEFAULTS.terrain, metavar="{crater,flat}", help="terrain"
+    )
+    for name, what in (("kp", "proportional"), ("ki", "integral"), ("kd", "derivative")):
+        low, high, unit = GAIN_RANGES[name]
+        p.add_argument(
+            f"--{name}",
+            type=float,
+            default=getattr(DEFAULTS, name),
+            help=f"wheel PID {what} gain in [{low:g}, {high:g}] {unit}",
+        )
+    p.add_argument("--speed", type=float, default=DEFAULTS.speed, help="simulation speed, x real time")
+    p.add_argument(
+        "--rrd", type=Path, default=DEFAULTS.rrd, metavar="PATH", help="record the whole session to this .rrd file"
+    )
+    p.add_argument(
+        "--rerun-viewer",
+        type=choice("spawn", "serve", "off"),
+        default=DEFAULTS.rerun_viewer,
+        metavar="{spawn,serve,off}",
+        help="stream the recording to a rerun viewer: spawn one, serve one on loopback, or neither",
+    )
+    p.add_argument(
+        "--sessions-dir",
+        type=Path,
+        default=DEFAULTS.sessions_dir,
+        metavar="DIR",
+        help="folder for recordings started with the Record button",
+    )
+    return p
 
 
 def parse(args: Sequence[str] | None = None) -> DashboardConfig:
     """Parse and validate; raises SystemExit(2) after printing one line for bad arguments."""
-    captured = io.StringIO()
+    namespace = parser().parse_args(args)
     try:
-        with contextlib.redirect_stderr(captured):
-            return tyro.cli(DashboardConfig, prog=PROG, args=args)
-    except SystemExit as exc:
-        if exc.code not in (0, None):
-            fail(_one_line(captured.getvalue()))
-        sys.stderr.write(captured.getvalue())
-        raise
+        return DashboardConfig(**vars(namespace))
     except ValueError as exc:  # DashboardConfig's own validation (InvalidConfig is a ValueError)
         fail(str(exc))
 
 
-def fail(message: str, code: int = 2) -> None:
+def fail(message: str, code: int = 2) -> NoReturn:
     print(f"{PROG}: error: {message}", file=sys.stderr)
     raise SystemExit(code)
 
