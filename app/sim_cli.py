@@ -7,7 +7,6 @@ import json
 import math
 import multiprocessing
 import os
-import signal
 import statistics
 import sys
 import threading
@@ -17,6 +16,7 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 import numpy as np
+from hopper.app.signals import stop_like_ctrl_c
 
 from hopper.config import GRAVITY_PRESETS, Gains, InvalidConfig, SimConfig
 
@@ -239,10 +239,6 @@ def command_run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _interrupt(signum: int, frame: object) -> NoReturn:
-    raise KeyboardInterrupt  # SIGTERM unwinds like Ctrl-C, so recordings are closed
-
-
 def _compare_one(job: tuple[SimConfig, int]) -> dict[str, Any]:
     return simulate(*job)
 
@@ -294,8 +290,8 @@ def command_terrain(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    stop_like_ctrl_c()  # SIGTERM unwinds like Ctrl-C, so recordings are closed
     args = parser().parse_args(argv)
-    signal.signal(signal.SIGTERM, _interrupt)
     if args.command == "terrain":
         return command_terrain(args)
     if args.hops < 1:

@@ -27,6 +27,12 @@ def port_is_free(port: int) -> bool:
     return True
 
 
+def verify_recording(path: Path) -> None:
+    """`rerun rrd verify` accepts the file: it was closed, footer and all."""
+    result = subprocess.run([sys.executable, "-m", "rerun_cli", "rrd", "verify", str(path)], capture_output=True)
+    assert result.returncode == 0, result.stderr
+
+
 def cli(*args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
         [sys.executable, "-m", "hopper.app.dashboard.cli", *args],
@@ -112,4 +118,27 @@ def test_a_signal_stops_cleanly_finalizes_the_recording_and_frees_the_port(tmp_p
     assert "serving http://127.0.0.1:" in out and "stopped" in out
     assert "Traceback" not in err
     assert rrd.stat().st_size > 10_000
+    verify_recording(rrd)
     assert port_is_free(port)
+
+
+def test_sigterm_while_starting_up_stops_cleanly_and_finalizes_the_recording(tmp_path: Path) -> None:
+    pytest.importorskip("hopper.telemetry")
+    rrd = tmp_path / "run.rrd"
+    process = subprocess.Popen(
+        [sys.executable, "-m", "hopper.app.dashboard.cli", "--port", str(free_port()), "--rrd", str(rrd)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=REPO,
+    )
+    try:  # the recording has begun (its file has content) but the server is still being built
+        assert wait_until(lambda: rrd.exists() and rrd.stat().st_size > 0, timeout=60), "no recording started"
+        process.send_signal(signal.SIGTERM)
+        out, err = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 0, (process.returncode, err)
+    assert "Traceback" not in err and "stopped" in out
+    verify_recording(rrd)

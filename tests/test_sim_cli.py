@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import json
+import signal
 import subprocess
 import sys
+import time
+from pathlib import Path
 
 import pytest
 
@@ -85,3 +88,28 @@ def test_terrain_export_writes_the_png_the_paper_loads(tmp_path) -> None:
 
     expected = generate(CraterParams(), np.random.default_rng(4))
     assert np.abs(read_png(out) - expected).max() < 1e-5
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+def test_a_signal_mid_run_exits_130_with_a_finalized_recording(tmp_path: Path, signum: int) -> None:
+    pytest.importorskip("hopper.telemetry")
+    rrd = tmp_path / "run.rrd"
+    process = subprocess.Popen(
+        [sys.executable, "-m", "hopper.app.sim_cli", "run", "--hops", "30", "--rrd", str(rrd)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        deadline = time.monotonic() + 60
+        while not (rrd.exists() and rrd.stat().st_size > 0) and time.monotonic() < deadline:
+            time.sleep(0.02)
+        process.send_signal(signum)
+        out, err = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 130, (process.returncode, err)
+    assert err.strip().splitlines()[-1] == "hopper-sim: interrupted" and "Traceback" not in err
+    verify = subprocess.run([sys.executable, "-m", "rerun_cli", "rrd", "verify", str(rrd)], capture_output=True)
+    assert verify.returncode == 0, verify.stderr

@@ -3,16 +3,20 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
-import signal
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import NoReturn
+from typing import TYPE_CHECKING, NoReturn
 
 from hopper.app.dashboard.config import DashboardConfig
+from hopper.app.signals import stop_like_ctrl_c
 
 from hopper.config import GAIN_RANGES
+
+if TYPE_CHECKING:
+    from hopper.app.dashboard.server import Dashboard
 
 PROG = "hopper-dashboard"
 DEFAULTS = DashboardConfig()
@@ -95,29 +99,24 @@ def fail(message: str, code: int = 2) -> NoReturn:
     raise SystemExit(code)
 
 
-def main(args: Sequence[str] | None = None) -> None:
-    config = parse(args)
-    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    logging.getLogger("websockets").setLevel(logging.WARNING)  # one line per connection is noise
-    # Import after parsing: --help and argument errors stay fast (no MuJoCo, no viser).
+def open_dashboard(config: DashboardConfig) -> Dashboard:
+    """The dashboard, built but not started; one line and exit 2 for what the arguments cannot give."""
+    # Import here: --help and argument errors stay fast (no MuJoCo, no viser).
     from hopper.app.dashboard.recording import telemetry_module
     from hopper.app.dashboard.server import Dashboard, PortInUse
 
     try:
         if config.rrd is not None:
             telemetry_module().check_writable(config.rrd)
-        dashboard = Dashboard(config, verbose=False)
+        return Dashboard(config, verbose=False)
     except (PortInUse, ValueError) as exc:
         fail(str(exc))
     except RuntimeError as exc:  # e.g. the rerun viewer asked for cannot start
         fail(f"{type(exc).__name__}: {exc}")
 
-    def on_signal(signum: int, _frame: object) -> None:
-        dashboard.stop()
 
-    # Both stop the same way, even where SIGINT arrives ignored (e.g. a background job of a script).
-    signal.signal(signal.SIGTERM, on_signal)
-    signal.signal(signal.SIGINT, on_signal)
+def serve(dashboard: Dashboard) -> None:
+    """Run until Ctrl-C or SIGTERM (both raise KeyboardInterrupt), then stop: recording closed, port freed."""
     try:
         dashboard.start()
         print(f"{PROG}: serving {dashboard.url}  (Ctrl-C to stop)", flush=True)
@@ -126,11 +125,19 @@ def main(args: Sequence[str] | None = None) -> None:
         if dashboard.recorder.viewer_url:
             print(f"{PROG}: rerun viewer at {dashboard.recorder.viewer_url}", flush=True)
         dashboard.wait()
-    except KeyboardInterrupt:
-        pass
     finally:
         dashboard.stop()
-        print(f"{PROG}: stopped", flush=True)
+
+
+def main(args: Sequence[str] | None = None) -> None:
+    """Exit 0 when stopped by Ctrl-C or SIGTERM, the usual way to stop a server; 2 for bad arguments."""
+    stop_like_ctrl_c()
+    config = parse(args)
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    logging.getLogger("websockets").setLevel(logging.WARNING)  # one line per connection is noise
+    with contextlib.suppress(KeyboardInterrupt):  # a signal during start-up unwinds Dashboard's own clean-up
+        serve(open_dashboard(config))
+    print(f"{PROG}: stopped", flush=True)
 
 
 if __name__ == "__main__":
