@@ -33,29 +33,57 @@ HOP_COLUMNS = {
 }
 
 
+EXIT_OK, EXIT_FELL, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+EXIT_STATUSES = (
+    "exit status: 0 success, 1 the robot fell (run only), 2 bad arguments, 130 interrupted (Ctrl-C or SIGTERM). "
+    "compare exits 0 once it has finished: with the wheel off the robot is expected to fall."
+)
+
+
 class Parser(argparse.ArgumentParser):
-    """argparse with errors on one line (no usage dump): `hopper-sim run: error: ...`."""
+    """argparse with errors on one line (no usage dump) and one prefix, subcommands included."""
 
     def error(self, message: str) -> NoReturn:
-        self.exit(2, f"{self.prog}: error: {message}\n")
+        fail(message)
 
 
 def fail(message: str) -> NoReturn:
     print(f"hopper-sim: error: {message}", file=sys.stderr)
-    raise SystemExit(2)
+    raise SystemExit(EXIT_USAGE)
 
 
 def writable_file(text: str) -> Path:
-    """An output path whose folder exists and can be written (checked before any simulation)."""
+    """An output path that can really be written (checked before any simulation).
+
+    It is opened for appending, as hopper.telemetry.check_writable does for .rrd: permission bits
+    say little for root, /proc, read-only mounts or ACLs. A file that did not exist is removed again.
+    """
     path = Path(text)
-    folder = path.parent if str(path.parent) else Path(".")
+    folder = path.parent
     if path.is_dir():
         raise argparse.ArgumentTypeError(f"{text} is a directory")
     if not folder.is_dir():
         raise argparse.ArgumentTypeError(f"folder {folder} does not exist")
-    if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
-        raise argparse.ArgumentTypeError(f"cannot write {text}")
+    existed = path.exists()
+    try:
+        with open(path, "ab"):
+            pass
+    except OSError as exc:
+        raise argparse.ArgumentTypeError(f"cannot write {text}: {exc.strerror or exc}") from None
+    if not existed:
+        path.unlink(missing_ok=True)
     return path
+
+
+def seed(text: str) -> int:
+    """A terrain seed, a non-negative integer (numpy's generators take no negative seed)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid int value: {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"seed must be a non-negative integer, got {value}")
+    return value
 
 
 def rrd_file(text: str) -> Path:
@@ -86,7 +114,7 @@ def gravity(text: str) -> float:
 
 
 def parser() -> Parser:
-    top = Parser(prog="hopper-sim", description=__doc__)
+    top = Parser(prog="hopper-sim", description=__doc__, epilog=EXIT_STATUSES)
     commands = top.add_subparsers(dest="command", required=True, parser_class=Parser)
     defaults = Gains()
 
@@ -104,9 +132,9 @@ def parser() -> Parser:
         p.add_argument("--kd", type=finite, default=defaults.kd, help=f"N m s/rad (default {defaults.kd:g})")
         p.add_argument("--json", type=writable_file, metavar="PATH", help="write the results as JSON")
 
-    run = commands.add_parser("run", help="simulate one robot until N hops or a fall")
+    run = commands.add_parser("run", help="simulate one robot until N hops or a fall", epilog=EXIT_STATUSES)
     common(run)
-    run.add_argument("--seed", type=int, default=0, help="terrain seed (default 0)")
+    run.add_argument("--seed", type=seed, default=0, help="terrain seed (default 0)")
     run.add_argument("--no-wheel", action="store_true", help="zero wheel torque, wheel free to spin")
     run.add_argument("--rrd", type=rrd_file, metavar="PATH", help="record a rerun .rrd session")
     run.add_argument(
@@ -116,13 +144,15 @@ def parser() -> Parser:
         help="also watch live in a rerun viewer (default off)",
     )
 
-    compare = commands.add_parser("compare", help="wheel on vs off over seeds 0..K-1")
+    compare = commands.add_parser("compare", help="wheel on vs off over seeds 0..K-1", epilog=EXIT_STATUSES)
     common(compare)
     compare.add_argument("--seeds", type=int, default=10, help="number of seeds (default 10)")
     compare.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
 
-    export = commands.add_parser("terrain", help="export a crater field as a grayscale PNG (as the paper does)")
-    export.add_argument("--seed", type=int, default=0, help="terrain seed (default 0)")
+    export = commands.add_parser(
+        "terrain", help="export a crater field as a grayscale PNG (as the paper does)", epilog=EXIT_STATUSES
+    )
+    export.add_argument("--seed", type=seed, default=0, help="terrain seed (default 0)")
     export.add_argument("--png", type=writable_file, required=True, metavar="PATH", help="16-bit grayscale PNG")
     return top
 
@@ -235,8 +265,9 @@ def command_run(args: argparse.Namespace) -> int:
         if args.json:
             args.json.write_text(json.dumps(result, indent=2))
 
-    simulate(make_config(args, args.seed, wheel=not args.no_wheel), args.hops, args.rrd, args.rerun_viewer, report)
-    return 0
+    config = make_config(args, args.seed, wheel=not args.no_wheel)
+    result = simulate(config, args.hops, args.rrd, args.rerun_viewer, report)
+    return EXIT_FELL if result["fell"] else EXIT_OK
 
 
 def _compare_one(job: tuple[SimConfig, int]) -> dict[str, Any]:
@@ -246,8 +277,6 @@ def _compare_one(job: tuple[SimConfig, int]) -> dict[str, Any]:
 def command_compare(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    if args.seeds < 1:
-        fail("--seeds must be at least 1")
     jobs = [(make_config(args, seed, wheel), args.hops) for seed in range(args.seeds) for wheel in (True, False)]
     workers = max(1, min(args.workers, len(jobs)))
     with multiprocessing.get_context("spawn").Pool(workers) as pool:
@@ -273,7 +302,7 @@ def command_compare(args: argparse.Namespace) -> int:
         args.json.write_text(
             json.dumps({"median_peak_reduction_pct": median, "seeds": rows, "runs": results}, indent=2)
         )
-    return 0
+    return EXIT_OK  # falls with the wheel off are the expected result here, not a failure
 
 
 def command_terrain(args: argparse.Namespace) -> int:
@@ -289,21 +318,29 @@ def command_terrain(args: argparse.Namespace) -> int:
     return 0
 
 
+def check_counts(args: argparse.Namespace) -> None:
+    """Refuse counts below one before any work (argparse's int accepts 0 and negatives)."""
+    for name in ("hops", "seeds", "workers"):
+        if getattr(args, name, 1) < 1:
+            fail(f"--{name} must be at least 1, got {getattr(args, name)}")
+
+
 def main(argv: list[str] | None = None) -> int:
+    """Exit status: 0 success, 1 the robot fell (run), 2 bad arguments, 130 interrupted."""
     stop_like_ctrl_c()  # SIGTERM unwinds like Ctrl-C, so recordings are closed
-    args = parser().parse_args(argv)
-    if args.command == "terrain":
-        return command_terrain(args)
-    if args.hops < 1:
-        fail("--hops must be at least 1")
     try:
-        make_config(args, 0, True)  # validate gains and gravity before any work
-        return command_run(args) if args.command == "run" else command_compare(args)
-    except (InvalidConfig, ValueError) as exc:
-        fail(str(exc))
+        args = parser().parse_args(argv)
+        if args.command == "terrain":
+            return command_terrain(args)
+        check_counts(args)
+        try:
+            make_config(args, 0, True)  # validate gains and gravity before any work
+            return command_run(args) if args.command == "run" else command_compare(args)
+        except (InvalidConfig, ValueError) as exc:
+            fail(str(exc))
     except KeyboardInterrupt:
         print("hopper-sim: interrupted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -23,9 +24,16 @@ HOP_KEYS = {
 }
 
 
-def hopper_sim(*args: str) -> subprocess.CompletedProcess[str]:
+def hopper_sim(
+    *args: str, cwd: Path | None = None, env: dict[str, str] | None = None
+) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [sys.executable, "-m", "hopper.app.sim_cli", *args], capture_output=True, text=True, timeout=300
+        [sys.executable, "-m", "hopper.app.sim_cli", *args],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=cwd,
+        env=env,
     )
 
 
@@ -44,7 +52,7 @@ def test_run_prints_a_table_and_writes_json(tmp_path) -> None:
 def test_wheel_off_run_reports_the_fall_and_its_flight(tmp_path) -> None:
     out = tmp_path / "off.json"
     result = hopper_sim("run", "--hops", "3", "--no-wheel", "--terrain", "flat", "--json", str(out))
-    assert result.returncode == 0, result.stderr
+    assert result.returncode == 1, result.stderr  # a fall is the run's failure
     data = json.loads(out.read_text())
     assert data["fell"] is True and data["wheel"] is False
     assert data["hops"][-1]["completed"] is False and data["hops"][-1]["peak_pitch_deg"] > 30
@@ -67,15 +75,46 @@ def test_compare_reports_the_median_reduction(tmp_path) -> None:
         (["run", "--kd", "nan"], "not a finite number"),
         (["run", "--terrain", "moon"], "invalid choice"),
         (["run", "--json", "/nonexistent/dir/out.json"], "does not exist"),
+        (["run", "--json", "/proc/x.json"], "cannot write /proc/x.json"),
         (["run", "--gravity", "pluto"], "neither m/s^2 nor one of moon, mars, ceres, earth"),
+        (["run", "--gravity", "0.01"], "gravity must be a finite number in [0.05, 30]"),
+        (["run", "--hops", "0"], "--hops must be at least 1"),
+        (["run", "--seed", "-1"], "seed must be a non-negative integer"),
+        (["run", "--bogus"], "unrecognized arguments: --bogus"),
         (["compare", "--seeds", "0"], "--seeds must be at least 1"),
+        (["compare", "--hops", "0"], "--hops must be at least 1"),
+        (["compare", "--workers", "0"], "--workers must be at least 1"),
+        (["compare", "--workers", "-3"], "--workers must be at least 1"),
+        (["compare", "--json", "/proc/x.json"], "cannot write /proc/x.json"),
+        (["terrain", "--png", "/proc/x.png"], "cannot write /proc/x.png"),
+        (["terrain", "--seed", "-4", "--png", "y.png"], "seed must be a non-negative integer"),
+        (["terrain"], "the following arguments are required: --png"),
+        ([], "the following arguments are required: command"),
     ],
 )
-def test_bad_arguments_fail_in_one_line(args: list[str], message: str) -> None:
-    result = hopper_sim(*args)
-    assert result.returncode == 2
-    assert result.stderr.count("\n") == 1 and message in result.stderr
+def test_bad_arguments_fail_in_one_line_before_any_work(tmp_path: Path, args: list[str], message: str) -> None:
+    result = hopper_sim(*args, cwd=tmp_path)
+    assert result.returncode == 2, result
+    assert result.stderr.count("\n") == 1 and message in result.stderr, result.stderr
+    assert result.stderr.startswith("hopper-sim: error: "), result.stderr  # one prefix, subcommands included
     assert "Traceback" not in result.stderr
+    assert result.stdout == "" and not any(tmp_path.iterdir()), "work started before the arguments were checked"
+
+
+def test_a_viewer_that_cannot_start_fails_in_one_line(tmp_path: Path) -> None:
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    result = hopper_sim("run", "--hops", "1", "--rerun-viewer", "spawn", cwd=tmp_path, env=env)
+    assert result.returncode == 2, result
+    assert result.stderr.startswith("hopper-sim: error: ") and result.stderr.count("\n") == 1, result.stderr
+    assert "needs a display" in result.stderr
+
+
+def test_help_documents_the_exit_statuses() -> None:
+    for command in ([], ["run"], ["compare"]):
+        result = hopper_sim(*command, "--help")
+        assert result.returncode == 0, result.stderr
+        text = " ".join(result.stdout.split())
+        assert "exit status: 0 success, 1 the robot fell (run only), 2 bad arguments, 130 interrupted" in text, text
 
 
 def test_terrain_export_writes_the_png_the_paper_loads(tmp_path) -> None:
