@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import importlib.metadata
 import json
 import math
 import multiprocessing
@@ -11,14 +13,17 @@ import statistics
 import sys
 import threading
 import time
+import typing
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any, NoReturn, TypeVar
 
 import numpy as np
 from hopper.app.signals import stop_like_ctrl_c
 
 from hopper.config import GRAVITY_PRESETS, Gains, InvalidConfig, SimConfig
+
+T = TypeVar("T")
 
 # The JSON keys of a hop, in table order, with their column headings.
 HOP_COLUMNS = {
@@ -157,6 +162,41 @@ def parser() -> Parser:
     return top
 
 
+def version() -> str:
+    """The installed package's version, as recorded in every result."""
+    try:
+        return importlib.metadata.version("hopper-dashboard")
+    except importlib.metadata.PackageNotFoundError:  # run from a checkout that was never installed
+        return "unknown"
+
+
+def settings(config: SimConfig, hops: int) -> dict[str, Any]:
+    """Everything that reproduces a run, JSON-ready: version, hops asked and the whole SimConfig.
+
+    SI units as in SimConfig: gravity m/s^2, timestep s, gains N m/rad, N m/(rad s), N m s/rad.
+    """
+    return {"version": version(), "hops": hops, **dataclasses.asdict(config)}
+
+
+def _from_dict(cls: type[T], data: dict[str, Any]) -> T:
+    hints = typing.get_type_hints(cls)
+    kwargs = {}
+    for field in dataclasses.fields(cls):
+        if field.name in data:
+            value, kind = data[field.name], hints[field.name]
+            if dataclasses.is_dataclass(kind):
+                value = _from_dict(kind, value)
+            elif isinstance(value, list):  # JSON has no tuples
+                value = tuple(value)
+            kwargs[field.name] = value
+    return cls(**kwargs)
+
+
+def sim_config(settings: dict[str, Any]) -> SimConfig:
+    """The SimConfig a result's `settings` came from (other keys, such as version, are ignored)."""
+    return _from_dict(SimConfig, settings)
+
+
 def make_config(args: argparse.Namespace, seed: int, wheel: bool) -> SimConfig:
     return SimConfig(
         seed=seed,
@@ -199,6 +239,7 @@ def simulate(
     try:
         sim.run(hops)
         result = {
+            "settings": settings(config, hops),
             "seed": config.seed,
             "wheel": config.wheel,
             "fell": sim.fallen,
@@ -228,9 +269,12 @@ def hop_table(hops: list[dict[str, Any]]) -> str:
 
 def summary(result: dict[str, Any]) -> str:
     done = [h for h in result["hops"] if h["completed"]]
-    wheel = "on" if result["wheel"] else "off (zero torque, free to spin)"
+    s = result["settings"]
+    wheel = "on" if s["wheel"] else "off (zero torque, free to spin)"
+    gains = s["gains"]
     lines = [
-        f"seed {result['seed']}, wheel {wheel}: {len(done)} hops"
+        f"terrain {s['terrain']}, seed {s['seed']}, gravity {s['gravity']:g} m/s^2, "
+        f"kp {gains['kp']:g} ki {gains['ki']:g} kd {gains['kd']:g}, wheel {wheel}: {len(done)} hops"
         + (", FELL" if result["fell"] else "")
         + f"; {result['sim_time_s']:.2f} s simulated in {result['wall_time_s']:.2f} s wall"
         + f" ({result['sim_time_s'] / max(result['wall_time_s'], 1e-9):.0f}x real time)"

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+import importlib.metadata
 import json
 import os
 import signal
@@ -41,12 +43,37 @@ def test_run_prints_a_table_and_writes_json(tmp_path) -> None:
     out = tmp_path / "run.json"
     result = hopper_sim("run", "--hops", "2", "--seed", "3", "--json", str(out))
     assert result.returncode == 0, result.stderr
-    assert "peak deg" in result.stdout and "seed 3, wheel on: 2 hops" in result.stdout
+    assert "peak deg" in result.stdout and "seed 3" in result.stdout and "wheel on: 2 hops" in result.stdout
     data = json.loads(out.read_text())
     assert {"seed", "wheel", "fell", "sim_time_s", "wall_time_s", "hops"} <= data.keys()
     assert data["seed"] == 3 and data["wheel"] is True and data["fell"] is False
     assert len(data["hops"]) == 2 and all(hop.keys() >= HOP_KEYS for hop in data["hops"])
     assert 0.6 < data["hops"][1]["distance_m"] < 1.0
+
+
+def test_the_json_holds_the_settings_that_reproduce_the_run(tmp_path: Path) -> None:
+    from hopper.app.sim_cli import sim_config
+
+    from hopper.config import GaitParams
+    from hopper.sim import Simulation
+
+    out = tmp_path / "run.json"
+    flags = ["--hops", "2", "--seed", "5", "--gravity", "1.7", "--kp", "520", "--ki", "40", "--kd", "25"]
+    result = hopper_sim("run", *flags, "--json", str(out))
+    assert result.returncode == 0, result.stderr
+    summary = result.stdout.splitlines()[-2]
+    for named in ("terrain crater", "seed 5", "gravity 1.7 m/s^2", "kp 520", "ki 40", "kd 25", "wheel on"):
+        assert named in summary, summary
+    data = json.loads(out.read_text())
+    settings = data["settings"]
+    assert settings["version"] == importlib.metadata.version("hopper-dashboard") and settings["hops"] == 2
+    assert settings["seed"] == 5 and settings["terrain"] == "crater" and settings["gravity"] == 1.7
+    assert settings["gains"] == {"kp": 520.0, "ki": 40.0, "kd": 25.0} and settings["wheel"] is True
+    assert settings["timestep"] == 0.001 and settings["gait"] == dataclasses.asdict(GaitParams())
+
+    sim = Simulation(sim_config(settings))  # the run again, in this process, from the JSON alone
+    sim.run(settings["hops"])
+    assert json.loads(json.dumps([hop.as_dict() for hop in sim.hops])) == data["hops"]
 
 
 def test_wheel_off_run_reports_the_fall_and_its_flight(tmp_path) -> None:
@@ -65,6 +92,13 @@ def test_compare_reports_the_median_reduction(tmp_path) -> None:
     data = json.loads(out.read_text())
     assert data["median_peak_reduction_pct"] > 65
     assert len(data["runs"]) == 4 and {r["wheel"] for r in data["runs"]} == {True, False}
+    assert [(r["settings"]["seed"], r["settings"]["wheel"]) for r in data["runs"]] == [
+        (0, True),
+        (0, False),
+        (1, True),
+        (1, False),
+    ]
+    assert all(r["settings"]["hops"] == 1 and "gait" in r["settings"] for r in data["runs"])
     assert "median reduction" in result.stdout
 
 
