@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 from hopper.app.dashboard.cli import parse
-from hopper.app.dashboard.config import DashboardConfig
+from hopper.app.dashboard.config import DashboardConfig, check_sessions_dir
 from net import free_port, wait_until
 
 REPO = Path(__file__).resolve().parent.parent
@@ -43,6 +43,17 @@ def cli(*args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
     )
 
 
+def dashboard_process(*args: str) -> subprocess.Popen[str]:
+    """hopper-dashboard running in the background, its output piped."""
+    return subprocess.Popen(
+        [sys.executable, "-m", "hopper.app.dashboard.cli", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=REPO,
+    )
+
+
 @pytest.mark.parametrize(
     "args, message",
     [
@@ -58,6 +69,8 @@ def cli(*args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
         (["--rrd", "run.txt"], "must name a .rrd file"),
         (["--rerun-viewer", "sometimes"], "invalid choice"),
         (["--bogus"], "unrecognized arguments: --bogus"),
+        (["--sessions-dir", "/proc/foo"], "cannot use sessions folder '/proc/foo'"),
+        (["--sessions-dir", "README.md/sessions"], "cannot use sessions folder 'README.md/sessions'"),
     ],
 )
 def test_bad_arguments_give_one_line_and_exit_2(args: list[str], message: str) -> None:
@@ -85,11 +98,18 @@ def test_no_flags_give_the_default_config_and_flags_reach_their_fields() -> None
     assert config.sessions_dir == Path("runs") and config.rrd == Path("a.rrd")
 
 
-def test_a_port_in_use_gives_one_line_and_exit_2() -> None:
+def test_a_sessions_folder_is_created_and_probed_and_left_empty(tmp_path: Path) -> None:
+    folder = tmp_path / "a" / "b"
+    assert check_sessions_dir(folder) == folder
+    assert folder.is_dir() and not any(folder.iterdir())
+    assert check_sessions_dir(folder) == folder  # an existing, writable folder is fine too
+
+
+def test_a_port_in_use_gives_one_line_and_exit_2(tmp_path: Path) -> None:
     with socket.socket() as blocker:
         blocker.bind(("127.0.0.1", 0))
         blocker.listen()
-        result = cli("--port", str(blocker.getsockname()[1]))
+        result = cli("--port", str(blocker.getsockname()[1]), "--sessions-dir", str(tmp_path))
     assert result.returncode == 2
     assert result.stderr.strip().splitlines() == [result.stderr.strip()]
     assert "cannot serve on 127.0.0.1" in result.stderr and "Traceback" not in result.stderr
@@ -99,13 +119,7 @@ def test_a_port_in_use_gives_one_line_and_exit_2() -> None:
 def test_a_signal_stops_cleanly_finalizes_the_recording_and_frees_the_port(tmp_path: Path, signum: int) -> None:
     pytest.importorskip("hopper.telemetry")
     port, rrd = free_port(), tmp_path / "run.rrd"
-    process = subprocess.Popen(
-        [sys.executable, "-m", "hopper.app.dashboard.cli", "--port", str(port), "--rrd", str(rrd)],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        cwd=REPO,
-    )
+    process = dashboard_process("--port", str(port), "--rrd", str(rrd), "--sessions-dir", str(tmp_path))
     try:
         assert wait_until(lambda: not port_is_free(port), timeout=60), "the dashboard never started"
         time.sleep(1.5)  # some simulation into the recording
@@ -124,14 +138,8 @@ def test_a_signal_stops_cleanly_finalizes_the_recording_and_frees_the_port(tmp_p
 
 def test_sigterm_while_starting_up_stops_cleanly_and_finalizes_the_recording(tmp_path: Path) -> None:
     pytest.importorskip("hopper.telemetry")
-    rrd = tmp_path / "run.rrd"
-    process = subprocess.Popen(
-        [sys.executable, "-m", "hopper.app.dashboard.cli", "--port", str(free_port()), "--rrd", str(rrd)],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        cwd=REPO,
-    )
+    rrd, port = tmp_path / "run.rrd", free_port()
+    process = dashboard_process("--port", str(port), "--rrd", str(rrd), "--sessions-dir", str(tmp_path))
     try:  # the recording has begun (its file has content) but the server is still being built
         assert wait_until(lambda: rrd.exists() and rrd.stat().st_size > 0, timeout=60), "no recording started"
         process.send_signal(signal.SIGTERM)

@@ -10,7 +10,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
 
-from hopper.app.dashboard.config import DashboardConfig
+from hopper.app.dashboard.config import DashboardConfig, check_sessions_dir
 from hopper.app.signals import stop_like_ctrl_c
 
 from hopper.config import GAIN_RANGES
@@ -108,6 +108,7 @@ def open_dashboard(config: DashboardConfig) -> Dashboard:
     try:
         if config.rrd is not None:
             telemetry_module().check_writable(config.rrd)
+        check_sessions_dir(config.sessions_dir)
         return Dashboard(config, verbose=False)
     except (PortInUse, ValueError) as exc:
         fail(str(exc))
