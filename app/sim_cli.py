@@ -9,6 +9,7 @@ import json
 import math
 import multiprocessing
 import os
+import signal
 import statistics
 import sys
 import threading
@@ -314,6 +315,11 @@ def command_run(args: argparse.Namespace) -> int:
     return EXIT_FELL if result["fell"] else EXIT_OK
 
 
+def _worker_ignores_interrupts() -> None:
+    """Pool workers leave Ctrl-C to the parent, which stops them: no traceback from each worker."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def _compare_one(job: tuple[SimConfig, int]) -> dict[str, Any]:
     return simulate(*job)
 
@@ -323,7 +329,7 @@ def command_compare(args: argparse.Namespace) -> int:
 
     jobs = [(make_config(args, seed, wheel), args.hops) for seed in range(args.seeds) for wheel in (True, False)]
     workers = max(1, min(args.workers, len(jobs)))
-    with multiprocessing.get_context("spawn").Pool(workers) as pool:
+    with multiprocessing.get_context("spawn").Pool(workers, initializer=_worker_ignores_interrupts) as pool:
         results = list(tqdm(pool.imap(_compare_one, jobs), total=len(jobs), desc="runs", unit="run", file=sys.stderr))
     rows, reductions = [], []
     print(f"{'seed':>4} {'on: hops':>9} {'peak deg':>9} {'off: hops':>10} {'peak deg':>9} {'reduction':>10}")

@@ -186,3 +186,26 @@ def test_a_signal_mid_run_exits_130_with_a_finalized_recording(tmp_path: Path, s
     assert err.strip().splitlines()[-1] == "hopper-sim: interrupted" and "Traceback" not in err
     verify = subprocess.run([sys.executable, "-m", "rerun_cli", "rrd", "verify", str(rrd)], capture_output=True)
     assert verify.returncode == 0, verify.stderr
+
+
+def test_ctrl_c_during_compare_exits_130_without_worker_tracebacks() -> None:
+    process = subprocess.Popen(
+        [sys.executable, "-m", "hopper.app.sim_cli", "compare", "--seeds", "30", "--hops", "7", "--workers", "2"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,  # its own process group, as a terminal's Ctrl-C reaches every process of it
+    )
+    try:
+        progress = ""
+        while "/60 [" not in progress and process.poll() is None:  # the workers are running their first runs
+            progress += process.stderr.read(1)
+        time.sleep(2.0)
+        os.killpg(process.pid, signal.SIGINT)
+        out, err = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 130, err
+    assert "Traceback" not in err and "SpawnPoolWorker" not in err, err
+    assert err.strip().splitlines()[-1] == "hopper-sim: interrupted"
