@@ -89,6 +89,7 @@ def test_help_shows_every_setting_with_its_unit_and_default() -> None:
         assert f"--{field.name.replace('_', '-')}" in result.stdout, field.name
     text = " ".join(result.stdout.split())  # as wrapped for any terminal width
     assert "N m/rad (default: 450.0)" in text and "x real time (default: 1.0)" in text
+    assert "exit status: 0 stopped by Ctrl-C or SIGTERM" in text
 
 
 def test_no_flags_give_the_default_config_and_flags_reach_their_fields() -> None:

@@ -20,6 +20,10 @@ if TYPE_CHECKING:
 
 PROG = "hopper-dashboard"
 DEFAULTS = DashboardConfig()
+EXIT_STATUSES = (
+    "exit status: 0 stopped by Ctrl-C or SIGTERM (any recording closed, the port freed), 2 bad arguments, "
+    "a port in use or an --rrd or --sessions-dir that cannot be written."
+)
 
 
 class Parser(argparse.ArgumentParser):
@@ -49,7 +53,7 @@ def choice(*options: str) -> Callable[[str], str]:
 
 def parser() -> Parser:
     """The flags of DashboardConfig, one each, with units and defaults in the help."""
-    p = Parser(prog=PROG, description=DashboardConfig.__doc__, formatter_class=Help)
+    p = Parser(prog=PROG, description=DashboardConfig.__doc__, epilog=EXIT_STATUSES, formatter_class=Help)
     p.add_argument("--host", default=DEFAULTS.host, help="address to serve on (loopback by default)")
     p.add_argument("--port", type=int, default=DEFAULTS.port, help="TCP port to serve on; refused if in use")
     p.add_argument("--seed", type=int, default=DEFAULTS.seed, help="terrain seed, a non-negative integer")
