@@ -4,6 +4,14 @@ from __future__ import annotations
 
 import signal
 
+_stop_requested = False
+
+
+def _interrupt(signum: int, frame: object) -> None:
+    global _stop_requested
+    _stop_requested = True
+    raise KeyboardInterrupt
+
 
 def stop_like_ctrl_c() -> None:
     """Make SIGTERM and SIGINT both raise KeyboardInterrupt in the main thread.
@@ -15,4 +23,15 @@ def stop_like_ctrl_c() -> None:
     thread.
     """
     for signum in (signal.SIGTERM, signal.SIGINT):
-        signal.signal(signum, signal.default_int_handler)
+        signal.signal(signum, _interrupt)
+
+
+def raise_if_stop_requested() -> None:
+    """Raise KeyboardInterrupt again if a stop signal came but its exception was swallowed.
+
+    Some C extensions clear whatever error a lazy import raises: pyarrow's `pa.scalar`, which
+    rerun calls when a recording starts, imports dateutil that way, so a signal landing there is
+    lost. Call where a stop must not be missed: after start-up, after a run.
+    """
+    if _stop_requested:
+        raise KeyboardInterrupt

@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any, NoReturn, TypeVar
 
 import numpy as np
-from hopper.app.signals import stop_like_ctrl_c
+from hopper.app.signals import raise_if_stop_requested, stop_like_ctrl_c
 
 from hopper.config import GRAVITY_PRESETS, Gains, InvalidConfig, SimConfig
 
@@ -238,7 +238,9 @@ def simulate(
             print(f"rerun web viewer: {url}", file=sys.stderr)
     start = time.perf_counter()
     try:
+        raise_if_stop_requested()  # a signal while the recording started may have been swallowed
         sim.run(hops)
+        raise_if_stop_requested()
         result = {
             "settings": settings(config, hops),
             "seed": config.seed,

@@ -27,6 +27,14 @@ def port_is_free(port: int) -> bool:
     return True
 
 
+def size(path: Path) -> int:
+    """Bytes in `path`, 0 while it is missing (the start-up check creates and removes it)."""
+    try:
+        return path.stat().st_size
+    except FileNotFoundError:
+        return 0
+
+
 def verify_recording(path: Path) -> None:
     """`rerun rrd verify` accepts the file: it was closed, footer and all."""
     result = subprocess.run([sys.executable, "-m", "rerun_cli", "rrd", "verify", str(path)], capture_output=True)
@@ -142,7 +150,7 @@ def test_sigterm_while_starting_up_stops_cleanly_and_finalizes_the_recording(tmp
     rrd, port = tmp_path / "run.rrd", free_port()
     process = dashboard_process("--port", str(port), "--rrd", str(rrd), "--sessions-dir", str(tmp_path))
     try:  # the recording has begun (its file has content) but the server is still being built
-        assert wait_until(lambda: rrd.exists() and rrd.stat().st_size > 0, timeout=60), "no recording started"
+        assert wait_until(lambda: size(rrd) > 0, timeout=60), "no recording started"
         process.send_signal(signal.SIGTERM)
         out, err = process.communicate(timeout=60)
     finally:

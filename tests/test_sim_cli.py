@@ -163,6 +163,33 @@ def test_terrain_export_writes_the_png_the_paper_loads(tmp_path) -> None:
     assert np.abs(read_png(out) - expected).max() < 1e-5
 
 
+def size(path: Path) -> int:
+    """Bytes in `path`, 0 while it is missing (the argument check creates and removes it)."""
+    try:
+        return path.stat().st_size
+    except FileNotFoundError:
+        return 0
+
+
+def test_a_stop_signal_whose_exception_was_swallowed_is_raised_again() -> None:
+    script = (
+        "import signal\n"
+        "from hopper.app.signals import raise_if_stop_requested, stop_like_ctrl_c\n"
+        "stop_like_ctrl_c()\n"
+        "raise_if_stop_requested()  # nothing asked yet: returns\n"
+        "try:\n"
+        "    signal.raise_signal(signal.SIGTERM)\n"
+        "except KeyboardInterrupt:\n"
+        "    pass  # as C code that clears the errors of a lazy import does\n"
+        "try:\n"
+        "    raise_if_stop_requested()\n"
+        "except KeyboardInterrupt:\n"
+        "    print('raised again')\n"
+    )
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0 and result.stdout == "raised again\n", result
+
+
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
 def test_a_signal_mid_run_exits_130_with_a_finalized_recording(tmp_path: Path, signum: int) -> None:
     pytest.importorskip("hopper.telemetry")
@@ -175,14 +202,14 @@ def test_a_signal_mid_run_exits_130_with_a_finalized_recording(tmp_path: Path, s
     )
     try:
         deadline = time.monotonic() + 60
-        while not (rrd.exists() and rrd.stat().st_size > 0) and time.monotonic() < deadline:
+        while size(rrd) == 0 and time.monotonic() < deadline:  # the recording has begun
             time.sleep(0.02)
         process.send_signal(signum)
         out, err = process.communicate(timeout=60)
     finally:
         if process.poll() is None:
             process.kill()
-    assert process.returncode == 130, (process.returncode, err)
+    assert process.returncode == 130, (process.returncode, out, err)
     assert err.strip().splitlines()[-1] == "hopper-sim: interrupted" and "Traceback" not in err
     verify = subprocess.run([sys.executable, "-m", "rerun_cli", "rrd", "verify", str(rrd)], capture_output=True)
     assert verify.returncode == 0, verify.stderr

@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
 
 from hopper.app.dashboard.config import DashboardConfig, check_sessions_dir
-from hopper.app.signals import stop_like_ctrl_c
+from hopper.app.signals import raise_if_stop_requested, stop_like_ctrl_c
 
 from hopper.config import GAIN_RANGES
 
@@ -123,6 +123,7 @@ def open_dashboard(config: DashboardConfig) -> Dashboard:
 def serve(dashboard: Dashboard) -> None:
     """Run until Ctrl-C or SIGTERM (both raise KeyboardInterrupt), then stop: recording closed, port freed."""
     try:
+        raise_if_stop_requested()  # a signal during start-up may have been swallowed (app/signals.py)
         dashboard.start()
         print(f"{PROG}: serving {dashboard.url}  (Ctrl-C to stop)", flush=True)
         if dashboard.recorder.path is not None:
