@@ -20,9 +20,7 @@ PACKAGE_DIRS = {"hopper": "hopper", "terrain": "hopper/terrain", "app": "hopper/
 PACKAGE_DIRS["static"] = "hopper/static"
 ASSETS = ["hopper/models/hopper.xml", *(f"hopper/static/{name}" for name in ("help.md", "dashboard.css", "logo.svg"))]
 ASSETS.append("hopper/static/theme.json")
-LOCAL_MODULES = {"hopper", "benchmarks", "net", "conftest"}  # the project's own, never from a registry
-# Shipped in the package but used only by tests and benchmarks: its imports belong to the test extra.
-TEST_TOOLS = {"app/dashboard/probe.py"}
+LOCAL_MODULES = {"hopper", "benchmarks", "net", "calls", "conftest"}  # the project's own, never from a registry
 
 
 # Left-overs of earlier builds: setuptools would pack a stale build/lib into the wheel, hiding a
@@ -109,10 +107,6 @@ def test_every_third_party_import_is_a_declared_dependency() -> None:
     project = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]
     runtime = _requirement_names(project["dependencies"])
     test_extra = runtime | _requirement_names(project["optional-dependencies"]["test"])
-    package = _python_files(list(PACKAGE_DIRS))
-    tools = [path for path in package if str(path.relative_to(REPO)) in TEST_TOOLS]
-    assert len(tools) == len(TEST_TOOLS), "a test tool moved: update TEST_TOOLS"
-    runtime_code = [path for path in package if path not in tools]
-    test_code = tools + _python_files(["tests", "benchmarks"])
-    assert _undeclared(runtime_code, runtime) == [], "imported at run time but not in dependencies"
+    assert _undeclared(_python_files(list(PACKAGE_DIRS)), runtime) == [], "imported at run time but not declared"
+    test_code = _python_files(["tests", "benchmarks"])
     assert _undeclared(test_code, test_extra) == [], "imported by tests or benchmarks but not in the test extra"
