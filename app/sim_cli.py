@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import importlib.metadata
 import json
 import math
 import multiprocessing
@@ -12,13 +14,17 @@ import statistics
 import sys
 import threading
 import time
+import typing
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any, NoReturn, TypeVar
 
 import numpy as np
+from hopper.app.signals import raise_if_stop_requested, stop_like_ctrl_c
 
 from hopper.config import GRAVITY_PRESETS, Gains, InvalidConfig, SimConfig
+
+T = TypeVar("T")
 
 # The JSON keys of a hop, in table order, with their column headings.
 HOP_COLUMNS = {
@@ -33,29 +39,57 @@ HOP_COLUMNS = {
 }
 
 
+EXIT_OK, EXIT_FELL, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+EXIT_STATUSES = (
+    "exit status: 0 success, 1 the robot fell (run only), 2 bad arguments, 130 interrupted (Ctrl-C or SIGTERM). "
+    "compare exits 0 once it has finished: with the wheel off the robot is expected to fall."
+)
+
+
 class Parser(argparse.ArgumentParser):
-    """argparse with errors on one line (no usage dump): `hopper-sim run: error: ...`."""
+    """argparse with errors on one line (no usage dump) and one prefix, subcommands included."""
 
     def error(self, message: str) -> NoReturn:
-        self.exit(2, f"{self.prog}: error: {message}\n")
+        fail(message)
 
 
 def fail(message: str) -> NoReturn:
     print(f"hopper-sim: error: {message}", file=sys.stderr)
-    raise SystemExit(2)
+    raise SystemExit(EXIT_USAGE)
 
 
 def writable_file(text: str) -> Path:
-    """An output path whose folder exists and can be written (checked before any simulation)."""
+    """An output path that can really be written (checked before any simulation).
+
+    It is opened for appending, as hopper.telemetry.check_writable does for .rrd: permission bits
+    say little for root, /proc, read-only mounts or ACLs. A file that did not exist is removed again.
+    """
     path = Path(text)
-    folder = path.parent if str(path.parent) else Path(".")
+    folder = path.parent
     if path.is_dir():
         raise argparse.ArgumentTypeError(f"{text} is a directory")
     if not folder.is_dir():
         raise argparse.ArgumentTypeError(f"folder {folder} does not exist")
-    if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
-        raise argparse.ArgumentTypeError(f"cannot write {text}")
+    existed = path.exists()
+    try:
+        with open(path, "ab"):
+            pass
+    except OSError as exc:
+        raise argparse.ArgumentTypeError(f"cannot write {text}: {exc.strerror or exc}") from None
+    if not existed:
+        path.unlink(missing_ok=True)
     return path
+
+
+def seed(text: str) -> int:
+    """A terrain seed, a non-negative integer (numpy's generators take no negative seed)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid int value: {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"seed must be a non-negative integer, got {value}")
+    return value
 
 
 def rrd_file(text: str) -> Path:
@@ -86,7 +120,7 @@ def gravity(text: str) -> float:
 
 
 def parser() -> Parser:
-    top = Parser(prog="hopper-sim", description=__doc__)
+    top = Parser(prog="hopper-sim", description=__doc__, epilog=EXIT_STATUSES)
     commands = top.add_subparsers(dest="command", required=True, parser_class=Parser)
     defaults = Gains()
 
@@ -104,9 +138,9 @@ def parser() -> Parser:
         p.add_argument("--kd", type=finite, default=defaults.kd, help=f"N m s/rad (default {defaults.kd:g})")
         p.add_argument("--json", type=writable_file, metavar="PATH", help="write the results as JSON")
 
-    run = commands.add_parser("run", help="simulate one robot until N hops or a fall")
+    run = commands.add_parser("run", help="simulate one robot until N hops or a fall", epilog=EXIT_STATUSES)
     common(run)
-    run.add_argument("--seed", type=int, default=0, help="terrain seed (default 0)")
+    run.add_argument("--seed", type=seed, default=0, help="terrain seed (default 0)")
     run.add_argument("--no-wheel", action="store_true", help="zero wheel torque, wheel free to spin")
     run.add_argument("--rrd", type=rrd_file, metavar="PATH", help="record a rerun .rrd session")
     run.add_argument(
@@ -116,15 +150,52 @@ def parser() -> Parser:
         help="also watch live in a rerun viewer (default off)",
     )
 
-    compare = commands.add_parser("compare", help="wheel on vs off over seeds 0..K-1")
+    compare = commands.add_parser("compare", help="wheel on vs off over seeds 0..K-1", epilog=EXIT_STATUSES)
     common(compare)
     compare.add_argument("--seeds", type=int, default=10, help="number of seeds (default 10)")
     compare.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
 
-    export = commands.add_parser("terrain", help="export a crater field as a grayscale PNG (as the paper does)")
-    export.add_argument("--seed", type=int, default=0, help="terrain seed (default 0)")
+    export = commands.add_parser(
+        "terrain", help="export a crater field as a grayscale PNG (as the paper does)", epilog=EXIT_STATUSES
+    )
+    export.add_argument("--seed", type=seed, default=0, help="terrain seed (default 0)")
     export.add_argument("--png", type=writable_file, required=True, metavar="PATH", help="16-bit grayscale PNG")
     return top
+
+
+def version() -> str:
+    """The installed package's version, as recorded in every result."""
+    try:
+        return importlib.metadata.version("hopper-dashboard")
+    except importlib.metadata.PackageNotFoundError:  # run from a checkout that was never installed
+        return "unknown"
+
+
+def settings(config: SimConfig, hops: int) -> dict[str, Any]:
+    """Everything that reproduces a run, JSON-ready: version, hops asked and the whole SimConfig.
+
+    SI units as in SimConfig: gravity m/s^2, timestep s, gains N m/rad, N m/(rad s), N m s/rad.
+    """
+    return {"version": version(), "hops": hops, **dataclasses.asdict(config)}
+
+
+def _from_dict(cls: type[T], data: dict[str, Any]) -> T:
+    hints = typing.get_type_hints(cls)
+    kwargs = {}
+    for field in dataclasses.fields(cls):
+        if field.name in data:
+            value, kind = data[field.name], hints[field.name]
+            if dataclasses.is_dataclass(kind):
+                value = _from_dict(kind, value)
+            elif isinstance(value, list):  # JSON has no tuples
+                value = tuple(value)
+            kwargs[field.name] = value
+    return cls(**kwargs)
+
+
+def sim_config(settings: dict[str, Any]) -> SimConfig:
+    """The SimConfig a result's `settings` came from (other keys, such as version, are ignored)."""
+    return _from_dict(SimConfig, settings)
 
 
 def make_config(args: argparse.Namespace, seed: int, wheel: bool) -> SimConfig:
@@ -167,8 +238,11 @@ def simulate(
             print(f"rerun web viewer: {url}", file=sys.stderr)
     start = time.perf_counter()
     try:
+        raise_if_stop_requested()  # a signal while the recording started may have been swallowed
         sim.run(hops)
+        raise_if_stop_requested()
         result = {
+            "settings": settings(config, hops),
             "seed": config.seed,
             "wheel": config.wheel,
             "fell": sim.fallen,
@@ -198,9 +272,12 @@ def hop_table(hops: list[dict[str, Any]]) -> str:
 
 def summary(result: dict[str, Any]) -> str:
     done = [h for h in result["hops"] if h["completed"]]
-    wheel = "on" if result["wheel"] else "off (zero torque, free to spin)"
+    s = result["settings"]
+    wheel = "on" if s["wheel"] else "off (zero torque, free to spin)"
+    gains = s["gains"]
     lines = [
-        f"seed {result['seed']}, wheel {wheel}: {len(done)} hops"
+        f"terrain {s['terrain']}, seed {s['seed']}, gravity {s['gravity']:g} m/s^2, "
+        f"kp {gains['kp']:g} ki {gains['ki']:g} kd {gains['kd']:g}, wheel {wheel}: {len(done)} hops"
         + (", FELL" if result["fell"] else "")
         + f"; {result['sim_time_s']:.2f} s simulated in {result['wall_time_s']:.2f} s wall"
         + f" ({result['sim_time_s'] / max(result['wall_time_s'], 1e-9):.0f}x real time)"
@@ -235,12 +312,14 @@ def command_run(args: argparse.Namespace) -> int:
         if args.json:
             args.json.write_text(json.dumps(result, indent=2))
 
-    simulate(make_config(args, args.seed, wheel=not args.no_wheel), args.hops, args.rrd, args.rerun_viewer, report)
-    return 0
+    config = make_config(args, args.seed, wheel=not args.no_wheel)
+    result = simulate(config, args.hops, args.rrd, args.rerun_viewer, report)
+    return EXIT_FELL if result["fell"] else EXIT_OK
 
 
-def _interrupt(signum: int, frame: object) -> NoReturn:
-    raise KeyboardInterrupt  # SIGTERM unwinds like Ctrl-C, so recordings are closed
+def _worker_ignores_interrupts() -> None:
+    """Pool workers leave Ctrl-C to the parent, which stops them: no traceback from each worker."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _compare_one(job: tuple[SimConfig, int]) -> dict[str, Any]:
@@ -250,11 +329,9 @@ def _compare_one(job: tuple[SimConfig, int]) -> dict[str, Any]:
 def command_compare(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    if args.seeds < 1:
-        fail("--seeds must be at least 1")
     jobs = [(make_config(args, seed, wheel), args.hops) for seed in range(args.seeds) for wheel in (True, False)]
     workers = max(1, min(args.workers, len(jobs)))
-    with multiprocessing.get_context("spawn").Pool(workers) as pool:
+    with multiprocessing.get_context("spawn").Pool(workers, initializer=_worker_ignores_interrupts) as pool:
         results = list(tqdm(pool.imap(_compare_one, jobs), total=len(jobs), desc="runs", unit="run", file=sys.stderr))
     rows, reductions = [], []
     print(f"{'seed':>4} {'on: hops':>9} {'peak deg':>9} {'off: hops':>10} {'peak deg':>9} {'reduction':>10}")
@@ -277,7 +354,7 @@ def command_compare(args: argparse.Namespace) -> int:
         args.json.write_text(
             json.dumps({"median_peak_reduction_pct": median, "seeds": rows, "runs": results}, indent=2)
         )
-    return 0
+    return EXIT_OK  # falls with the wheel off are the expected result here, not a failure
 
 
 def command_terrain(args: argparse.Namespace) -> int:
@@ -293,21 +370,29 @@ def command_terrain(args: argparse.Namespace) -> int:
     return 0
 
 
+def check_counts(args: argparse.Namespace) -> None:
+    """Refuse counts below one before any work (argparse's int accepts 0 and negatives)."""
+    for name in ("hops", "seeds", "workers"):
+        if getattr(args, name, 1) < 1:
+            fail(f"--{name} must be at least 1, got {getattr(args, name)}")
+
+
 def main(argv: list[str] | None = None) -> int:
-    args = parser().parse_args(argv)
-    signal.signal(signal.SIGTERM, _interrupt)
-    if args.command == "terrain":
-        return command_terrain(args)
-    if args.hops < 1:
-        fail("--hops must be at least 1")
+    """Exit status: 0 success, 1 the robot fell (run), 2 bad arguments, 130 interrupted."""
+    stop_like_ctrl_c()  # SIGTERM unwinds like Ctrl-C, so recordings are closed
     try:
-        make_config(args, 0, True)  # validate gains and gravity before any work
-        return command_run(args) if args.command == "run" else command_compare(args)
-    except (InvalidConfig, ValueError) as exc:
-        fail(str(exc))
+        args = parser().parse_args(argv)
+        if args.command == "terrain":
+            return command_terrain(args)
+        check_counts(args)
+        try:
+            make_config(args, 0, True)  # validate gains and gravity before any work
+            return command_run(args) if args.command == "run" else command_compare(args)
+        except (InvalidConfig, ValueError) as exc:
+            fail(str(exc))
     except KeyboardInterrupt:
         print("hopper-sim: interrupted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":

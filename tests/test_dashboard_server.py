@@ -6,10 +6,7 @@ Browsers are stood in for by `ProbeClient`, which speaks viser's real websocket 
 from __future__ import annotations
 
 import math
-import signal
 import socket
-import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -25,8 +22,6 @@ from net import free_port, wait_until
 from benchmarks.probe import ProbeClient
 from hopper.events import Disturbance, Event, EventKind, Liftoff
 from hopper.metrics import HopMetrics
-
-REPO = Path(__file__).resolve().parent.parent
 
 
 def port_is_free(port: int) -> bool:
@@ -91,78 +86,6 @@ def test_a_taken_port_is_refused_not_silently_moved(tmp_path: Path) -> None:
         port = blocker.getsockname()[1]
         with pytest.raises(PortInUse, match=f"127.0.0.1:{port}"):
             Dashboard(DashboardConfig(port=port, sessions_dir=tmp_path), verbose=False)
-
-
-def cli(*args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "hopper.app.dashboard.cli", *args],
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-        cwd=REPO,
-    )
-
-
-@pytest.mark.parametrize(
-    "args, message",
-    [
-        (["--kp", "-1"], "kp must be a finite number in [0, 2000] N m/rad"),
-        (["--kd", "nan"], "kd must be a finite number"),
-        (["--terrain", "moon"], "invalid choice 'moon'"),
-        (["--port", "abc"], "--port"),
-        (["--port", "70000"], "port must be an integer in [1, 65535]"),
-        (["--speed", "9"], "speed must be in [0.1, 4]"),
-        (["--seed", "-3"], "seed must be a non-negative integer"),
-        (["--host", "not a host"], "host must be an IP address"),
-        (["--rrd", "/nonexistent/dir/run.rrd"], "does not exist"),
-        (["--rrd", "run.txt"], "must name a .rrd file"),
-        (["--rerun-viewer", "sometimes"], "invalid choice"),
-        (["--bogus"], "Unrecognized options: --bogus"),
-    ],
-)
-def test_bad_arguments_give_one_line_and_exit_2(args: list[str], message: str) -> None:
-    result = cli(*args)
-    assert result.returncode == 2, result
-    lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1, result.stderr
-    assert lines[0].startswith("hopper-dashboard: error: ") and message in lines[0], lines[0]
-    assert "Traceback" not in result.stderr + result.stdout
-
-
-def test_a_port_in_use_gives_one_line_and_exit_2() -> None:
-    with socket.socket() as blocker:
-        blocker.bind(("127.0.0.1", 0))
-        blocker.listen()
-        result = cli("--port", str(blocker.getsockname()[1]))
-    assert result.returncode == 2
-    assert result.stderr.strip().splitlines() == [result.stderr.strip()]
-    assert "cannot serve on 127.0.0.1" in result.stderr and "Traceback" not in result.stderr
-
-
-@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
-def test_a_signal_stops_cleanly_finalizes_the_recording_and_frees_the_port(tmp_path: Path, signum: int) -> None:
-    pytest.importorskip("hopper.telemetry")
-    port, rrd = free_port(), tmp_path / "run.rrd"
-    process = subprocess.Popen(
-        [sys.executable, "-m", "hopper.app.dashboard.cli", "--port", str(port), "--rrd", str(rrd)],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        cwd=REPO,
-    )
-    try:
-        assert wait_until(lambda: not port_is_free(port), timeout=60), "the dashboard never started"
-        time.sleep(1.5)  # some simulation into the recording
-        process.send_signal(signum)
-        out, err = process.communicate(timeout=60)
-    finally:
-        if process.poll() is None:
-            process.kill()
-    assert process.returncode == 0, err
-    assert "serving http://127.0.0.1:" in out and "stopped" in out
-    assert "Traceback" not in err
-    assert rrd.stat().st_size > 10_000
-    assert port_is_free(port)
 
 
 # -- browser input ---------------------------------------------------------------------------------

@@ -2,9 +2,15 @@
 
 from __future__ import annotations
 
+import dataclasses
+import importlib.metadata
 import json
+import os
+import signal
 import subprocess
 import sys
+import time
+from pathlib import Path
 
 import pytest
 
@@ -20,9 +26,16 @@ HOP_KEYS = {
 }
 
 
-def hopper_sim(*args: str) -> subprocess.CompletedProcess[str]:
+def hopper_sim(
+    *args: str, cwd: Path | None = None, env: dict[str, str] | None = None
+) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [sys.executable, "-m", "hopper.app.sim_cli", *args], capture_output=True, text=True, timeout=300
+        [sys.executable, "-m", "hopper.app.sim_cli", *args],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=cwd,
+        env=env,
     )
 
 
@@ -30,7 +43,7 @@ def test_run_prints_a_table_and_writes_json(tmp_path) -> None:
     out = tmp_path / "run.json"
     result = hopper_sim("run", "--hops", "2", "--seed", "3", "--json", str(out))
     assert result.returncode == 0, result.stderr
-    assert "peak deg" in result.stdout and "seed 3, wheel on: 2 hops" in result.stdout
+    assert "peak deg" in result.stdout and "seed 3" in result.stdout and "wheel on: 2 hops" in result.stdout
     data = json.loads(out.read_text())
     assert {"seed", "wheel", "fell", "sim_time_s", "wall_time_s", "hops"} <= data.keys()
     assert data["seed"] == 3 and data["wheel"] is True and data["fell"] is False
@@ -38,10 +51,35 @@ def test_run_prints_a_table_and_writes_json(tmp_path) -> None:
     assert 0.6 < data["hops"][1]["distance_m"] < 1.0
 
 
+def test_the_json_holds_the_settings_that_reproduce_the_run(tmp_path: Path) -> None:
+    from hopper.app.sim_cli import sim_config
+
+    from hopper.config import GaitParams
+    from hopper.sim import Simulation
+
+    out = tmp_path / "run.json"
+    flags = ["--hops", "2", "--seed", "5", "--gravity", "1.7", "--kp", "520", "--ki", "40", "--kd", "25"]
+    result = hopper_sim("run", *flags, "--json", str(out))
+    assert result.returncode == 0, result.stderr
+    summary = result.stdout.splitlines()[-2]
+    for named in ("terrain crater", "seed 5", "gravity 1.7 m/s^2", "kp 520", "ki 40", "kd 25", "wheel on"):
+        assert named in summary, summary
+    data = json.loads(out.read_text())
+    settings = data["settings"]
+    assert settings["version"] == importlib.metadata.version("hopper-dashboard") and settings["hops"] == 2
+    assert settings["seed"] == 5 and settings["terrain"] == "crater" and settings["gravity"] == 1.7
+    assert settings["gains"] == {"kp": 520.0, "ki": 40.0, "kd": 25.0} and settings["wheel"] is True
+    assert settings["timestep"] == 0.001 and settings["gait"] == dataclasses.asdict(GaitParams())
+
+    sim = Simulation(sim_config(settings))  # the run again, in this process, from the JSON alone
+    sim.run(settings["hops"])
+    assert json.loads(json.dumps([hop.as_dict() for hop in sim.hops])) == data["hops"]
+
+
 def test_wheel_off_run_reports_the_fall_and_its_flight(tmp_path) -> None:
     out = tmp_path / "off.json"
     result = hopper_sim("run", "--hops", "3", "--no-wheel", "--terrain", "flat", "--json", str(out))
-    assert result.returncode == 0, result.stderr
+    assert result.returncode == 1, result.stderr  # a fall is the run's failure
     data = json.loads(out.read_text())
     assert data["fell"] is True and data["wheel"] is False
     assert data["hops"][-1]["completed"] is False and data["hops"][-1]["peak_pitch_deg"] > 30
@@ -54,6 +92,13 @@ def test_compare_reports_the_median_reduction(tmp_path) -> None:
     data = json.loads(out.read_text())
     assert data["median_peak_reduction_pct"] > 65
     assert len(data["runs"]) == 4 and {r["wheel"] for r in data["runs"]} == {True, False}
+    assert [(r["settings"]["seed"], r["settings"]["wheel"]) for r in data["runs"]] == [
+        (0, True),
+        (0, False),
+        (1, True),
+        (1, False),
+    ]
+    assert all(r["settings"]["hops"] == 1 and "gait" in r["settings"] for r in data["runs"])
     assert "median reduction" in result.stdout
 
 
@@ -64,15 +109,38 @@ def test_compare_reports_the_median_reduction(tmp_path) -> None:
         (["run", "--kd", "nan"], "not a finite number"),
         (["run", "--terrain", "moon"], "invalid choice"),
         (["run", "--json", "/nonexistent/dir/out.json"], "does not exist"),
+        (["run", "--json", "/proc/x.json"], "cannot write /proc/x.json"),
         (["run", "--gravity", "pluto"], "neither m/s^2 nor one of moon, mars, ceres, earth"),
+        (["run", "--gravity", "0.01"], "gravity must be a finite number in [0.05, 30]"),
+        (["run", "--hops", "0"], "--hops must be at least 1"),
+        (["run", "--seed", "-1"], "seed must be a non-negative integer"),
+        (["run", "--bogus"], "unrecognized arguments: --bogus"),
         (["compare", "--seeds", "0"], "--seeds must be at least 1"),
+        (["compare", "--hops", "0"], "--hops must be at least 1"),
+        (["compare", "--workers", "0"], "--workers must be at least 1"),
+        (["compare", "--workers", "-3"], "--workers must be at least 1"),
+        (["compare", "--json", "/proc/x.json"], "cannot write /proc/x.json"),
+        (["terrain", "--png", "/proc/x.png"], "cannot write /proc/x.png"),
+        (["terrain", "--seed", "-4", "--png", "y.png"], "seed must be a non-negative integer"),
+        (["terrain"], "the following arguments are required: --png"),
+        ([], "the following arguments are required: command"),
     ],
 )
-def test_bad_arguments_fail_in_one_line(args: list[str], message: str) -> None:
-    result = hopper_sim(*args)
-    assert result.returncode == 2
-    assert result.stderr.count("\n") == 1 and message in result.stderr
+def test_bad_arguments_fail_in_one_line_before_any_work(tmp_path: Path, args: list[str], message: str) -> None:
+    result = hopper_sim(*args, cwd=tmp_path)
+    assert result.returncode == 2, result
+    assert result.stderr.count("\n") == 1 and message in result.stderr, result.stderr
+    assert result.stderr.startswith("hopper-sim: error: "), result.stderr  # one prefix, subcommands included
     assert "Traceback" not in result.stderr
+    assert result.stdout == "" and not any(tmp_path.iterdir()), "work started before the arguments were checked"
+
+
+def test_help_documents_the_exit_statuses() -> None:
+    for command in ([], ["run"], ["compare"]):
+        result = hopper_sim(*command, "--help")
+        assert result.returncode == 0, result.stderr
+        text = " ".join(result.stdout.split())
+        assert "exit status: 0 success, 1 the robot fell (run only), 2 bad arguments, 130 interrupted" in text, text
 
 
 def test_terrain_export_writes_the_png_the_paper_loads(tmp_path) -> None:
@@ -85,3 +153,78 @@ def test_terrain_export_writes_the_png_the_paper_loads(tmp_path) -> None:
 
     expected = generate(CraterParams(), np.random.default_rng(4))
     assert np.abs(read_png(out) - expected).max() < 1e-5
+
+
+def size(path: Path) -> int:
+    """Bytes in `path`, 0 while it is missing (the argument check creates and removes it)."""
+    try:
+        return path.stat().st_size
+    except FileNotFoundError:
+        return 0
+
+
+def test_a_stop_signal_whose_exception_was_swallowed_is_raised_again() -> None:
+    script = (
+        "import signal\n"
+        "from hopper.app.signals import raise_if_stop_requested, stop_like_ctrl_c\n"
+        "stop_like_ctrl_c()\n"
+        "raise_if_stop_requested()  # nothing asked yet: returns\n"
+        "try:\n"
+        "    signal.raise_signal(signal.SIGTERM)\n"
+        "except KeyboardInterrupt:\n"
+        "    pass  # as C code that clears the errors of a lazy import does\n"
+        "try:\n"
+        "    raise_if_stop_requested()\n"
+        "except KeyboardInterrupt:\n"
+        "    print('raised again')\n"
+    )
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0 and result.stdout == "raised again\n", result
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+def test_a_signal_mid_run_exits_130_with_a_finalized_recording(tmp_path: Path, signum: int) -> None:
+    pytest.importorskip("hopper.telemetry")
+    rrd = tmp_path / "run.rrd"
+    process = subprocess.Popen(
+        [sys.executable, "-m", "hopper.app.sim_cli", "run", "--hops", "30", "--rrd", str(rrd)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        deadline = time.monotonic() + 60
+        while size(rrd) == 0 and time.monotonic() < deadline:  # the recording has begun
+            time.sleep(0.02)
+        process.send_signal(signum)
+        out, err = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 130, (process.returncode, out, err)
+    assert err.strip().splitlines()[-1] == "hopper-sim: interrupted" and "Traceback" not in err
+    verify = subprocess.run([sys.executable, "-m", "rerun_cli", "rrd", "verify", str(rrd)], capture_output=True)
+    assert verify.returncode == 0, verify.stderr
+
+
+def test_ctrl_c_during_compare_exits_130_without_worker_tracebacks() -> None:
+    process = subprocess.Popen(
+        [sys.executable, "-m", "hopper.app.sim_cli", "compare", "--seeds", "30", "--hops", "7", "--workers", "2"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,  # its own process group, as a terminal's Ctrl-C reaches every process of it
+    )
+    try:
+        progress = ""
+        while "/60 [" not in progress and process.poll() is None:  # the workers are running their first runs
+            progress += process.stderr.read(1)
+        time.sleep(2.0)
+        os.killpg(process.pid, signal.SIGINT)
+        out, err = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 130, err
+    assert "Traceback" not in err and "SpawnPoolWorker" not in err, err
+    assert err.strip().splitlines()[-1] == "hopper-sim: interrupted"

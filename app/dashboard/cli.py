@@ -2,78 +2,128 @@
 
 from __future__ import annotations
 
+import argparse
 import contextlib
-import io
 import logging
-import re
-import signal
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, NoReturn
 
-import tyro
-from hopper.app.dashboard.config import DashboardConfig
+from hopper.app.dashboard.config import DashboardConfig, check_sessions_dir
+from hopper.app.signals import raise_if_stop_requested, stop_like_ctrl_c
+
+from hopper.config import GAIN_RANGES
+
+if TYPE_CHECKING:
+    from hopper.app.dashboard.server import Dashboard
 
 PROG = "hopper-dashboard"
-_BOX = re.compile(r"[│╭╮╰╯─]+")
+DEFAULTS = DashboardConfig()
+EXIT_STATUSES = (
+    "exit status: 0 stopped by Ctrl-C or SIGTERM (any recording closed, the port freed), 2 bad arguments, "
+    "a port in use or an --rrd or --sessions-dir that cannot be written."
+)
 
 
-def _one_line(tyro_output: str) -> str:
-    """tyro's boxed error as one line: the box's text up to its first rule."""
-    lines = []
-    for raw in tyro_output.splitlines()[1:]:  # the first line is the box title
-        if "───" in raw or raw.startswith("╰"):
-            break
-        text = _BOX.sub(" ", raw).strip()
-        if text:
-            lines.append(text)
-    message = " ".join(lines) or "invalid arguments (see --help)"
-    return re.sub(r"^Error parsing DashboardConfig: ", "", message)
+class Parser(argparse.ArgumentParser):
+    """argparse with errors on one line (no usage dump): `hopper-dashboard: error: ...`."""
+
+    def error(self, message: str) -> NoReturn:
+        fail(message)
+
+
+class Help(argparse.ArgumentDefaultsHelpFormatter):
+    """Defaults shown after each help text, except where there is none (e.g. no --rrd)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        return action.help if action.default is None else super()._get_help_string(action)
+
+
+def choice(*options: str) -> Callable[[str], str]:
+    """An argparse type accepting only `options` (argparse's own `choices` wording differs by version)."""
+
+    def check(text: str) -> str:
+        if text not in options:
+            raise argparse.ArgumentTypeError(f"invalid choice {text!r} (choose from {', '.join(options)})")
+        return text
+
+    return check
+
+
+def parser() -> Parser:
+    """The flags of DashboardConfig, one each, with units and defaults in the help."""
+    p = Parser(prog=PROG, description=DashboardConfig.__doc__, epilog=EXIT_STATUSES, formatter_class=Help)
+    p.add_argument("--host", default=DEFAULTS.host, help="address to serve on (loopback by default)")
+    p.add_argument("--port", type=int, default=DEFAULTS.port, help="TCP port to serve on; refused if in use")
+    p.add_argument("--seed", type=int, default=DEFAULTS.seed, help="terrain seed, a non-negative integer")
+    p.add_argument(
+        "--terrain", type=choice("crater", "flat"), default=DEFAULTS.terrain, metavar="{crater,flat}", help="terrain"
+    )
+    for name, what in (("kp", "proportional"), ("ki", "integral"), ("kd", "derivative")):
+        low, high, unit = GAIN_RANGES[name]
+        p.add_argument(
+            f"--{name}",
+            type=float,
+            default=getattr(DEFAULTS, name),
+            help=f"wheel PID {what} gain in [{low:g}, {high:g}] {unit}",
+        )
+    p.add_argument("--speed", type=float, default=DEFAULTS.speed, help="simulation speed, x real time")
+    p.add_argument(
+        "--rrd", type=Path, default=DEFAULTS.rrd, metavar="PATH", help="record the whole session to this .rrd file"
+    )
+    p.add_argument(
+        "--rerun-viewer",
+        type=choice("spawn", "serve", "off"),
+        default=DEFAULTS.rerun_viewer,
+        metavar="{spawn,serve,off}",
+        help="stream the recording to a rerun viewer: spawn one, serve one on loopback, or neither",
+    )
+    p.add_argument(
+        "--sessions-dir",
+        type=Path,
+        default=DEFAULTS.sessions_dir,
+        metavar="DIR",
+        help="folder for recordings started with the Record button",
+    )
+    return p
 
 
 def parse(args: Sequence[str] | None = None) -> DashboardConfig:
     """Parse and validate; raises SystemExit(2) after printing one line for bad arguments."""
-    captured = io.StringIO()
+    namespace = parser().parse_args(args)
     try:
-        with contextlib.redirect_stderr(captured):
-            return tyro.cli(DashboardConfig, prog=PROG, args=args)
-    except SystemExit as exc:
-        if exc.code not in (0, None):
-            fail(_one_line(captured.getvalue()))
-        sys.stderr.write(captured.getvalue())
-        raise
+        return DashboardConfig(**vars(namespace))
     except ValueError as exc:  # DashboardConfig's own validation (InvalidConfig is a ValueError)
         fail(str(exc))
 
 
-def fail(message: str, code: int = 2) -> None:
+def fail(message: str, code: int = 2) -> NoReturn:
     print(f"{PROG}: error: {message}", file=sys.stderr)
     raise SystemExit(code)
 
 
-def main(args: Sequence[str] | None = None) -> None:
-    config = parse(args)
-    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    logging.getLogger("websockets").setLevel(logging.WARNING)  # one line per connection is noise
-    # Import after parsing: --help and argument errors stay fast (no MuJoCo, no viser).
+def open_dashboard(config: DashboardConfig) -> Dashboard:
+    """The dashboard, built but not started; one line and exit 2 for what the arguments cannot give."""
+    # Import here: --help and argument errors stay fast (no MuJoCo, no viser).
     from hopper.app.dashboard.recording import telemetry_module
     from hopper.app.dashboard.server import Dashboard, PortInUse
 
     try:
         if config.rrd is not None:
             telemetry_module().check_writable(config.rrd)
-        dashboard = Dashboard(config, verbose=False)
+        check_sessions_dir(config.sessions_dir)
+        return Dashboard(config, verbose=False)
     except (PortInUse, ValueError) as exc:
         fail(str(exc))
     except RuntimeError as exc:  # e.g. the rerun viewer asked for cannot start
         fail(f"{type(exc).__name__}: {exc}")
 
-    def on_signal(signum: int, _frame: object) -> None:
-        dashboard.stop()
 
-    # Both stop the same way, even where SIGINT arrives ignored (e.g. a background job of a script).
-    signal.signal(signal.SIGTERM, on_signal)
-    signal.signal(signal.SIGINT, on_signal)
+def serve(dashboard: Dashboard) -> None:
+    """Run until Ctrl-C or SIGTERM (both raise KeyboardInterrupt), then stop: recording closed, port freed."""
     try:
+        raise_if_stop_requested()  # a signal during start-up may have been swallowed (app/signals.py)
         dashboard.start()
         print(f"{PROG}: serving {dashboard.url}  (Ctrl-C to stop)", flush=True)
         if dashboard.recorder.path is not None:
@@ -81,11 +131,19 @@ def main(args: Sequence[str] | None = None) -> None:
         if dashboard.recorder.viewer_url:
             print(f"{PROG}: rerun viewer at {dashboard.recorder.viewer_url}", flush=True)
         dashboard.wait()
-    except KeyboardInterrupt:
-        pass
     finally:
         dashboard.stop()
-        print(f"{PROG}: stopped", flush=True)
+
+
+def main(args: Sequence[str] | None = None) -> None:
+    """Exit 0 when stopped by Ctrl-C or SIGTERM, the usual way to stop a server; 2 for bad arguments."""
+    stop_like_ctrl_c()
+    config = parse(args)
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    logging.getLogger("websockets").setLevel(logging.WARNING)  # one line per connection is noise
+    with contextlib.suppress(KeyboardInterrupt):  # a signal during start-up unwinds Dashboard's own clean-up
+        serve(open_dashboard(config))
+    print(f"{PROG}: stopped", flush=True)
 
 
 if __name__ == "__main__":

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import dataclasses
 import ipaddress
+import os
+import tempfile
 from pathlib import Path
 from typing import Literal
 
@@ -64,3 +66,19 @@ class DashboardConfig:
     def sim_config(self) -> SimConfig:
         """The simulation this dashboard starts with."""
         return SimConfig(seed=self.seed, terrain=self.terrain, gains=self.gains)
+
+
+def check_sessions_dir(folder: Path) -> Path:
+    """`folder`, created if missing and proven writable by a probe file; ValueError in one line if not.
+
+    Checked at start-up so that a bad folder fails there, not at the first press of Record. The
+    probe is really written: permission bits say little for root, /proc or read-only mounts.
+    """
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        handle, probe = tempfile.mkstemp(prefix=".hopper-probe-", dir=folder)
+        os.close(handle)
+        os.unlink(probe)
+    except OSError as exc:
+        raise InvalidConfig(f"cannot use sessions folder {str(folder)!r}: {exc.strerror or exc}") from None
+    return folder

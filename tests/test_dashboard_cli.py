@@ -1,0 +1,161 @@
+"""`hopper-dashboard` as a user runs it: real processes, one-line errors, clean stops."""
+
+from __future__ import annotations
+
+import dataclasses
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from hopper.app.dashboard.cli import parse
+from hopper.app.dashboard.config import DashboardConfig, check_sessions_dir
+from net import free_port, wait_until
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def port_is_free(port: int) -> bool:
+    with socket.socket() as s:  # a plain bind, no SO_REUSEADDR: what any other program would do
+        try:
+            s.bind(("127.0.0.1", port))
+        except OSError:
+            return False
+    return True
+
+
+def size(path: Path) -> int:
+    """Bytes in `path`, 0 while it is missing (the start-up check creates and removes it)."""
+    try:
+        return path.stat().st_size
+    except FileNotFoundError:
+        return 0
+
+
+def verify_recording(path: Path) -> None:
+    """`rerun rrd verify` accepts the file: it was closed, footer and all."""
+    result = subprocess.run([sys.executable, "-m", "rerun_cli", "rrd", "verify", str(path)], capture_output=True)
+    assert result.returncode == 0, result.stderr
+
+
+def cli(*args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "hopper.app.dashboard.cli", *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        cwd=REPO,
+    )
+
+
+def dashboard_process(*args: str) -> subprocess.Popen[str]:
+    """hopper-dashboard running in the background, its output piped."""
+    return subprocess.Popen(
+        [sys.executable, "-m", "hopper.app.dashboard.cli", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=REPO,
+    )
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--kp", "-1"], "kp must be a finite number in [0, 2000] N m/rad"),
+        (["--kd", "nan"], "kd must be a finite number"),
+        (["--terrain", "moon"], "invalid choice 'moon'"),
+        (["--port", "abc"], "--port"),
+        (["--port", "70000"], "port must be an integer in [1, 65535]"),
+        (["--speed", "9"], "speed must be in [0.1, 4]"),
+        (["--seed", "-3"], "seed must be a non-negative integer"),
+        (["--host", "not a host"], "host must be an IP address"),
+        (["--rrd", "/nonexistent/dir/run.rrd"], "does not exist"),
+        (["--rrd", "run.txt"], "must name a .rrd file"),
+        (["--rerun-viewer", "sometimes"], "invalid choice"),
+        (["--bogus"], "unrecognized arguments: --bogus"),
+        (["--sessions-dir", "/proc/foo"], "cannot use sessions folder '/proc/foo'"),
+        (["--sessions-dir", "README.md/sessions"], "cannot use sessions folder 'README.md/sessions'"),
+    ],
+)
+def test_bad_arguments_give_one_line_and_exit_2(args: list[str], message: str) -> None:
+    result = cli(*args)
+    assert result.returncode == 2, result
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert lines[0].startswith("hopper-dashboard: error: ") and message in lines[0], lines[0]
+    assert "Traceback" not in result.stderr + result.stdout
+
+
+def test_help_shows_every_setting_with_its_unit_and_default() -> None:
+    result = cli("--help")
+    assert result.returncode == 0, result.stderr
+    for field in dataclasses.fields(DashboardConfig):
+        assert f"--{field.name.replace('_', '-')}" in result.stdout, field.name
+    text = " ".join(result.stdout.split())  # as wrapped for any terminal width
+    assert "N m/rad (default: 450.0)" in text and "x real time (default: 1.0)" in text
+    assert "exit status: 0 stopped by Ctrl-C or SIGTERM" in text
+
+
+def test_no_flags_give_the_default_config_and_flags_reach_their_fields() -> None:
+    assert parse([]) == DashboardConfig()
+    config = parse(["--kp", "500", "--rerun-viewer", "serve", "--sessions-dir", "runs", "--rrd", "a.rrd"])
+    assert config.kp == 500.0 and config.rerun_viewer == "serve"
+    assert config.sessions_dir == Path("runs") and config.rrd == Path("a.rrd")
+
+
+def test_a_sessions_folder_is_created_and_probed_and_left_empty(tmp_path: Path) -> None:
+    folder = tmp_path / "a" / "b"
+    assert check_sessions_dir(folder) == folder
+    assert folder.is_dir() and not any(folder.iterdir())
+    assert check_sessions_dir(folder) == folder  # an existing, writable folder is fine too
+
+
+def test_a_port_in_use_gives_one_line_and_exit_2(tmp_path: Path) -> None:
+    with socket.socket() as blocker:
+        blocker.bind(("127.0.0.1", 0))
+        blocker.listen()
+        result = cli("--port", str(blocker.getsockname()[1]), "--sessions-dir", str(tmp_path))
+    assert result.returncode == 2
+    assert result.stderr.strip().splitlines() == [result.stderr.strip()]
+    assert "cannot serve on 127.0.0.1" in result.stderr and "Traceback" not in result.stderr
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_a_signal_stops_cleanly_finalizes_the_recording_and_frees_the_port(tmp_path: Path, signum: int) -> None:
+    pytest.importorskip("hopper.telemetry")
+    port, rrd = free_port(), tmp_path / "run.rrd"
+    process = dashboard_process("--port", str(port), "--rrd", str(rrd), "--sessions-dir", str(tmp_path))
+    try:
+        assert wait_until(lambda: not port_is_free(port), timeout=60), "the dashboard never started"
+        time.sleep(1.5)  # some simulation into the recording
+        process.send_signal(signum)
+        out, err = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 0, err
+    assert "serving http://127.0.0.1:" in out and "stopped" in out
+    assert "Traceback" not in err
+    assert rrd.stat().st_size > 10_000
+    verify_recording(rrd)
+    assert port_is_free(port)
+
+
+def test_sigterm_while_starting_up_stops_cleanly_and_finalizes_the_recording(tmp_path: Path) -> None:
+    pytest.importorskip("hopper.telemetry")
+    rrd, port = tmp_path / "run.rrd", free_port()
+    process = dashboard_process("--port", str(port), "--rrd", str(rrd), "--sessions-dir", str(tmp_path))
+    try:  # the recording has begun (its file has content) but the server is still being built
+        assert wait_until(lambda: size(rrd) > 0, timeout=60), "no recording started"
+        process.send_signal(signal.SIGTERM)
+        out, err = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 0, (process.returncode, err)
+    assert "Traceback" not in err and "stopped" in out
+    verify_recording(rrd)
