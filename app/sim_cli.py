@@ -41,8 +41,9 @@ HOP_COLUMNS = {
 
 EXIT_OK, EXIT_FELL, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 EXIT_STATUSES = (
-    "exit status: 0 success, 1 the robot fell (run only), 2 bad arguments, 130 interrupted (Ctrl-C or SIGTERM). "
-    "compare exits 0 once it has finished: with the wheel off the robot is expected to fall."
+    "exit status: 0 success, 1 the robot fell (run) or a case failed (stress), 2 bad arguments, "
+    "130 interrupted (Ctrl-C or SIGTERM). compare exits 0 once it has finished: with the wheel off the "
+    "robot is expected to fall."
 )
 
 
@@ -154,6 +155,18 @@ def parser() -> Parser:
     common(compare)
     compare.add_argument("--seeds", type=int, default=10, help="number of seeds (default 10)")
     compare.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
+
+    stress = commands.add_parser(
+        "stress",
+        help="the controller's stress battery (terrains, gravities, pushes, kicks): a pass/fail table",
+        epilog=EXIT_STATUSES,
+    )
+    stress.add_argument("--seeds", type=int, default=100, help="Moon terrain seeds, 20 hops each (default 100)")
+    stress.add_argument("--gravity-seeds", type=int, default=5, help="seeds per gravity, 10 hops each (default 5)")
+    stress.add_argument("--groups", type=groups, default=STRESS_GROUPS, help="any of terrain,gravity,ground,flight")
+    stress.add_argument("--quick", action="store_true", help="a few cases of each group (what the tests run)")
+    stress.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
+    stress.add_argument("--json", type=writable_file, metavar="PATH", help="write every case's outcome as JSON")
 
     export = commands.add_parser(
         "terrain", help="export a crater field as a grayscale PNG (as the paper does)", epilog=EXIT_STATUSES
@@ -370,11 +383,46 @@ def command_terrain(args: argparse.Namespace) -> int:
     return 0
 
 
+STRESS_GROUPS = ("terrain", "gravity", "ground", "flight")
+
+
+def groups(text: str) -> tuple[str, ...]:
+    """A comma-separated subset of the stress battery's groups."""
+    chosen = tuple(g.strip() for g in text.split(",") if g.strip())
+    unknown = [g for g in chosen if g not in STRESS_GROUPS]
+    if unknown or not chosen:
+        raise argparse.ArgumentTypeError(f"{text!r}: choose from {','.join(STRESS_GROUPS)}")
+    return chosen
+
+
+def command_stress(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from hopper.stress import battery, run_case, table
+
+    cases = battery(seeds=args.seeds, gravity_seeds=args.gravity_seeds, quick=args.quick)
+    cases = [c for c in cases if c.group in args.groups]
+    workers = max(1, min(args.workers, len(cases)))
+    with multiprocessing.get_context("spawn").Pool(workers, initializer=_worker_ignores_interrupts) as pool:
+        runs = pool.imap(run_case, cases, chunksize=1)
+        outcomes = list(tqdm(runs, total=len(cases), desc="cases", unit="case", file=sys.stderr))
+    print("\n".join(table(outcomes)))
+    if args.json:
+        rows = [
+            {"group": o.case.group, "case": o.case.name, "passed": o.passed, "hops": o.hops, "fell": o.fell,
+             "cause": o.cause, "worst_landing_deg": o.worst_landing_deg, "worst_peak_deg": o.worst_peak_deg,
+             "peak_wheel_rpm": o.peak_wheel_rpm, "settings": settings(o.case.config, o.case.hops)}
+            for o in outcomes
+        ]  # fmt: skip
+        args.json.write_text(json.dumps({"version": version(), "cases": rows}, indent=2))
+    return EXIT_OK if all(o.passed for o in outcomes) else EXIT_FELL
+
+
 def check_counts(args: argparse.Namespace) -> None:
     """Refuse counts below one before any work (argparse's int accepts 0 and negatives)."""
-    for name in ("hops", "seeds", "workers"):
+    for name in ("hops", "seeds", "workers", "gravity_seeds"):
         if getattr(args, name, 1) < 1:
-            fail(f"--{name} must be at least 1, got {getattr(args, name)}")
+            fail(f"--{name.replace('_', '-')} must be at least 1, got {getattr(args, name)}")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -385,6 +433,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "terrain":
             return command_terrain(args)
         check_counts(args)
+        if args.command == "stress":
+            return command_stress(args)
         try:
             make_config(args, 0, True)  # validate gains and gravity before any work
             return command_run(args) if args.command == "run" else command_compare(args)

@@ -56,6 +56,12 @@ WHEEL_READY = 0.1  # of the momentum capacity: the wheel must be below this befo
 # flight starts with the wheel's whole capacity free (Salto's finding, PHYSICS.md): 0.1 s on
 # the Moon, well inside the ~0.6 s push.
 MOMENTUM_GAIN = 10.0  # 1/s on the Moon
+# A push that carries the capture point off the feet is caught by a small hop that lands around
+# it: low (leg clearance, not speed, sets it), quick, through the CoM.
+RECOVERY_APEX = 0.08  # m
+# On the ground the wheel holds the torso's attitude: an internal torque whose loop does not
+# depend on g, stiff enough to catch a 1.5 N m s kick within a few degrees.
+HOLD_WN, HOLD_ZETA = 20.0, 1.0  # rad/s
 # Feet land so that the capture point falls inside the front half of the support: the stance
 # can then stop the CoM over the feet with the ground force alone, without a moment.
 CAPTURE_MARGIN = 0.5  # of the half spread, behind the front foot
@@ -89,6 +95,7 @@ class Gait:
     """The hop cycle at one gravity; field names are those of the kernel's memory record."""
 
     vz_liftoff: float  # m/s, push-off vertical speed
+    recovery_vz: float  # m/s, push-off speed of a recovery hop (to catch the capture point)
     apex: float  # m, the hop's apex above the liftoff height
     push_accel: float  # m/s^2, cap on the vertical push acceleration
     push_x_gain: float  # 1/s
@@ -115,6 +122,8 @@ class Gait:
     wheel_wait: float  # s, longest extra stance to spin a full wheel down at desat_torque
     swing_scale: float  # >= 1, leg swing stiffness multiplier for short flights
     momentum_gain: float  # 1/s, rate at which the push drives the pitch momentum to zero
+    hold_kp: float  # N m/rad, the wheel holding the torso on the ground
+    hold_kd: float  # N m s/rad
     forward_speed: float  # m/s at liftoff
     capture_time: float  # s, 1 / w0: the capture point is vx * capture_time ahead of the CoM
     capture_margin: float  # m, how far inside the front foot the capture point may land
@@ -144,6 +153,7 @@ def derive(gravity: float, gait: GaitParams) -> Gait:
     ground_moment = weight * gait.foot_spread / 2  # N m, all the weight on one foot
     return Gait(
         vz_liftoff=math.sqrt(2.0 * g * apex),
+        recovery_vz=math.sqrt(2.0 * g * min(RECOVERY_APEX, apex)),
         apex=apex,
         push_accel=min(PUSH_ACCEL_G * g, LEG_MARGIN * strength),
         push_x_gain=PUSH_X_GAIN * r,
@@ -170,6 +180,8 @@ def derive(gravity: float, gait: GaitParams) -> Gait:
         wheel_wait=momentum_capacity() / (DESAT_MOMENT * ground_moment),
         swing_scale=max(1.0, r),
         momentum_gain=MOMENTUM_GAIN * r,
+        hold_kp=i * HOLD_WN**2,
+        hold_kd=2 * HOLD_ZETA * HOLD_WN * i,
         forward_speed=gait.forward_speed * r,
         capture_time=1.0 / (r * math.sqrt(MOON_GRAVITY / z)),
         capture_margin=CAPTURE_MARGIN * gait.foot_spread / 2,

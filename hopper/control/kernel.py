@@ -14,7 +14,7 @@ from numba import njit
 
 from hopper.config import HIP_OFFSET_Z
 from hopper.control.contact import debounce
-from hopper.control.legs import leg_state, swing_torques
+from hopper.control.legs import Leg, leg_state, swing_torques
 from hopper.control.phases import FALL_HIP_HEIGHT, FALL_PITCH, FallCause, Phase
 from hopper.control.stance import Body, stance
 from hopper.control.wheel import SATURATION_TORQUE, wheel_ctrl, wheel_pid, wheel_torque_bound
@@ -23,6 +23,7 @@ LANDING, STANCE, CROUCH, PUSH, FLIGHT, FALLEN = (int(p) for p in Phase)
 PITCH_LIMIT, HIP_HEIGHT = int(FallCause.PITCH_LIMIT), int(FallCause.HIP_HEIGHT)
 LIFTOFF_CONFIRM_S = 0.01  # s both feet off after a push before the flight counts
 BOUNCE_CONFIRM_S = 0.08  # s both feet off in any other ground phase before it is a flight
+CAPTURE_SLACK = 0.03  # m beyond the outer foot that the capture point may be before a recovery hop
 ASCENT_FRACTION = 0.3  # of the liftoff speed: a contact while rising faster than this is a graze
 LIMP_DAMPING = 0.5  # N m s/rad on each leg joint between the end of the push and the liftoff
 # Event bits returned by the kernel.
@@ -32,6 +33,23 @@ EV_LIFTOFF, EV_TOUCHDOWN, EV_FALL, EV_APEX = 1, 2, 4, 8
 @njit(cache=True)
 def enter(m, phase: int, time: float) -> None:  # noqa: ANN001 (a MEMORY record)
     m.phase, m.phase_start, m.push_done = phase, time, False
+    if phase != PUSH and phase != FLIGHT:
+        m.recovering = False
+
+
+@njit(cache=True)
+def captured(m, vx: float, hip_x: float, left: Leg, right: Leg) -> bool:  # noqa: ANN001
+    """Whether the capture point (vx / w0 ahead of the CoM) lies over the feet on the ground.
+
+    `hip_x` is the hip ahead of the CoM (m); the feet are measured from the hip.
+    """
+    front, back = -1e9, 1e9
+    if left.on:
+        front, back = max(front, hip_x + left.px), min(back, hip_x + left.px)
+    if right.on:
+        front, back = max(front, hip_x + right.px), min(back, hip_x + right.px)
+    capture = vx * m.capture_time
+    return back - CAPTURE_SLACK <= capture <= front + CAPTURE_SLACK
 
 
 @njit(cache=True)
@@ -94,6 +112,16 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
                 enter(m, FLIGHT, time)
                 m.integral = 0.0  # integral reset at liftoff
                 events |= EV_LIFTOFF
+        elif (
+            phase in (STANCE, CROUCH)
+            and on_l
+            and on_r
+            and not captured(m, vx, HIP_OFFSET_Z * math.sin(pitch) - com_dx, left, right)
+        ):
+            # A push carried the capture point off the feet: hop to catch it (Raibert's recovery;
+            # in low gravity a step is a hop anyway). The landing places the feet around it.
+            enter(m, PUSH, time)
+            m.recovering = True
         elif phase == LANDING:
             if elapsed > m.landing_min and abs(vz) < 1.25 * m.settled_speed:
                 enter(m, STANCE, time)
@@ -113,7 +141,9 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
                 enter(m, PUSH, time)
             elif elapsed > m.crouch_max:
                 enter(m, STANCE, time)
-        elif phase == PUSH and (elapsed > m.push_max or (on_l != on_r and not m.push_done and vz < 0.5 * m.vz_liftoff)):
+        elif phase == PUSH and (
+            elapsed > m.push_max or (on_l != on_r and not m.push_done and not m.recovering and vz < 0.5 * m.vz_liftoff)
+        ):
             # The feet never left, or one lost the ground early in the push (a rim crumbling
             # under it): stand and try again rather than leave spinning off one foot.
             enter(m, STANCE, time)
@@ -140,7 +170,7 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
         # them against the ground now would push the body into a spin; the wheel holds the torso.
         hl, kl = -LIMP_DAMPING * left.hip_rate, -LIMP_DAMPING * left.knee_rate
         hr, kr = -LIMP_DAMPING * right.hip_rate, -LIMP_DAMPING * right.knee_rate
-        wheel = wheel_torque_bound(wheel_speed, m.kp_stance * pitch + m.kd_stance * rate)
+        wheel = wheel_torque_bound(wheel_speed, m.hold_kp * pitch + m.hold_kd * rate)
     else:
         body = Body(pitch, rate, vx, vz, wheel_speed, height, offset_x, sensors[m.s_angmom], com_dx, com_dz)
         wheel, hl, kl, hr, kr = stance(m, phase, body, left, right)

@@ -7,8 +7,11 @@ costs the compiled kernel ~0.3 us of dispatch), and every reader names what it r
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
+from hopper.control.gait import Gait
 from hopper.layout import ModelLayout
 
 _PARAMS = [
@@ -17,7 +20,6 @@ _PARAMS = [
     ("kd", "f8"),  # N m s/rad
     ("gravity", "f8"),  # m/s^2, magnitude
     ("wheel_on", "?"),  # False: zero wheel torque, wheel free to spin
-    ("vz_liftoff", "f8"),  # m/s, push-off vertical speed
     ("stand", "f8"),  # m, hip height above the feet in stance
     ("crouch", "f8"),  # m, before the push
     ("push", "f8"),  # m, leg length where the push stops
@@ -28,41 +30,8 @@ _PARAMS = [
     ("friction", "f8"),  # friction coefficient the stance forces assume
     ("x0", "f8"),  # m, torso x in the XML (root_x measures from it)
     ("z0", "f8"),  # m, torso z in the XML (root_z measures from it)
-    # The gait at this gravity (hopper.control.gait.Gait: units there).
-    *(
-        (name, "f8")
-        for name in (
-            "apex",
-            "push_accel",
-            "push_x_gain",
-            "push_x_accel",
-            "kz",
-            "dz",
-            "kx",
-            "dx",
-            "kp_stance",
-            "kd_stance",
-            "landing_damping",
-            "contact_on",
-            "contact_off",
-            "settled_speed",
-            "stance_min",
-            "landing_min",
-            "stance_max",
-            "crouch_min",
-            "crouch_max",
-            "push_max",
-            "desat_time",
-            "desat_torque",
-            "wheel_ready",
-            "wheel_wait",
-            "swing_scale",
-            "momentum_gain",
-            "forward_speed",
-            "capture_time",
-            "capture_margin",
-        )
-    ),  # fmt: skip
+    # The gait at this gravity: every field of hopper.control.gait.Gait (units there).
+    *((field.name, "f8") for field in dataclasses.fields(Gait)),
     ("dt", "f8"),  # s, control period = timestep
 ]
 _LAYOUT = [  # hopper.layout.ModelLayout, flattened
@@ -76,6 +45,7 @@ _STATE = [
     ("phase", "i8"),  # hopper.control.phases.Phase
     ("phase_start", "f8"),  # s
     ("push_done", "?"),  # the push reached its speed or length; the legs now swing
+    ("recovering", "?"),  # this push is a recovery hop (the capture point left the feet)
     ("integral", "f8"),  # rad s, flight PID integral
     ("saturated", "?"),  # the wheel command was clamped this tick
     ("contact_l", "?"),  # debounced foot contact

@@ -66,10 +66,11 @@ def stance(m, phase: int, body: Body, left: Leg, right: Leg) -> tuple[float, flo
             reach = math.hypot(left.px, left.pz)
         if right.on:
             reach = max(reach, math.hypot(right.px, right.pz))
-        vz_lo = m.vz_liftoff
+        vz_lo = m.recovery_vz if m.recovering else m.vz_liftoff
         remaining = max(m.push - reach, 0.02)
         az = min(max((vz_lo * vz_lo - vz * abs(vz)) / (2 * remaining), 0.0), m.push_accel)
-        ax = clamp(m.push_x_gain * (m.forward_speed - vx), m.push_x_accel)
+        # A recovery hop keeps the speed it has: the landing, not the push, takes it out.
+        ax = 0.0 if m.recovering else clamp(m.push_x_gain * (m.forward_speed - vx), m.push_x_accel)
         if vz >= vz_lo or reach >= m.push:
             m.push_done = True
     elif phase == CROUCH:
@@ -92,13 +93,13 @@ def stance(m, phase: int, body: Body, left: Leg, right: Leg) -> tuple[float, flo
     # capacity free. What the wheel cannot give (its envelope) falls back on the feet. Without
     # the wheel, the feet hold the torso's attitude themselves.
     wheel_on = m.wheel_on
-    torso = m.kp_stance * pitch + m.kd_stance * rate  # torque the torso needs, as a wheel command
     if wheel_on:
+        torso = m.hold_kp * pitch + m.hold_kd * rate  # torque the torso needs, as a wheel command
         wheel = wheel_torque_bound(wheel_speed, torso)
         feet = -m.momentum_gain * body.momentum - (torso - wheel)
     else:
         wheel = 0.0
-        feet = -torso
+        feet = -(m.kp_stance * pitch + m.kd_stance * rate)
 
     mu = m.friction
     # Balancing (not pushing), the CoM comes first: the feet may make up to `stray` N m more or

@@ -1,0 +1,84 @@
+"""The stress battery: its scheduling, a fast subset of its cases, and `hopper-sim stress`.
+
+The full battery is `hopper-sim stress` (minutes on two cores); these cases are the part of the
+envelope the controller holds today and must keep holding.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+from hopper.config import GRAVITY_PRESETS, SimConfig
+from hopper.control import Phase
+from hopper.control.gait import momentum_capacity
+from hopper.stress import Case, Schedule, battery, run_case
+
+FLAT = SimConfig(terrain="flat")
+
+
+def test_the_battery_holds_the_issues_cases() -> None:
+    cases = battery()
+    groups = {g: [c for c in cases if c.group == g] for g in ("terrain", "gravity", "ground", "flight")}
+    assert len(groups["terrain"]) == 100 and all(c.hops == 20 for c in groups["terrain"])
+    gravities = {c.config.gravity for c in groups["gravity"]}
+    assert len(gravities) >= 8 and min(gravities) <= 0.2 and max(gravities) >= 9.81
+    assert set(GRAVITY_PRESETS.values()) <= gravities
+    sizes = {(c.disturbance.kind, c.disturbance.magnitude) for c in groups["ground"]}
+    assert {("push_forward", 6.0), ("push_backward", 6.0), ("pitch_kick", 1.5), ("pitch_kick", -1.5)} <= sizes
+    kicks = sorted({c.disturbance.magnitude for c in groups["flight"]})
+    assert kicks == pytest.approx([-0.7 * momentum_capacity(), 0.7 * momentum_capacity()])
+
+
+def test_a_schedule_waits_for_its_phase_and_hop() -> None:
+    late = Case("ground", "kick in hop 3", FLAT, 2, Schedule("pitch_kick", 0.3, Phase.STANCE, 0.1, hop=3))
+    assert not run_case(late).applied and not run_case(late).passed  # the run ends before hop 3
+    due = Case("ground", "kick in hop 2", FLAT, 3, Schedule("pitch_kick", 0.3, Phase.STANCE, 0.1, hop=2))
+    outcome = run_case(due)
+    assert outcome.applied and outcome.passed, outcome
+
+
+@pytest.mark.parametrize(
+    "kind, size, phase",
+    [
+        ("push_forward", 6.0, Phase.STANCE),  # the capture point leaves the feet: a recovery hop
+        ("push_backward", 6.0, Phase.STANCE),
+        ("push_backward", 6.0, Phase.CROUCH),
+        ("pitch_kick", 1.5, Phase.STANCE),  # the wheel holds the torso, the feet bleed the momentum
+        ("pitch_kick", -1.5, Phase.CROUCH),
+    ],
+)
+def test_ground_disturbances_of_the_issues_size_are_survived(kind: str, size: float, phase: Phase) -> None:
+    outcome = run_case(Case("ground", kind, FLAT, 4, Schedule(kind, size, phase, 0.1)))
+    assert outcome.applied and outcome.passed, outcome
+
+
+def test_a_flight_kick_of_seven_tenths_of_the_wheels_capacity_lands_upright() -> None:
+    kick = 0.7 * momentum_capacity()
+    for sign in (1.0, -1.0):
+        outcome = run_case(Case("flight", "kick", FLAT, 3, Schedule("pitch_kick", sign * kick, Phase.FLIGHT, 0.2)))
+        assert outcome.applied and outcome.passed, outcome
+        assert outcome.worst_landing_deg <= 3.5
+
+
+@pytest.mark.parametrize("gravity", [0.2, GRAVITY_PRESETS["ceres"], 0.62, GRAVITY_PRESETS["mars"]])
+def test_the_gait_derived_from_gravity_hops_on_craters(gravity: float) -> None:
+    outcome = run_case(Case("gravity", f"g {gravity}", SimConfig(seed=0, gravity=gravity), 6))
+    assert outcome.passed, outcome
+
+
+def test_hopper_sim_stress_prints_the_table_and_exits_by_it() -> None:
+    result = subprocess.run(
+        [sys.executable, "-m", "hopper.app.sim_cli", "stress", "--quick", "--groups", "ground", "--workers", "2"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    lines = result.stdout.splitlines()
+    assert lines[0].split()[:2] == ["group", "passed"] and lines[1].startswith("ground")
+    passed, run = (int(n) for n in lines[1].split()[1:4:2])
+    assert run == 16 and passed == run - sum(line.startswith("FAIL ground") for line in lines)
+    assert result.returncode == (0 if passed == run else 1), result.stderr
+    assert "Traceback" not in result.stderr
