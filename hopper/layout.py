@@ -34,6 +34,7 @@ class ModelLayout:
     s_foot_l: int  # touch sensor, normal force (N)
     s_foot_r: int
     s_wheel_torque: int  # actuatorfrc of the wheel motor (motor side, before the gear)
+    s_accel: int  # imu_accel's x axis (z is s_accel + 2): specific force in the torso frame (m/s^2)
     a_wheel: int
     a_legs: tuple[int, int, int, int]
     torso: int  # body id
@@ -71,6 +72,7 @@ class ModelLayout:
             s_foot_l=s("foot_L"),
             s_foot_r=s("foot_R"),
             s_wheel_torque=s("wheel_torque"),
+            s_accel=s("imu_accel"),
             a_wheel=int(model.actuator("wheel").id),
             a_legs=tuple(int(model.actuator(j).id) for j in LEG_JOINTS),  # type: ignore[arg-type]
             torso=int(model.body("torso").id),
