@@ -134,7 +134,10 @@ class SensingParams:
     # Attitude estimator (hopper.control.sensing): the gyro integral corrected by the horizontal
     # specific force in the estimated world frame, a PI loop with this natural frequency and
     # damping. Slow on purpose: on the Moon a 0.1 m/s^2 body acceleration looks like a 3.5 deg tilt,
-    # and only its long-run average (zero: velocity stays bounded) tells the vertical.
+    # and only its long-run average (zero: velocity stays bounded) tells the vertical. A change of
+    # speed dv shifts the estimate by 2 zeta wn dv / g: 0.56 deg between stance and flight at 0.4 m/s
+    # on the Moon. Measured over 30 hops (100 s): worst error 1.3 deg at 0.02 rad/s, 1.5 at 0.01,
+    # and 1.9 deg with no correction at all (the calibration's residual bias drifting).
     tilt_wn: float = 0.02  # rad/s
     tilt_zeta: float = 1.0
     # Wheel command latency: one bus cycle at 1 kHz to get the command to the driver (CAN/EtherCAT

@@ -147,7 +147,7 @@ def test_estimator_learns_the_bias_at_rest_and_integrates_the_gyro_in_flight() -
 
 def test_a_body_acceleration_on_the_ground_shifts_the_estimate_by_kp_dv_over_g() -> None:
     """The loop's one weakness, by its linear model: a velocity change dv on the ground looks like
-    a tilt for a while, shifting the estimate by about kp dv / g (0.57 deg for 0.4 m/s on the Moon)."""
+    a tilt for a while, shifting the estimate by about kp dv / g (0.56 deg for 0.4 m/s on the Moon)."""
     sensor = SensingParams()
     kp, ki = _gains(sensor)
     n = 3000

@@ -127,7 +127,9 @@ def power_on(m, pitch: float) -> None:  # noqa: ANN001 (a MEMORY record)
     """Start the realistic sensing as a robot does standing still at power-on: draw the IMU, then
     average `calibration_ticks` samples at rest (true rate 0, specific force = gravity's
     reaction at the true `pitch`): their mean gyro is the bias estimate, the mean accelerometer
-    direction the initial pitch. Empties the wheel's delay line."""
+    direction the initial pitch. Empties the wheel's delay line. Switched on mid-run (the
+    "realistic" mode toggled live) this is a handover: the estimate starts at the true attitude
+    as if the robot had stood still there."""
     draw_imu(m)
     n = max(m.calibration_ticks, 1)
     rest_x, rest_z = -m.gravity * math.sin(pitch), m.gravity * math.cos(pitch)
