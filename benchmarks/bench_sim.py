@@ -1,6 +1,6 @@
 """Closed-loop simulation speed against bare mj_step replaying the very same controls.
 
-Run: python -m benchmarks.bench_sim [--seed 0] [--hops 7]
+Run: python -m benchmarks.bench_sim [--seed 0] [--hops 7] [--sensing ideal|realistic]
 Everything is measured in this one run, interleaved, on one core: these machines are noisy,
 so only the ratios are meaningful across machines.
 """
@@ -58,10 +58,11 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--hops", type=int, default=7)
     parser.add_argument("--repeats", type=int, default=3, help="interleaved repeats; the best of each is kept")
+    parser.add_argument("--sensing", choices=("ideal", "realistic"), default="ideal", help="SimConfig.sensing")
     args = parser.parse_args()
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})  # one core, as the target says
-    config = SimConfig(seed=args.seed)
+    config = SimConfig(seed=args.seed, sensing=args.sensing)
 
     recorder = ControlRecorder()
     _, steps, reference = closed_loop(config, args.hops, (recorder,))  # also warms the compiled kernel
@@ -78,12 +79,12 @@ def main() -> None:
         assert np.array_equal(qpos, reference.data.qpos), "replay diverged from the closed loop"
 
     best_closed, best_raw = max(closed), max(raw)
-    print(f"episode: seed {args.seed}, {args.hops} hops, {steps} steps = {steps / 1000:.1f} s simulated")
+    print(f"episode: seed {args.seed}, {args.hops} hops, {args.sensing} sensing, {steps} steps = {steps / 1000:.1f} s")
     print(f"closed loop (controller + phases + metrics + mj_step): {best_closed:9.0f} steps/s")
     print(f"raw replay (same controls, bare mj_step):              {best_raw:9.0f} steps/s")
     print(f"ratio closed / raw: {best_closed / best_raw:.3f}   (target >= 0.7)")
     print(f"one {args.hops}-hop episode, wall time incl. setup: {min(episode):.3f} s   (target < 1 s)")
-    print("\nwith rerun recording (benchmarks/telemetry_rate.py):")
+    print("\nwith rerun recording (benchmarks/telemetry_rate.py, ideal sensing):")
     for line in telemetry_rate.report(telemetry_rate.measure(seed=args.seed, hops=args.hops, repeats=args.repeats)):
         print(line)
 

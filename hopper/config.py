@@ -30,6 +30,8 @@ SHANK_LENGTH = 0.5  # m, Table I
 HIP_OFFSET_Z = -0.18  # m, hips below the torso CoM (models/hopper.xml)
 FOOT_RADIUS = 0.04  # m, Table I
 SATURATION_FRACTION = 0.98  # of the torque limit counts as saturated, paper Sec. V-D
+STANDARD_GRAVITY = 9.80665  # m/s^2, the "g" of datasheet units (mg, ug), not any body's gravity
+MAX_MOTOR_DELAY_TICKS = 16  # length of the kernel's wheel-command delay line (hopper.control.memory)
 
 
 class GainRange(NamedTuple):
@@ -103,6 +105,64 @@ class GaitParams:
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
+class SensingParams:
+    """The realistic sensing mode: a MEMS IMU's errors, the attitude estimator's gains, the motor delay.
+
+    IMU figures are a Bosch BMI088's (PHYSICS.md quotes its datasheet); noise densities become
+    per-sample standard deviations density / sqrt(dt) at the 1 kHz control rate (gyro 0.44 deg/s,
+    accelerometer 0.054 m/s^2 = 3.3 % of lunar g per sample). Draws are seeded by SimConfig.seed.
+    """
+
+    # Gyro (pitch axis).
+    gyro_noise_density: float = 0.014  # deg/s/sqrt(Hz), BMI088 datasheet (PHYSICS.md)
+    # Bias random walk: the bias wanders by the datasheet's 2 deg/h bias stability (5.6e-4 deg/s)
+    # in about 100 s, where a MEMS gyro's Allan deviation typically turns from its flat bias-
+    # instability floor to rate random walk. Ours; temperature drift is not modelled.
+    gyro_bias_walk: float = 5.6e-5  # deg/s/sqrt(s)
+    # Turn-on bias, drawn anew at each power-on (reset): magnitude uniform in [0.5, 1] x this,
+    # random sign. PHYSICS.md's example (0.5 deg/s drifts 0.6 deg over a lunar flight); the
+    # BMI088 datasheet's zero-rate offset spread is of the order of 1 deg/s.
+    gyro_turn_on_bias: float = 0.5  # deg/s
+    # Accelerometer (x and z axes of the torso).
+    accel_noise_density: float = 175.0  # ug/sqrt(Hz), BMI088 datasheet (PHYSICS.md)
+    # Residual zero-g offset after a factory/6-position calibration, per axis uniform in [-1, 1] x
+    # this. Ours (the untrimmed offset is tens of mg). It is unobservable and tilts the estimated
+    # vertical by offset / g: 1 mg is 0.35 deg on the Moon, 2 deg on Ceres.
+    accel_bias: float = 1.0  # mg
+    # Power-on: the robot stands still this long before a run while the estimator averages the
+    # gyro (its bias: the true rate is zero) and the accelerometer (the direction of gravity).
+    calibration_time: float = 1.0  # s
+    # Attitude estimator (hopper.control.sensing): the gyro integral corrected by the horizontal
+    # specific force in the estimated world frame, a PI loop with this natural frequency and
+    # damping. Slow on purpose: on the Moon a 0.1 m/s^2 body acceleration looks like a 3.5 deg tilt,
+    # and only its long-run average (zero: velocity stays bounded) tells the vertical. A change of
+    # speed dv shifts the estimate by 2 zeta wn dv / g: 0.56 deg between stance and flight at 0.4 m/s
+    # on the Moon. Measured over 30 hops (100 s): worst error 1.3 deg at 0.02 rad/s, 1.5 at 0.01,
+    # and 1.9 deg with no correction at all (the calibration's residual bias drifting).
+    tilt_wn: float = 0.02  # rad/s
+    tilt_zeta: float = 1.0
+    # Wheel command latency: one bus cycle at 1 kHz to get the command to the driver (CAN/EtherCAT
+    # frame, sent in the cycle after it is computed), one driver cycle to latch it into the current
+    # loop, and ~1 ms for the current (torque) to rise through the winding's L/R. Ours.
+    motor_delay_ticks: int = 3  # control ticks (1 ms each at 1 kHz)
+
+    def __post_init__(self) -> None:
+        require_finite("gyro_noise_density", self.gyro_noise_density, 0.0, 1.0, "deg/s/sqrt(Hz)")
+        require_finite("gyro_bias_walk", self.gyro_bias_walk, 0.0, 0.1, "deg/s/sqrt(s)")
+        require_finite("gyro_turn_on_bias", self.gyro_turn_on_bias, 0.0, 10.0, "deg/s")
+        require_finite("accel_noise_density", self.accel_noise_density, 0.0, 5000.0, "ug/sqrt(Hz)")
+        require_finite("accel_bias", self.accel_bias, 0.0, 100.0, "mg")
+        require_finite("calibration_time", self.calibration_time, 0.0, 60.0, "s")
+        require_finite("tilt_wn", self.tilt_wn, 0.0, 10.0, "rad/s")
+        require_finite("tilt_zeta", self.tilt_zeta, 0.1, 5.0)
+        delay = self.motor_delay_ticks
+        if not isinstance(delay, int) or isinstance(delay, bool) or not 0 <= delay <= MAX_MOTOR_DELAY_TICKS:
+            raise InvalidConfig(
+                f"motor_delay_ticks must be an integer in [0, {MAX_MOTOR_DELAY_TICKS}] ticks, got {delay!r}"
+            )
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
 class SimConfig:
     """Everything that defines one simulation run."""
 
@@ -114,10 +174,16 @@ class SimConfig:
     gait: GaitParams = dataclasses.field(default_factory=GaitParams)
     wheel: bool = True  # False: zero wheel torque, wheel free to spin
     craters: CraterParams = dataclasses.field(default_factory=CraterParams)
+    # "ideal": the controller reads the true pitch and the noise-free gyro, the wheel acts at once.
+    # "realistic": a noisy, biased IMU, an attitude estimate, and a delayed wheel command (sensor).
+    sensing: Literal["ideal", "realistic"] = "ideal"
+    sensor: SensingParams = dataclasses.field(default_factory=SensingParams)
 
     def __post_init__(self) -> None:
         if self.terrain not in ("crater", "flat"):
             raise InvalidConfig(f"terrain must be 'crater' or 'flat', got {self.terrain!r}")
+        if self.sensing not in ("ideal", "realistic"):
+            raise InvalidConfig(f"sensing must be 'ideal' or 'realistic', got {self.sensing!r}")
         if not isinstance(self.seed, int) or self.seed < 0:
             raise InvalidConfig(f"seed must be a non-negative integer, got {self.seed!r}")
         require_finite("gravity", self.gravity, 0.05, 30.0)

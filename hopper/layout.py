@@ -37,6 +37,7 @@ class ModelLayout:
     s_com: int  # subtreecom of the whole robot: world (x, y, z), m
     s_com_vel: int  # subtreelinvel: (vx, vy, vz), m/s
     s_angmom: int  # subtreeangmom about the robot's CoM, pitch (y) component, kg m^2/s
+    s_accel: int  # imu_accel's x axis (z is s_accel + 2): specific force in the torso frame (m/s^2)
     a_wheel: int
     a_legs: tuple[int, int, int, int]
     torso: int  # body id
@@ -77,6 +78,7 @@ class ModelLayout:
             s_com=s("com"),
             s_com_vel=s("com_vel"),
             s_angmom=s("angmom", 1),
+            s_accel=s("imu_accel"),
             a_wheel=int(model.actuator("wheel").id),
             a_legs=tuple(int(model.actuator(j).id) for j in LEG_JOINTS),  # type: ignore[arg-type]
             torso=int(model.body("torso").id),

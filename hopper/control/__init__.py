@@ -2,8 +2,9 @@
 
 Modules, one concern each: `phases` (the cycle and its thresholds), `memory` (the kernel's
 named record), `legs` (kinematics and leg torques), `wheel` (motor envelope and flight PID),
-`contact` (debounced foot contact), `stance` (virtual-model control on the ground), `kernel`
-(the tick: phases, actuation, metrics) and `controller` (its Python face).
+`contact` (debounced foot contact), `stance` (virtual-model control on the ground), `sensing`
+(the simulated IMU, the attitude estimate and the wheel's command delay), `kernel` (the tick:
+phases, actuation, metrics) and `controller` (its Python face).
 """
 
 import hashlib

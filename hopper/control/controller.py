@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-from hopper.config import SimConfig
+from hopper.config import STANDARD_GRAVITY, SimConfig
 from hopper.control import gait as gaits
 from hopper.control.memory import new_memory
 from hopper.control.phases import FallCause, Phase
@@ -33,9 +35,35 @@ class HopController:
         m["tuck_length"] = gait.tuck_length
         m["lean"] = gait.crouch_lean
         m["friction"] = gait.friction
+        self._configure_sensing(config)
+
+    def _configure_sensing(self, config: SimConfig) -> None:
+        """SensingParams in the kernel's per-sample SI units. Switching to "realistic" powers the
+        IMU on at the next tick; a new delay empties the delay line."""
+        m, s, dt = self.mem, config.sensor, config.timestep
+        realistic = config.sensing == "realistic"
+        if realistic and not m["realistic"][0]:
+            m["sense_ready"] = False
+        if s.motor_delay_ticks != m["motor_delay"][0]:
+            m["delay_line"], m["delay_head"] = 0.0, 0
+        m["realistic"], m["sensor_seed"] = realistic, config.seed
+        m["gyro_noise"] = math.radians(s.gyro_noise_density) / math.sqrt(dt)  # white noise: density / sqrt(dt)
+        m["gyro_walk"] = math.radians(s.gyro_bias_walk) * math.sqrt(dt)  # random walk: density * sqrt(dt)
+        m["gyro_turn_on"] = math.radians(s.gyro_turn_on_bias)
+        m["accel_noise"] = s.accel_noise_density * 1e-6 * STANDARD_GRAVITY / math.sqrt(dt)
+        m["accel_offset"] = s.accel_bias * 1e-3 * STANDARD_GRAVITY
+        m["calibration_ticks"] = max(round(s.calibration_time / dt), 1)
+        m["tilt_kp"], m["tilt_ki"] = 2.0 * s.tilt_zeta * s.tilt_wn, s.tilt_wn**2
+        m["motor_delay"] = s.motor_delay_ticks
 
     def reset(self, time: float = 0.0, standing: bool = True) -> None:
-        """Start in stance (feet believed on the ground when `standing`)."""
+        """Start in stance (feet believed on the ground when `standing`).
+
+        A reset is a power cycle for the realistic IMU: at the next tick it is drawn again from the
+        seed (so a reset replays the run) and calibrated standing still (hopper.control.sensing.
+        power_on). The bias estimate is not kept: a MEMS gyro's turn-on bias changes from one
+        power-on to the next, and the still calibration measures the new one to ~0.01 deg/s.
+        """
         m = self.mem
         for name in (
             "phase_start", "push_done", "integral", "saturated", "wheel_command", "prev_vz",
@@ -45,6 +73,8 @@ class HopController:
         m["phase"], m["phase_start"], m["clock"] = int(Phase.STANCE), time, time
         m["contact_l"] = m["contact_r"] = standing
         m["pending_l"] = m["pending_r"] = -1.0
+        m["sense_ready"] = False
+        m["delay_line"], m["delay_head"] = 0.0, 0
 
     def field(self, name: str) -> np.ndarray:
         """A live view (shape (1,)) of one field of the kernel's memory, e.g. for a recorder."""

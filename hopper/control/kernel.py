@@ -16,6 +16,7 @@ from hopper.config import HIP_OFFSET_Z
 from hopper.control.contact import debounce
 from hopper.control.legs import Leg, leg_state, swing_torques
 from hopper.control.phases import FALL_HIP_HEIGHT, FALL_PITCH, FallCause, Phase
+from hopper.control.sensing import delayed, sense
 from hopper.control.stance import Body, stance
 from hopper.control.wheel import SATURATION_TORQUE, wheel_ctrl, wheel_pid, wheel_torque_bound
 
@@ -61,7 +62,7 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
     """
     m = mem[0]
     time, dt = m.clock, m.dt
-    pitch, rate = qpos[m.q_pitch], sensors[m.s_gyro]
+    pitch, rate = sense(m, qpos, sensors)  # the truth, or the IMU's estimate (SimConfig.sensing)
     vx, vz, wheel_speed = qvel[m.v_x], qvel[m.v_z], qvel[m.v_wheel]
     on_l, m.pending_l = debounce(sensors[m.s_foot_l], time, m.contact_l, m.pending_l, m.contact_on, m.contact_off)
     on_r, m.pending_r = debounce(sensors[m.s_foot_r], time, m.contact_r, m.pending_r, m.contact_on, m.contact_off)
@@ -178,7 +179,7 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
     if not m.wheel_on:
         wheel = 0.0
     m.wheel_command = wheel
-    ctrl[m.a_wheel] = wheel_ctrl(wheel, wheel_speed)
+    ctrl[m.a_wheel] = wheel_ctrl(delayed(m, wheel), wheel_speed)
 
     # -- metrics of the hop in progress --
     torque = sensors[m.s_wheel_torque] * m.wheel_gear  # motor-side actuator force through the gear
@@ -186,8 +187,8 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
         m.acc_saturation += dt
     m.acc_peak_wheel = max(m.acc_peak_wheel, abs(wheel_speed))
     if phase == FLIGHT:
-        m.acc_peak_pitch = max(m.acc_peak_pitch, abs(pitch))
-        m.acc_rate_sq += rate * rate
+        m.acc_peak_pitch = max(m.acc_peak_pitch, abs(m.pitch_true))  # the metrics are of the truth
+        m.acc_rate_sq += m.rate_true * m.rate_true
         m.acc_flight_ticks += 1.0
         m.acc_apex_z = max(m.acc_apex_z, qpos[m.q_z] + m.z0)
         if m.prev_vz > 0.0 >= com_vz:

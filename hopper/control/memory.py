@@ -11,6 +11,7 @@ import dataclasses
 
 import numpy as np
 
+from hopper.config import MAX_MOTOR_DELAY_TICKS
 from hopper.control.gait import Gait
 from hopper.layout import ModelLayout
 
@@ -33,11 +34,26 @@ _PARAMS = [
     # The gait at this gravity: every field of hopper.control.gait.Gait (units there).
     *((field.name, "f8") for field in dataclasses.fields(Gait)),
     ("dt", "f8"),  # s, control period = timestep
+    # Sensing (hopper.control.sensing; SensingParams in per-sample SI units).
+    ("realistic", "?"),  # False: true pitch and noise-free gyro, no motor delay (the "ideal" mode)
+    ("sensor_seed", "u8"),  # SimConfig.seed: the IMU's draws restart from it at each power-on
+    ("gyro_noise", "f8"),  # rad/s, standard deviation of one gyro sample
+    ("gyro_walk", "f8"),  # rad/s, standard deviation of one tick's step of the bias random walk
+    ("gyro_turn_on", "f8"),  # rad/s, turn-on bias scale
+    ("accel_noise", "f8"),  # m/s^2, standard deviation of one accelerometer sample, per axis
+    ("accel_offset", "f8"),  # m/s^2, residual zero-g offset scale
+    ("calibration_ticks", "i8"),  # still samples averaged at power-on
+    ("tilt_kp", "f8"),  # 1/s, attitude correction per unit of horizontal specific force / g
+    ("tilt_ki", "f8"),  # 1/s^2, gyro bias correction per unit of horizontal specific force / g
+    ("motor_delay", "i8"),  # ticks between a wheel command and the torque
 ]
 _LAYOUT = [  # hopper.layout.ModelLayout, flattened
     *((name, "i8") for name in ("q_x", "q_z", "q_pitch", "q_wheel", "q_hip_l", "q_knee_l", "q_hip_r", "q_knee_r")),
     *((name, "i8") for name in ("v_x", "v_z", "v_wheel", "v_hip_l", "v_knee_l", "v_hip_r", "v_knee_r")),
-    *((name, "i8") for name in ("s_gyro", "s_foot_l", "s_foot_r", "s_wheel_torque", "s_com", "s_com_vel", "s_angmom")),
+    *(
+        (name, "i8")
+        for name in ("s_gyro", "s_foot_l", "s_foot_r", "s_wheel_torque", "s_com", "s_com_vel", "s_angmom", "s_accel")
+    ),
     *((name, "i8") for name in ("a_wheel", "a_hip_l", "a_knee_l", "a_hip_r", "a_knee_r")),
     ("wheel_gear", "f8"),
 ]
@@ -58,6 +74,19 @@ _STATE = [
     ("clock", "f8"),  # s, the kernel's own copy of data.time
     ("fall_cause", "i8"),  # hopper.control.phases.FallCause
     ("fall_height", "f8"),  # m, hip above the supporting feet when the fall was called (0 in flight)
+    # Sensing: truth and estimate side by side (in "ideal" mode the estimate is the truth).
+    ("pitch_true", "f8"),  # rad, qpos pitch this tick
+    ("rate_true", "f8"),  # rad/s, the noise-free gyro this tick
+    ("pitch_est", "f8"),  # rad, what the controller uses as pitch
+    ("rate_est", "f8"),  # rad/s, what the controller uses as pitch rate: gyro sample - bias_est
+    ("bias_est", "f8"),  # rad/s, the estimator's gyro bias
+    ("gyro_bias", "f8"),  # rad/s, the simulated IMU's true gyro bias now
+    ("accel_bias_x", "f8"),  # m/s^2, the simulated IMU's true accelerometer offsets
+    ("accel_bias_z", "f8"),
+    ("rng", "u8"),  # splitmix64 state of the IMU's noise
+    ("sense_ready", "?"),  # False: power on (draw the IMU, calibrate) at the next realistic tick
+    ("delay_line", "f8", (MAX_MOTOR_DELAY_TICKS,)),  # N m, wheel commands in flight to the driver
+    ("delay_head", "i8"),  # index of the oldest command in delay_line
 ]
 # Metric accumulators of the hop in progress (hopper.metrics reads and clears them).
 _ACC = [
@@ -85,6 +114,7 @@ def new_memory(layout: ModelLayout) -> np.ndarray:
     names |= {"s_gyro": layout.s_gyro_pitch, "s_foot_l": layout.s_foot_l, "s_foot_r": layout.s_foot_r}
     names |= {"s_wheel_torque": layout.s_wheel_torque, "a_wheel": layout.a_wheel, "wheel_gear": layout.wheel_gear}
     names |= {"s_com": layout.s_com, "s_com_vel": layout.s_com_vel, "s_angmom": layout.s_angmom}
+    names |= {"s_accel": layout.s_accel}
     for name, value in names.items():
         mem[name] = value
     return mem
