@@ -137,6 +137,12 @@ def parser() -> Parser:
         p.add_argument("--kp", type=finite, default=defaults.kp, help=f"N m/rad (default {defaults.kp:g})")
         p.add_argument("--ki", type=finite, default=defaults.ki, help=f"N m/(rad s) (default {defaults.ki:g})")
         p.add_argument("--kd", type=finite, default=defaults.kd, help=f"N m s/rad (default {defaults.kd:g})")
+        p.add_argument(
+            "--sensing",
+            choices=("ideal", "realistic"),
+            default="ideal",
+            help="what the controller reads: the true pitch, or a simulated IMU's estimate (default ideal)",
+        )
         p.add_argument("--json", type=writable_file, metavar="PATH", help="write the results as JSON")
 
     run = commands.add_parser("run", help="simulate one robot until N hops or a fall", epilog=EXIT_STATUSES)
@@ -218,6 +224,7 @@ def make_config(args: argparse.Namespace, seed: int, wheel: bool) -> SimConfig:
         gravity=args.gravity,
         wheel=wheel,
         gains=Gains(kp=args.kp, ki=args.ki, kd=args.kd),
+        sensing=args.sensing,
     )
 
 

@@ -35,6 +35,14 @@ class SetWheel:
 
 
 @dataclasses.dataclass(frozen=True)
+class SetSensing:
+    sensing: Literal["ideal", "realistic"]
+
+    def apply(self, sim: Simulation) -> None:
+        sim.set_sensing(self.sensing)
+
+
+@dataclasses.dataclass(frozen=True)
 class SetGravity:
     gravity: float  # m/s^2
 

@@ -27,6 +27,7 @@ class EventKind(enum.StrEnum):
     DIVERGED = "diverged"
     COMMAND_FAILED = "command_failed"
     RECORDING = "recording"
+    SENSING = "sensing"
 
 
 DisturbanceKind = Literal["pitch_kick", "push_forward", "push_backward", "torque_pulse"]
@@ -116,6 +117,15 @@ class WheelChanged:
 
 
 @dataclasses.dataclass(frozen=True)
+class SensingChanged:
+    kind: ClassVar[EventKind] = EventKind.SENSING
+    sensing: str  # ideal | realistic
+
+    def describe(self) -> str:
+        return "sensing realistic (IMU estimate, motor delay)" if self.sensing == "realistic" else "sensing ideal"
+
+
+@dataclasses.dataclass(frozen=True)
 class GravityChanged:
     kind: ClassVar[EventKind] = EventKind.GRAVITY
     gravity: float  # m/s^2
@@ -192,7 +202,8 @@ class Recording:
 
 
 Payload = (
-    Liftoff | Apex | Touchdown | Fall | Reset | GainsChanged | WheelChanged | GravityChanged | TerrainChanged
+    Liftoff | Apex | Touchdown | Fall | Reset | GainsChanged | WheelChanged | SensingChanged | GravityChanged
+    | TerrainChanged
     | Disturbance | DisturbanceArmed | Diverged | CommandFailed | Recording
 )  # fmt: skip
 

@@ -32,6 +32,7 @@ from hopper.events import (
     Liftoff,
     Payload,
     Reset,
+    SensingChanged,
     TerrainChanged,
     Touchdown,
     WheelChanged,
@@ -229,6 +230,11 @@ class Simulation:
         self._reconfigure(wheel=enabled)
         set_wheel_enabled(self.model, enabled)
         self._emit(WheelChanged(enabled))
+
+    def set_sensing(self, sensing: Literal["ideal", "realistic"]) -> None:
+        """Switch what the controller reads; a switch to realistic powers the IMU on at the next tick."""
+        self._reconfigure(sensing=sensing)
+        self._emit(SensingChanged(sensing))
 
     def set_gravity(self, gravity: float) -> None:
         require_finite("gravity", gravity, 0.05, 30.0, "m/s^2")

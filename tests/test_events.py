@@ -19,6 +19,7 @@ SAMPLES = [
     ev.Reset("user"),
     ev.GainsChanged(Gains()),
     ev.WheelChanged(False),
+    ev.SensingChanged("realistic"),
     ev.GravityChanged(3.72),
     ev.TerrainChanged("crater", 3),
     ev.Disturbance("torque_pulse", 15.0, "N m", 0.1),

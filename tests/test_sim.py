@@ -68,12 +68,18 @@ def test_gain_change_applies_on_the_next_tick(flat_sim: Simulation) -> None:
 
 
 def test_the_live_config_follows_every_setting(flat_sim: Simulation) -> None:
-    for command in (commands.SetGravity(3.72), commands.SetWheel(False), commands.SetTerrain("crater", 4)):
+    for command in (
+        commands.SetGravity(3.72),
+        commands.SetWheel(False),
+        commands.SetSensing("realistic"),
+        commands.SetTerrain("crater", 4),
+    ):
         flat_sim.submit(command)
     flat_sim.step()
     c = flat_sim.config
-    assert (c.gravity, c.wheel, c.terrain, c.seed) == (3.72, False, "crater", 4)
-    assert flat_sim.controller.mem["gravity"][0] == 3.72 and not flat_sim.controller.mem["wheel_on"][0]
+    assert (c.gravity, c.wheel, c.sensing, c.terrain, c.seed) == (3.72, False, "realistic", "crater", 4)
+    mem = flat_sim.controller.mem
+    assert mem["gravity"][0] == 3.72 and not mem["wheel_on"][0] and mem["realistic"][0]
 
 
 def test_impulses_change_the_velocities_they_should(flat_sim: Simulation) -> None:

@@ -229,3 +229,12 @@ def test_ctrl_c_during_compare_exits_130_without_worker_tracebacks() -> None:
     assert process.returncode == 130, err
     assert "Traceback" not in err and "SpawnPoolWorker" not in err, err
     assert err.strip().splitlines()[-1] == "hopper-sim: interrupted"
+
+
+def test_realistic_sensing_from_the_command_line(tmp_path) -> None:
+    out = tmp_path / "run.json"
+    result = hopper_sim("run", "--hops", "2", "--terrain", "flat", "--sensing", "realistic", "--json", str(out))
+    assert result.returncode == 0, result.stderr
+    report = json.loads(out.read_text())
+    assert report["settings"]["sensing"] == "realistic" and len(report["hops"]) == 2
+    assert max(h["landing_pitch_deg"] for h in report["hops"]) < 3.5

@@ -202,6 +202,23 @@ def test_config_property_follows_the_live_settings(tmp_path: Path) -> None:
     assert seconds(events)[gravity] == pytest.approx(0.1)
 
 
+@pytest.mark.parametrize("sensing", ["ideal", "realistic"])
+def test_the_estimate_is_recorded_beside_the_truth(tmp_path: Path, sensing: str) -> None:
+    """Realistic sensing: the controller's pitch estimate, row by row, as the kernel made it."""
+    sim = Simulation(SimConfig(terrain="flat", sensing=sensing))  # type: ignore[arg-type]
+    path, estimates = tmp_path / f"{sensing}.rrd", []
+    with Telemetry(sim, path=path, batch_ticks=400):
+        for _ in range(1200):
+            sim.step()
+            estimates.append(float(sim.controller.mem["pitch_est"][0]))
+    values = cells(read(path)["signals"], "signals")
+    recorded = np.array([v["pitch_est_deg"] for v in values])
+    np.testing.assert_allclose(recorded, np.degrees(estimates).astype(np.float32), rtol=1e-6, atol=1e-6)
+    truth = np.array([v["pitch_deg"] for v in values])
+    gap = np.abs(recorded - truth).max()
+    assert gap < 1e-4 if sensing == "ideal" else 1e-3 < gap < 2.0, gap  # deg: noise and bias, bounded
+
+
 def test_reset_keeps_sim_time_monotonic(tmp_path: Path) -> None:
     sim = Simulation(SimConfig(terrain="flat"))
     path = tmp_path / "reset.rrd"

@@ -60,6 +60,13 @@ def parser() -> Parser:
     p.add_argument(
         "--terrain", type=choice("crater", "flat"), default=DEFAULTS.terrain, metavar="{crater,flat}", help="terrain"
     )
+    p.add_argument(
+        "--sensing",
+        type=choice("ideal", "realistic"),
+        default=DEFAULTS.sensing,
+        metavar="{ideal,realistic}",
+        help="what the controller reads: the true pitch, or a simulated IMU's estimate (noise, bias, delay)",
+    )
     for name, what in (("kp", "proportional"), ("ki", "integral"), ("kd", "derivative")):
         low, high, unit = GAIN_RANGES[name]
         p.add_argument(

@@ -28,6 +28,8 @@ class DashboardConfig:
     """Terrain seed."""
     terrain: Literal["crater", "flat"] = "crater"
     """Terrain kind."""
+    sensing: Literal["ideal", "realistic"] = "ideal"
+    """What the controller reads: the true pitch, or a simulated IMU's estimate with a motor delay."""
     kp: float = _DEFAULT_GAINS.kp
     """Wheel PID proportional gain, N m/rad."""
     ki: float = _DEFAULT_GAINS.ki
@@ -65,7 +67,7 @@ class DashboardConfig:
 
     def sim_config(self) -> SimConfig:
         """The simulation this dashboard starts with."""
-        return SimConfig(seed=self.seed, terrain=self.terrain, gains=self.gains)
+        return SimConfig(seed=self.seed, terrain=self.terrain, gains=self.gains, sensing=self.sensing)
 
 
 def check_sessions_dir(folder: Path) -> Path:

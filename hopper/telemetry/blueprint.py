@@ -59,7 +59,7 @@ def default_blueprint() -> rrb.Blueprint:
         rrb.Horizontal(
             rrb.Vertical(robot, hops, row_shares=[3, 2]),
             rrb.Vertical(
-                _plot("pitch (deg)", ("pitch_deg", "pitch", BLUE)),
+                _plot("pitch (deg)", ("pitch_deg", "pitch", BLUE), ("pitch_est_deg", "estimate", ORANGE)),
                 _plot("wheel speed (rpm)", ("wheel_rpm", "wheel", PURPLE)),
                 _plot("wheel torque (N m)", ("wheel_torque_nm", "torque", ORANGE), extra="/limits/wheel_torque"),
                 rrb.Tabs(

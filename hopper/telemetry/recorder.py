@@ -65,7 +65,7 @@ EVENT_LEVELS = {
     EventKind.DISTURBANCE: "WARN",
 }
 HOP_ARCHETYPE = "hopper.HopMetrics"  # names the hop table's columns
-SETTING_EVENTS = (EventKind.GAINS, EventKind.WHEEL, EventKind.GRAVITY, EventKind.TERRAIN)
+SETTING_EVENTS = (EventKind.GAINS, EventKind.WHEEL, EventKind.SENSING, EventKind.GRAVITY, EventKind.TERRAIN)
 
 _open: weakref.WeakSet[Telemetry] = weakref.WeakSet()
 
@@ -100,7 +100,7 @@ class Telemetry:
     them), joint angles from the qpos of one tick earlier (it advances qpos). MjData is read
     directly: the simulation no longer refreshes `sim.physics` every tick.
 
-    tick() appends four byte views to a bytearray (~0.5 us); every `batch_ticks` ticks (or
+    tick() appends six byte views to a bytearray (~0.5 us); every `batch_ticks` ticks (or
     FLUSH_WALL_S) the batch is read back with numpy and sent with rr.send_columns. Call
     close() (or use `with`) from the thread that steps the simulation, or while it is not stepping
     (e.g. through `sim.submit`). Sends and closing hold Ctrl-C and SIGTERM until they are done: a
@@ -179,6 +179,8 @@ class Telemetry:
         self._hops = 0
         # The kernel's phase slot, appended to every row: phases exact to the tick at no cost.
         self._phase_view = memoryview(sim.controller.field("phase")).cast("B")  # int64
+        # The controller's pitch and rate estimate, beside the truth (hopper.control.sensing).
+        self._est_views = [memoryview(sim.controller.field(f)).cast("B") for f in ("pitch_est", "rate_est")]
         self._phase = int(sim.phase)
 
         self.rec = rr.RecordingStream(APPLICATION_ID)
@@ -208,6 +210,8 @@ class Telemetry:
             "wheel_torque_nm": (self._nsens + lay.a_wheel, lay.wheel_gear),
             "foot_L_n": (lay.s_foot_l, 1.0),
             "foot_R_n": (lay.s_foot_r, 1.0),
+            "pitch_est_deg": (self._nsens + self._nu + self._nq, math.degrees(1.0)),
+            "pitch_rate_est_deg_s": (self._nsens + self._nu + self._nq + 1, math.degrees(1.0)),
         }
         for j, qi, fi in zip(LEG_JOINTS, lay.q_legs, lay.a_legs, strict=True):
             sources[f"{j}_deg"] = (self._nsens + self._nu + qi, math.degrees(1.0))
@@ -229,6 +233,7 @@ class Telemetry:
                 gravity=c.gravity,
                 wheel=c.wheel,
                 timestep=c.timestep,
+                sensing=c.sensing,
                 kp=g.kp,
                 ki=g.ki,
                 kd=g.kd,
@@ -237,11 +242,13 @@ class Telemetry:
 
     # -- Listener --------------------------------------------------------------------------
     def tick(self, sim: Simulation) -> None:
-        """Buffer one tick. The hot path: four byte-view appends and a counter."""
+        """Buffer one tick. The hot path: six byte-view appends and a counter."""
         b = self._ticks
         b += self._sensor_view
         b += self._force_view
         b += self._qpos_view
+        b += self._est_views[0]
+        b += self._est_views[1]
         b += self._phase_view
         n = self._n = self._n + 1
         if n % POSE_EVERY_TICKS == 0:
@@ -295,7 +302,7 @@ class Telemetry:
         count, events, phases, hop_rows = self._n, self._events, self._phases, self._hop_rows
         self._ticks, self._poses, self._n, self._pose_rows = bytearray(), bytearray(), 0, []
         self._events, self._phases, self._hop_rows = [], [], []
-        width = self._nsens + self._nu + self._nq + 1
+        width = self._nsens + self._nu + self._nq + 3  # ... | pitch_est | rate_est | phase
         ticks, poses = np.frombuffer(ticks, dtype=np.float64), np.frombuffer(poses, dtype=np.float64)
         n = min(count, len(ticks) // width)  # an interrupt may cut a tick's appends short
         k = min(len(rows), len(poses) // (7 * self._nbody))
@@ -303,7 +310,7 @@ class Telemetry:
             times = self._next_ns + np.arange(n, dtype=np.int64) * self._dt_ns
             self._next_ns += n * self._dt_ns
             table = ticks[: n * width].reshape(n, width)
-            self._send_signals(times, table[:, :-1])
+            self._send_signals(times, table[:, :-3], table[:, -3:-1])
             codes = table[:, -1].view(np.int64)  # the phase field is an int64 in the kernel memory
             phases = sorted(phases + self._phase_changes(times, codes, hop_rows))
             self._batches += 1
@@ -354,13 +361,15 @@ class Telemetry:
             for i in changed
         ]
 
-    def _send_signals(self, times: np.ndarray, rows: np.ndarray) -> None:
-        """rows: (n, nsensordata + nu + nq) as buffered by tick()."""
+    def _send_signals(self, times: np.ndarray, rows: np.ndarray, estimates: np.ndarray) -> None:
+        """rows: (n, nsensordata + nu + nq) as buffered by tick(); estimates: (n, 2) pitch, rate."""
         s, f = rows[:, : self._nsens], rows[:, self._nsens : self._nsens + self._nu]
         after = rows[:, self._nsens + self._nu :]  # qpos after each step: the next row's state
         q = np.vstack([self._carry_qpos, after[:-1]])
         self._carry_qpos = after[-1].copy()
-        values = np.hstack([s, f, q])[:, self._signal_source] * self._signal_scale  # (n, len(SIGNALS)), SI -> units
+        values = (
+            np.hstack([s, f, q, estimates])[:, self._signal_source] * self._signal_scale
+        )  # (n, len(SIGNALS)), SI -> units
         n32 = len(SIGNALS_F32)
         rows32 = np.ascontiguousarray(values[:, :n32].T, dtype=np.float32)  # one contiguous row per field
         rows16 = np.ascontiguousarray(values[:, n32:].T, dtype=np.float16)

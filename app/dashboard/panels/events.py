@@ -24,6 +24,7 @@ SHOWN = frozenset(
         EventKind.RESET,
         EventKind.COMMAND_FAILED,
         EventKind.RECORDING,
+        EventKind.SENSING,
     }
 )
 QUIET_RESETS = ("start", "terrain", "diverged")  # the event that caused them is shown already
