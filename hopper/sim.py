@@ -18,6 +18,7 @@ import numpy as np
 from hopper.commands import Command
 from hopper.config import FOOT_RADIUS, HIP_OFFSET_Z, THIGH_LENGTH, Gains, SimConfig, require_finite
 from hopper.control import EV_APEX, EV_FALL, EV_LIFTOFF, EV_TOUCHDOWN, HopController, Phase, control_tick
+from hopper.control.landing import FOOT_Y, ground_height
 from hopper.events import (
     Apex,
     CommandFailed,
@@ -189,6 +190,7 @@ class Simulation:
                 self._pulse_at, self._pulse_magnitude = s.time + TORQUE_PULSE_DELAY_S, self._pulse_armed
                 self._pulse_armed = 0.0
         if events & EV_APEX:
+            self.controller.plan_landing(self.data, self.layout, self._ground)
             self._emit(Apex(s.z))
         if events & EV_TOUCHDOWN:
             self._emit(Touchdown(self.metrics.touchdown(s.time, s.x, s.pitch)))
@@ -196,6 +198,10 @@ class Simulation:
             hop = self.metrics.touchdown(s.time, s.x, s.pitch, completed=False)
             c = self.controller
             self._emit(Fall(c.fall_cause, math.degrees(s.pitch), c.fall_height, hop))
+
+    def _ground(self, x: float, foot: int) -> float:
+        """Terrain height (m) under the left (0) or right (1) foot at world x."""
+        return ground_height(self.heights, self.config.craters, x, FOOT_Y if foot == 0 else -FOOT_Y)
 
     # -- commands (call from the loop, or submit() them) ----------------------------------
     def reset(self, reason: str = "user") -> None:

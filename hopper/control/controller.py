@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
+import mujoco
 import numpy as np
 
 from hopper.config import STANDARD_GRAVITY, SimConfig
 from hopper.control import gait as gaits
+from hopper.control import landing
 from hopper.control.memory import new_memory
 from hopper.control.phases import FallCause, Phase
 from hopper.layout import ModelLayout
@@ -33,6 +36,7 @@ class HopController:
         m["stand"], m["crouch"] = gait.stand_height, gait.crouch_height
         m["push"], m["flight_length"], m["spread"] = gait.push_length, gait.flight_length, gait.foot_spread
         m["tuck_length"] = gait.tuck_length
+        m["land_l"] = m["land_r"] = gait.flight_length
         m["lean"] = gait.crouch_lean
         m["friction"] = gait.friction
         self._configure_sensing(config)
@@ -75,6 +79,26 @@ class HopController:
         m["pending_l"] = m["pending_r"] = -1.0
         m["sense_ready"] = False
         m["delay_line"], m["delay_head"] = 0.0, 0
+
+    def plan_landing(self, data: mujoco.MjData, layout: ModelLayout, ground: Callable[[float, int], float]) -> None:
+        """At the apex: each leg's landing length so that both feet meet the terrain together.
+
+        ground(x, foot) is the terrain height (m) under foot 0 (left) or 1 (right) at world x.
+        """
+        m, s, q = self.mem, data.sensordata, data.qpos
+        pitch = float(q[layout.q_pitch])
+        torso = (float(q[layout.q_x]) + layout.torso_origin[0], float(q[layout.q_z]) + layout.torso_origin[1])
+        hip = landing.hip_position(torso, pitch)
+        vx, vz = float(s[layout.s_com_vel]), float(s[layout.s_com_vel + 2])
+        # The feet's places ahead of the hip, as the kernel's swing will put them.
+        capture, margin = vx * float(m["capture_time"][0]), float(m["capture_margin"][0])
+        mid = capture - min(max(capture, -margin), margin) + float(s[layout.s_com]) - hip[0]
+        half = 0.5 * float(m["spread"][0])
+        lengths = landing.plan_reach(
+            hip, (vx, vz), float(m["gravity"][0]), (mid + half, mid - half), float(m["flight_length"][0]),
+            float(m["push"][0]), ground,
+        )  # fmt: skip
+        m["land_l"], m["land_r"] = lengths
 
     def field(self, name: str) -> np.ndarray:
         """A live view (shape (1,)) of one field of the kernel's memory, e.g. for a recorder."""

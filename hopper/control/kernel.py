@@ -112,6 +112,7 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
             if time - m.last_contact >= confirm:
                 enter(m, FLIGHT, time)
                 m.integral = 0.0  # integral reset at liftoff
+                m.land_l = m.land_r = m.flight_length  # until the apex plans the landing
                 events |= EV_LIFTOFF
         elif (
             phase in (STANCE, CROUCH)
@@ -161,9 +162,9 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
         mid += com_dx - HIP_OFFSET_Z * math.sin(pitch)
         half = 0.5 * m.spread
         # Tucked while rising, for clearance over rims ahead; reaching for the landing after the apex.
-        length = m.flight_length if com_vz < 0.0 or phase != FLIGHT else m.tuck_length
-        hl, kl = swing_torques(left, length, mid + half, m.swing_scale)
-        hr, kr = swing_torques(right, length, mid - half, m.swing_scale)
+        tucked = phase == FLIGHT and com_vz >= 0.0
+        hl, kl = swing_torques(left, m.tuck_length if tucked else m.land_l, mid + half, m.swing_scale)
+        hr, kr = swing_torques(right, m.tuck_length if tucked else m.land_r, mid - half, m.swing_scale)
         if phase == FLIGHT:
             wheel = wheel_pid(m, pitch, rate, wheel_speed)
     elif m.push_done:

@@ -26,6 +26,8 @@ _PARAMS = [
     ("push", "f8"),  # m, leg length where the push stops
     ("flight_length", "f8"),  # m, leg length reaching for the landing, after the apex
     ("tuck_length", "f8"),  # m, leg length while rising
+    ("land_l", "f8"),  # m, each leg's length reaching for the landing (hopper.control.landing)
+    ("land_r", "f8"),
     ("spread", "f8"),  # m between the feet at landing
     ("lean", "f8"),  # m, torso CoM ahead of the feet midpoint before the push
     ("friction", "f8"),  # friction coefficient the stance forces assume

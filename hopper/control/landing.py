@@ -1,0 +1,71 @@
+"""Landing that looks at the terrain: at the apex, each leg's reach is set so both feet meet the ground.
+
+The heightfield is known. A foot over a crater floor and the other on a rim would touch down
+tens of milliseconds apart; the first foot then takes the whole landing on its own and the
+robot pivots over it (the crater landings that made the Moon's 20-hop runs fall). Once per
+flight, at the apex, the ballistic arc gives where and when the feet come down; the leg over
+the lower ground is lengthened by the difference (within its reach), so both land together.
+Pure functions of the state and the terrain; the kernel only reads the two lengths.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from hopper.config import FOOT_RADIUS, HIP_OFFSET_Z
+from hopper.terrain import CraterParams
+
+FOOT_Y = 0.11  # m, each foot's lateral offset (models/hopper.xml: the thighs sit at y = +-0.11)
+
+
+def ground_height(heights: np.ndarray, params: CraterParams, x: float, y: float) -> float:
+    """Terrain height (m) at world (x, y), bilinear between grid points; the edge beyond the strip."""
+    nrow, ncol = heights.shape
+    fx = min(max((x - params.x0) / params.cell, 0.0), ncol - 1.000001)
+    fy = min(max((y + params.width / 2) / params.cell, 0.0), nrow - 1.000001)
+    i, j = int(fy), int(fx)
+    a, b = fy - i, fx - j
+    top = heights[i, j] * (1 - b) + heights[i, j + 1] * b
+    bottom = heights[i + 1, j] * (1 - b) + heights[i + 1, j + 1] * b
+    return float(top * (1 - a) + bottom * a)
+
+
+def plan_reach(
+    hip: tuple[float, float],
+    velocity: tuple[float, float],
+    gravity: float,
+    feet_ahead: tuple[float, float],
+    length: float,
+    longest: float,
+    ground: callable,  # type: ignore[valid-type]
+) -> tuple[float, float]:
+    """Leg lengths (m) for the left and right foot so that both touch down together.
+
+    hip: (x, z) of the hip now (m); velocity: (vx, vz) (m/s), ballistic from here on;
+    feet_ahead: where each foot will be ahead of the hip (m); length: the nominal landing leg
+    length; longest: the most a leg may reach; ground(x, foot) -> terrain height under it.
+    """
+    (x, z), (vx, vz) = hip, velocity
+    lengths, t = (length, length), 0.0
+    for _ in range(3):  # where the feet land depends on when, which depends on the ground there
+        hip_x = x + vx * t
+        floors = [ground(hip_x + feet_ahead[k], k) for k in range(2)]
+        high = max(floors)
+        # The foot over the higher ground keeps the nominal length and sets the touchdown time;
+        # the other reaches down by the difference.
+        lengths = tuple(min(length + (high - floor), longest) for floor in floors)
+        t = _fall_time(z - length - FOOT_RADIUS - high, vz, gravity)
+    return lengths  # type: ignore[return-value]
+
+
+def _fall_time(height: float, vz: float, gravity: float) -> float:
+    """Time (s) until a point `height` (m) above the ground, rising at vz (m/s), reaches it."""
+    return (vz + math.sqrt(max(vz * vz + 2.0 * gravity * height, 0.0))) / gravity
+
+
+def hip_position(torso: tuple[float, float], pitch: float) -> tuple[float, float]:
+    """The hip's world (x, z) from the torso CoM's and the pitch (rad)."""
+    x, z = torso
+    return x + HIP_OFFSET_Z * math.sin(pitch), z + HIP_OFFSET_Z * math.cos(pitch)
