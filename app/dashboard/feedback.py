@@ -5,6 +5,9 @@ from __future__ import annotations
 import functools
 import logging
 import math
+import threading
+import time
+import weakref
 from collections.abc import Callable
 from typing import Any, Literal
 
@@ -14,19 +17,44 @@ log = logging.getLogger(__name__)
 
 Level = Literal["info", "warning", "error"]
 _COLORS: dict[Level, Any] = {"info": "blue", "warning": "yellow", "error": "red"}
-_SECONDS: dict[Level, float] = {"info": 4.0, "warning": 6.0, "error": 8.0}
+AUTO_CLOSE_S: dict[Level, float] = {"info": 4.0, "warning": 6.0, "error": 8.0}
+
+_clock = time.monotonic  # tests move time forward
+# Per client: (title, body) -> when that notification closes on its own. Weak keys: a client that
+# leaves takes its entries with it.
+_on_screen: weakref.WeakKeyDictionary[Any, dict[tuple[str, str], float]] = weakref.WeakKeyDictionary()
+_on_screen_lock = threading.Lock()
 
 
 class Refused(ValueError):
     """A value from a browser that cannot be used at all (non-finite, wrong type)."""
 
 
+def format_number(value: float) -> str:
+    """A number as people write it: whole numbers in full (2147483647, not 2.14748e+09), others to 6 digits."""
+    if math.isfinite(value) and value == int(value) and abs(value) < 1e15:
+        return str(int(value))
+    return f"{value:g}"
+
+
 def notify(client: viser.ClientHandle | None, title: str, body: str, level: Level = "info") -> None:
-    """Show a notification to one client; never raises (the client may have just left)."""
+    """Show a notification to one client, unless the same one is still on its screen; never raises.
+
+    Identical notifications in a row (a fall replayed after the auto reset, a refusal repeated)
+    would otherwise stack as copies.
+    """
     if client is None:
         return
+    now, key = _clock(), (title, body)
+    with _on_screen_lock:
+        shown = _on_screen.setdefault(client, {})
+        for old in [k for k, until in shown.items() if until <= now]:
+            del shown[old]
+        if key in shown:
+            return
+        shown[key] = now + AUTO_CLOSE_S[level]
     try:
-        client.add_notification(title, body, color=_COLORS[level], auto_close_seconds=_SECONDS[level])
+        client.add_notification(title, body, color=_COLORS[level], auto_close_seconds=AUTO_CLOSE_S[level])
     except Exception:  # a disconnecting client must not break the caller
         log.debug("notification to client %s failed", getattr(client, "client_id", "?"), exc_info=True)
 
@@ -35,6 +63,15 @@ def notify_all(server: viser.ViserServer, title: str, body: str, level: Level = 
     """Show a notification to every connected client."""
     for client in server.get_clients().values():
         notify(client, title, body, level)
+
+
+def _clamp(name: str, value: float, low: float, high: float, unit: str) -> tuple[float, str | None]:
+    if low <= value <= high:
+        return value, None
+    clamped = min(max(value, low), high)
+    u = f" {unit}" if unit else ""
+    f = format_number
+    return clamped, f"{name} {f(value)}{u} is outside [{f(low)}, {f(high)}]{u}; clamped to {f(clamped)}{u}"
 
 
 def checked(name: str, value: object, low: float, high: float, unit: str = "") -> tuple[float, str | None]:
@@ -46,11 +83,7 @@ def checked(name: str, value: object, low: float, high: float, unit: str = "") -
         raise Refused(f"{name} must be a number, got {value!r}")
     if not math.isfinite(value):
         raise Refused(f"{name} must be finite, got {value!r}; kept the previous value")
-    if low <= value <= high:
-        return float(value), None
-    clamped = min(max(float(value), low), high)
-    suffix = f" {unit}" if unit else ""
-    return clamped, f"{name} {value:g}{suffix} is outside [{low:g}, {high:g}]{suffix}; clamped to {clamped:g}{suffix}"
+    return _clamp(name, float(value), low, high, unit)
 
 
 def keep_in_range(handle: viser.GuiNumberHandle, name: str, low: float, high: float, unit: str = "") -> None:

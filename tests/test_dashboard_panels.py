@@ -1,0 +1,135 @@
+"""Dashboard panels and their feedback: notices, typed numbers, charts, camera; no browser.
+
+Browser input is stood in for by `ProbeClient`, which speaks viser's real websocket protocol.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+from hopper.app.dashboard import feedback
+from hopper.app.dashboard.config import DashboardConfig
+from hopper.app.dashboard.feedback import format_number, notify
+from hopper.app.dashboard.probe import ProbeClient
+from hopper.app.dashboard.server import Dashboard
+from net import free_port, wait_until
+
+from hopper.sim import Event, Simulation
+
+
+@pytest.fixture
+def dashboard(tmp_path: Path):
+    d = Dashboard(DashboardConfig(port=free_port(), sessions_dir=tmp_path / "sessions"), verbose=False).start()
+    yield d
+    d.stop()
+
+
+@pytest.fixture
+def client(dashboard: Dashboard):
+    c = ProbeClient(dashboard.url)
+    assert c.wait_for(lambda p: len(p.gui) > 20 and p.pose_frames > 0), "the probe never saw the page"
+    # viser registers a connection once it has handled its first camera message; before that,
+    # notifications and GUI callbacks miss it.
+    assert wait_until(lambda: len(dashboard.server.get_clients()) == 1), "the server never registered the probe"
+    yield c
+    c.close()
+
+
+def bodies(client: ProbeClient, title: str) -> list[str]:
+    return [n.get("body", "") for n in client.notifications if n.get("title") == title]
+
+
+# -- notices ---------------------------------------------------------------------------------------
+def test_clamp_notices_give_the_range_with_units_and_whole_numbers_as_such(
+    dashboard: Dashboard, client: ProbeClient
+) -> None:
+    client.set_gui_value("Ki", 900.0)
+    assert client.wait_for(lambda p: len(bodies(p, "Gain clamped")) == 1), client.notifications
+    client.set_gui_value("Kd", -3.0)
+    assert client.wait_for(lambda p: len(bodies(p, "Gain clamped")) == 2), client.notifications
+    assert sorted(bodies(client, "Gain clamped")) == [
+        "Kd -3 N m s/rad is outside [0, 100] N m s/rad; clamped to 0 N m s/rad",
+        "Ki 900 N m/(rad s) is outside [0, 500] N m/(rad s); clamped to 500 N m/(rad s)",
+    ]
+    client.set_gui_value("Seed", 3e9)
+    assert client.wait_for(lambda p: bodies(p, "Value clamped")), client.notifications
+    assert bodies(client, "Value clamped") == ["Seed 3000000000 is outside [0, 2147483647]; clamped to 2147483647"]
+
+
+def test_numbers_in_notices() -> None:
+    assert [format_number(v) for v in (2**31 - 1, 500.0, -5.0, 0.0, 12.5, 1 / 3, 1e20, -2.5e-7)] == [
+        "2147483647",
+        "500",
+        "-5",
+        "0",
+        "12.5",
+        "0.333333",
+        "1e+20",
+        "-2.5e-07",
+    ]
+
+
+class FakeClient:
+    """Records what would be shown."""
+
+    def __init__(self) -> None:
+        self.shown: list[tuple[str, str]] = []
+
+    def add_notification(self, title: str, body: str, **_: Any) -> None:
+        self.shown.append((title, body))
+
+
+def test_a_notification_still_on_screen_is_not_shown_again(monkeypatch: pytest.MonkeyPatch) -> None:
+    now = [100.0]
+    monkeypatch.setattr(feedback, "_clock", lambda: now[0])
+    a, b = FakeClient(), FakeClient()
+    notify(a, "The robot fell", "pitch -60°", "warning")
+    notify(a, "The robot fell", "pitch -60°", "warning")  # still on screen: dropped
+    notify(a, "The robot fell", "pitch +60°", "warning")  # another body: shown
+    notify(b, "The robot fell", "pitch -60°", "warning")  # another client: shown
+    assert a.shown == [("The robot fell", "pitch -60°"), ("The robot fell", "pitch +60°")]
+    assert b.shown == [("The robot fell", "pitch -60°")]
+    now[0] += feedback.AUTO_CLOSE_S["warning"] + 0.1  # closed on its own by now
+    notify(a, "The robot fell", "pitch -60°", "warning")
+    assert a.shown[-1] == ("The robot fell", "pitch -60°") and len(a.shown) == 3
+
+
+def test_a_replayed_fall_shows_one_toast(tmp_path: Path) -> None:
+    """After the auto reset the simulation replays the same fall: same pitch, same time, same text."""
+    d = Dashboard(DashboardConfig(port=free_port(), speed=4.0, sessions_dir=tmp_path), verbose=False).start()
+    try:
+        probe = ProbeClient(d.url)
+        assert wait_until(lambda: len(d.server.get_clients()) == 1)
+        walls: list[float] = []
+
+        class FallClock:
+            def tick(self, sim: Simulation) -> None:
+                pass
+
+            def event(self, sim: Simulation, event: Event) -> None:
+                if event.kind == "fall":
+                    walls.append(time.monotonic())
+
+        d.sim.submit(lambda sim: sim.listeners.append(FallClock()))
+        d.sim.submit(lambda sim: sim.set_wheel(False))  # with the wheel off it tumbles in its first flight
+        assert wait_until(lambda: len(walls) >= 2, timeout=40), "the robot did not fall twice"
+        falls = [e for e in list(d.sim.events) if e.kind == "fall"][:2]
+        # The same toast text (pitch to the degree, time to 10 ms): only the last digits of the pitch differ.
+        assert [f"{e.data['pitch_deg']:+.0f} {e.time:.2f}" for e in falls] == [f"-60 {falls[0].time:.2f}"] * 2
+        assert walls[1] - walls[0] < feedback.AUTO_CLOSE_S["warning"], "the first toast had closed already"
+
+        # The auto reset after the second fall comes after the loop has handled that fall; a marker
+        # sent then reaches the probe after any toast for it (one connection keeps its order).
+        def resets_after_falls() -> int:
+            return sum(e.kind == "reset" and e.data["reason"] == "after fall" for e in list(d.sim.events))
+
+        assert wait_until(lambda: resets_after_falls() >= 2, timeout=20)
+        feedback.notify_all(d.server, "marker", "")
+        assert probe.wait_for(lambda p: bodies(p, "marker"))
+        assert len(bodies(probe, "The robot fell")) == 1, bodies(probe, "The robot fell")
+        probe.close()
+    finally:
+        d.stop()
