@@ -20,13 +20,14 @@ from hopper.sim import Event, Simulation
 
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMIUM_ARGS = [
-    "--headless=new",
+    "--headless",
     "--no-sandbox",
     "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
     "--disable-background-networking",
     "--disable-component-update",
     "--disable-sync",
-    "--no-first-run",
 ]
 MIN_CANVAS_COLOURS = 500  # a blank or single-colour canvas has a handful; the scene has thousands
 

@@ -5,18 +5,24 @@ Browser input is stood in for by `ProbeClient`, which speaks viser's real websoc
 
 from __future__ import annotations
 
+import math
 import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
+import viser
 from hopper.app.dashboard import feedback
 from hopper.app.dashboard.config import DashboardConfig
 from hopper.app.dashboard.feedback import format_number, notify
+from hopper.app.dashboard.plots import LivePlots
 from hopper.app.dashboard.probe import ProbeClient
 from hopper.app.dashboard.server import Dashboard
 from net import free_port, wait_until
 
+from hopper.config import WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT
+from hopper.metrics import RAD_S_TO_RPM
 from hopper.sim import Event, Simulation
 
 
@@ -133,3 +139,29 @@ def test_a_replayed_fall_shows_one_toast(tmp_path: Path) -> None:
         probe.close()
     finally:
         d.stop()
+
+
+# -- charts ----------------------------------------------------------------------------------------
+def test_the_torque_and_speed_charts_draw_the_wheel_limits() -> None:
+    server = viser.ViserServer(port=free_port(), verbose=False)
+    try:
+        plots = LivePlots(server.gui)
+        for i in range(10):
+            plots.sample(i * 0.025, 0.01, 10.0, 5.0, 6.0)
+        plots.publish(now=1.0)
+        rpm_limit = WHEEL_NO_LOAD_SPEED * RAD_S_TO_RPM
+        for chart, limit in ((plots.torque, WHEEL_TORQUE_LIMIT), (plots.rpm, rpm_limit)):
+            lines = [
+                (s, column)
+                for s, column in zip(chart.series, chart.data, strict=True)
+                if "limit" in str(s.get("label", ""))
+            ]
+            assert len(lines) == 2, chart.series
+            levels = sorted(float(column[0]) for _, column in lines)
+            assert levels == pytest.approx([-limit, limit], abs=1e-3)
+            for series, column in lines:
+                assert np.all(column == column[0]) and len(column) == len(chart.data[0]) == 10
+                assert series.get("dash") and series["stroke"] == "#e5484d"
+        assert math.isclose(rpm_limit, 400.0)
+    finally:
+        server.stop()
