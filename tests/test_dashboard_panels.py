@@ -18,6 +18,7 @@ from hopper.app.dashboard.config import DashboardConfig
 from hopper.app.dashboard.feedback import format_number, notify
 from hopper.app.dashboard.plots import LivePlots
 from hopper.app.dashboard.probe import ProbeClient
+from hopper.app.dashboard.scene import LOOK_OFFSET
 from hopper.app.dashboard.server import Dashboard
 from net import free_port, wait_until
 
@@ -165,3 +166,33 @@ def test_the_torque_and_speed_charts_draw_the_wheel_limits() -> None:
         assert math.isclose(rpm_limit, 400.0)
     finally:
         server.stop()
+
+
+# -- camera ----------------------------------------------------------------------------------------
+def test_side_view_looks_at_the_robot_where_it_is_shown_with_follow_off(
+    dashboard: Dashboard, client: ProbeClient
+) -> None:
+    import mujoco
+
+    client.set_gui_value("Pause", True)
+    client.set_gui_value("Follow robot", False)
+    assert wait_until(lambda: dashboard.pacer.paused and not dashboard.camera.enabled)
+
+    def carry_forward(sim: Simulation) -> None:  # 2.5 m along the strip, as after a few hops
+        sim.data.joint("root_x").qpos[0] += 2.5
+        mujoco.mj_forward(sim.model, sim.data)
+
+    x_before = dashboard.sim.physics.x
+    dashboard.sim.submit(carry_forward)
+
+    def shown_torso() -> np.ndarray:
+        return np.asarray(dashboard.robot.torso_position) + np.asarray(dashboard.camera.world.position)
+
+    assert wait_until(lambda: dashboard.robot.torso_position[0] > x_before + 2.4), "the moved robot was not drawn"
+    assert shown_torso()[0] > 2.0, "with follow off the world frame must not have followed"
+    client.set_gui_value("Side view", True)
+    (handle,) = dashboard.server.get_clients().values()
+    assert wait_until(lambda: handle.camera.look_at[0] > 1.0), handle.camera.look_at
+    aim = np.asarray(handle.camera.look_at) - LOOK_OFFSET
+    assert np.linalg.norm(aim - shown_torso()) < 0.03, (aim, shown_torso())
+    assert np.allclose(np.asarray(handle.camera.position) - handle.camera.look_at, [0.0, -4.4, 1.9])
