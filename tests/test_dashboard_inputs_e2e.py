@@ -101,6 +101,19 @@ def gain_changes(dashboard: Dashboard) -> list[tuple[float, float, float]]:
     return [(e.data["kp"], e.data["ki"], e.data["kd"]) for e in list(dashboard.sim.events) if e.kind == "gains"]
 
 
+def test_help_closes_with_escape_and_with_its_button(page) -> None:
+    modal = page.locator(".mantine-Modal-content")
+    page.get_by_role("button", name="Help").click()
+    modal.wait_for(state="visible", timeout=10_000)
+    assert "Lunar hopper dashboard" in modal.inner_text()
+    page.keyboard.press("Escape")
+    modal.wait_for(state="detached", timeout=10_000)
+    page.get_by_role("button", name="Help").click()
+    modal.wait_for(state="visible", timeout=10_000)
+    modal.get_by_role("button", name="Close").click()
+    modal.wait_for(state="detached", timeout=10_000)
+
+
 def test_the_torque_chart_draws_its_limit_lines(page, dashboard: Dashboard, tmp_path: Path) -> None:
     dashboard.layout.simulation.set_paused(False)
     assert wait_until(lambda: len(dashboard.layout.plots.window) > 40, timeout=30)
