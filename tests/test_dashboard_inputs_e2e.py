@@ -17,6 +17,8 @@ from net import free_port, wait_until
 from PIL import Image
 from test_dashboard_e2e import LARGEST_CANVAS_JS, browser  # noqa: F401  (browser: the Chromium fixture)
 
+from hopper.config import Gains
+
 VIEWPORT = {"width": 1440, "height": 900}
 
 
@@ -99,6 +101,112 @@ def notice(page, text: str):
 
 def gain_changes(dashboard: Dashboard) -> list[tuple[float, float, float]]:
     return [(e.data["kp"], e.data["ki"], e.data["kd"]) for e in list(dashboard.sim.events) if e.kind == "gains"]
+
+
+def test_typed_gains_apply_once_are_clamped_or_refused_and_the_box_shows_what_runs(
+    page, dashboard: Dashboard, tmp_path: Path
+) -> None:
+    gains = dashboard.layout.gains
+    kp, ki, kd = (box(page, gains.entries[name].handle) for name in ("kp", "ki", "kd"))
+    assert box(page, gains.kp).is_hidden(), "the slider's own number box must not be offered"
+    assert (kp.input_value(), ki.input_value(), kd.input_value()) == ("450", "50", "30")
+
+    # Typing 800 applies 800, once: not 8, then 80, then 800.
+    type_into(page, kp, "800")
+    assert wait_until(lambda: dashboard.sim.gains.kp == 800.0), dashboard.sim.gains
+    assert gain_changes(dashboard) == [(800.0, 50.0, 30.0)]
+    assert kp.input_value() == "800"
+
+    # 1e9 is a number (not 1, then 19): clamped to the range, with its units.
+    type_into(page, kp, "1e9")
+    notice(page, "Kp 1000000000 N m/rad is outside [0, 2000] N m/rad; clamped to 2000 N m/rad")
+    assert wait_until(lambda: dashboard.sim.gains.kp == 2000.0)
+    assert wait_until(lambda: kp.input_value() == "2000"), kp.input_value()
+    type_into(page, ki, "900")
+    notice(page, "Ki 900 N m/(rad s) is outside [0, 500] N m/(rad s); clamped to 500 N m/(rad s)")
+    assert wait_until(lambda: dashboard.sim.gains.ki == 500.0)
+    assert wait_until(lambda: ki.input_value() == "500"), ki.input_value()
+
+    # Not numbers: refused with a notice, the box shows the gain in use again, nothing is applied.
+    for text, message in [
+        ("1,5", "Kd: '1,5' is not a number; use a point for decimals; kept 30 N m s/rad"),
+        ("abc", "Kd: 'abc' is not a number; kept 30 N m s/rad"),
+        ("NaN", "Kd: 'NaN' is not a number; kept 30 N m s/rad"),
+        ("inf", "Kd: 'inf' is not a number; kept 30 N m s/rad"),
+    ]:
+        type_into(page, kd, text)
+        notice(page, message)
+        assert wait_until(lambda: kd.input_value() == "30"), (text, kd.input_value())
+    type_into(page, kd, "12.5")
+    assert wait_until(lambda: dashboard.sim.gains.kd == 12.5)
+    assert wait_until(lambda: kd.input_value() == "12.5")
+    applied = [(800.0, 50.0, 30.0), (2000.0, 50.0, 30.0), (2000.0, 500.0, 30.0), (2000.0, 500.0, 12.5)]
+    assert gain_changes(dashboard) == applied, "one change a typed value, none for refused text"
+    assert dashboard.sim.controller.gains == Gains(kp=2000.0, ki=500.0, kd=12.5)
+
+    # The slider still drags, and the box follows it.
+    track = page.locator(f'[id="{gains.kp._impl.uuid}"]')
+    area = track.bounding_box()
+    page.mouse.click(area["x"] + 0.25 * area["width"], area["y"] + area["height"] / 2)
+    assert wait_until(lambda: dashboard.sim.gains.kp < 1000.0), dashboard.sim.gains
+    assert wait_until(lambda: kp.input_value() == f"{dashboard.sim.gains.kp:g}"), kp.input_value()
+
+    # What a person sees after a clamp, the scene drawn too.
+    show_scene(page)
+    type_into(page, ki, "900")
+    notice(page, "Ki 900 N m/(rad s) is outside [0, 500] N m/(rad s)")
+    assert wait_until(lambda: ki.input_value() == "500"), ki.input_value()
+    page.mouse.move(700, 850)  # no hint tooltip over the boxes
+    page.locator('[role="tooltip"]').first.wait_for(state="hidden", timeout=5_000)
+    page.screenshot(path=str(tmp_path / "gains-clamped.png"))
+
+
+def test_the_disturb_and_world_boxes_take_typed_numbers_checked_on_the_server(page, dashboard: Dashboard) -> None:
+    page.get_by_role("tab", name="Disturb").click()
+    kick = box(page, dashboard.layout.disturbances.magnitudes["pitch_kick"].handle)
+    type_into(page, kick, "-99")
+    notice(page, "Kick magnitude -99 N m s is outside [-5, 5] N m s; clamped to -5 N m s")
+    assert wait_until(lambda: kick.input_value() == "-5"), kick.input_value()
+    type_into(page, kick, "abc")
+    notice(page, "Kick magnitude: 'abc' is not a number; kept -5 N m s")
+    assert wait_until(lambda: kick.input_value() == "-5"), kick.input_value()
+    # A value typed just before the button counts, without waiting for the quiet time.
+    type_into(page, kick, "0.5")
+    page.get_by_role("button", name="Pitch kick").click()
+    assert wait_until(lambda: any(e.kind == "disturbance" for e in list(dashboard.sim.events)))
+    (kicked,) = [e for e in list(dashboard.sim.events) if e.kind == "disturbance"]
+    assert kicked.data["magnitude"] == 0.5
+
+    page.get_by_role("tab", name="World").click()
+    seed = box(page, dashboard.layout.terrain.seed.handle)
+    type_into(page, seed, "12.5")
+    notice(page, "Seed must be a whole number, got '12.5'; kept 0")
+    assert wait_until(lambda: seed.input_value() == "0"), seed.input_value()
+    type_into(page, seed, "1e3")
+    assert wait_until(lambda: seed.input_value() == "1000"), seed.input_value()
+    assert dashboard.sim.config.seed == 0, "a typed seed waits for Regenerate"
+    page.get_by_role("button", name="Regenerate").click()
+    assert wait_until(lambda: dashboard.sim.config.seed == 1000, timeout=20)
+
+
+def test_gains_given_at_start_show_as_given(browser, tmp_path: Path) -> None:  # noqa: F811
+    """`hopper-dashboard --kp 1500 --ki 120 --kd 12.25`: every handle and box shows those, not a default."""
+    dashboard = start(tmp_path, kp=1500.0, ki=120.0, kd=12.25)
+    try:
+        gains = dashboard.layout.gains
+        assert (gains.kp.value, gains.ki.value, gains.kd.value) == (1500.0, 120.0, 12.25)
+        assert [gains.entries[n].handle.value for n in ("kp", "ki", "kd")] == ["1500", "120", "12.25"]
+        assert dashboard.sim.gains == Gains(kp=1500.0, ki=120.0, kd=12.25)
+        page = open_page(browser, dashboard)
+        try:
+            shown = [box(page, gains.entries[n].handle).input_value() for n in ("kp", "ki", "kd")]
+            assert shown == ["1500", "120", "12.25"]
+            thumb = page.locator(f'[id="{gains.kp._impl.uuid}"] [role="slider"]')
+            assert thumb.get_attribute("aria-valuenow") == "1500"
+        finally:
+            page.close()
+    finally:
+        dashboard.stop()
 
 
 def test_help_closes_with_escape_and_with_its_button(page) -> None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import functools
 import logging
 import math
+import re
 import threading
 import time
 import weakref
@@ -18,6 +19,9 @@ log = logging.getLogger(__name__)
 Level = Literal["info", "warning", "error"]
 _COLORS: dict[Level, Any] = {"info": "blue", "warning": "yellow", "error": "red"}
 AUTO_CLOSE_S: dict[Level, float] = {"info": 4.0, "warning": 6.0, "error": 8.0}
+# What a person types for a number: digits with an optional point and exponent. Stricter than
+# float(), which also takes "nan", "inf", "1_000" and surrounding junk.
+_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
 
 _clock = time.monotonic  # tests move time forward
 # Per client: (title, body) -> when that notification closes on its own. Weak keys: a client that
@@ -86,23 +90,26 @@ def checked(name: str, value: object, low: float, high: float, unit: str = "") -
     return _clamp(name, float(value), low, high, unit)
 
 
-def keep_in_range(handle: viser.GuiNumberHandle, name: str, low: float, high: float, unit: str = "") -> None:
-    """Police a number input: out-of-range values are clamped and non-finite ones restored, with a notice."""
-    last = [handle.value]
+def parse_number(
+    name: str, text: str, low: float, high: float, unit: str = "", *, integer: bool = False
+) -> tuple[float, str | None]:
+    """Typed text as a number in [low, high] (an int if `integer`): clamped with a message, or Refused.
 
-    def on_update(event: viser.GuiEvent) -> None:
-        try:
-            value, message = checked(name, handle.value, low, high, unit)
-        except Refused as exc:
-            handle.value = last[0]
-            notify(event.client, "Value refused", str(exc), "warning")
-            return
-        if message:
-            notify(event.client, "Value clamped", message, "warning")
-            handle.value = type(last[0])(value)
-        last[0] = handle.value
-
-    handle.on_update(guarded(on_update))
+    Takes 800, 12.5, -2.5, 1e3; refuses 1,5 (a decimal comma), abc, NaN, inf and the empty box.
+    """
+    typed = text.strip()
+    if not typed:
+        raise Refused(f"{name} is empty: type a number")
+    if not _NUMBER.fullmatch(typed):
+        hint = "; use a point for decimals" if "," in typed else ""
+        raise Refused(f"{name}: {typed!r} is not a number{hint}")
+    value = float(typed)
+    if not math.isfinite(value):
+        raise Refused(f"{name}: {typed!r} is too large")
+    if integer and value != int(value):
+        raise Refused(f"{name} must be a whole number, got {typed!r}")
+    value, message = _clamp(name, value, low, high, unit)
+    return (int(value) if integer else value), message
 
 
 def guarded(callback: Callable[[viser.GuiEvent], None]) -> Callable[[viser.GuiEvent], None]:
