@@ -22,13 +22,14 @@ from hopper.sim import Simulation
 
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMIUM_ARGS = [
-    "--headless=new",
+    "--headless",
     "--no-sandbox",
     "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
     "--disable-background-networking",
     "--disable-component-update",
     "--disable-sync",
-    "--no-first-run",
 ]
 MIN_CANVAS_COLOURS = 500  # a blank or single-colour canvas has a handful; the scene has thousands
 
@@ -115,8 +116,8 @@ def test_dashboard_in_a_real_browser(browser, tmp_path: Path) -> None:
         assert colours >= MIN_CANVAS_COLOURS, f"the 3D canvas looks blank ({colours} colours)"
 
         # Typing a gain in the Kp box reaches the controller (commands apply while paused too).
-        row = page.locator("label", has_text="Kp").locator("xpath=ancestor::div[contains(@style,'padding-inline')][1]")
-        kp_box = row.locator("input.mantine-NumberInput-input")
+        kp_label = page.locator(f'label[for="{dashboard.layout.gains.entries["kp"].handle._impl.uuid}"]')
+        kp_box = kp_label.locator("xpath=ancestor::div[contains(@style,'padding-inline')][1]").locator("input")
         kp_box.click()
         kp_box.press("Control+a")
         kp_box.press_sequentially("620", delay=50)

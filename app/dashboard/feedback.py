@@ -5,6 +5,10 @@ from __future__ import annotations
 import functools
 import logging
 import math
+import re
+import threading
+import time
+import weakref
 from collections.abc import Callable
 from typing import Any, Literal
 
@@ -14,19 +18,47 @@ log = logging.getLogger(__name__)
 
 Level = Literal["info", "warning", "error"]
 _COLORS: dict[Level, Any] = {"info": "blue", "warning": "yellow", "error": "red"}
-_SECONDS: dict[Level, float] = {"info": 4.0, "warning": 6.0, "error": 8.0}
+AUTO_CLOSE_S: dict[Level, float] = {"info": 4.0, "warning": 6.0, "error": 8.0}
+# What a person types for a number: digits with an optional point and exponent. Stricter than
+# float(), which also takes "nan", "inf", "1_000" and surrounding junk.
+_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
+
+_clock = time.monotonic  # tests move time forward
+# Per client: (title, body) -> when that notification closes on its own. Weak keys: a client that
+# leaves takes its entries with it.
+_on_screen: weakref.WeakKeyDictionary[Any, dict[tuple[str, str], float]] = weakref.WeakKeyDictionary()
+_on_screen_lock = threading.Lock()
 
 
 class Refused(ValueError):
     """A value from a browser that cannot be used at all (non-finite, wrong type)."""
 
 
+def format_number(value: float) -> str:
+    """A number as people write it: whole numbers in full (2147483647, not 2.14748e+09), others to 6 digits."""
+    if math.isfinite(value) and value == int(value) and abs(value) < 1e15:
+        return str(int(value))
+    return f"{value:g}"
+
+
 def notify(client: viser.ClientHandle | None, title: str, body: str, level: Level = "info") -> None:
-    """Show a notification to one client; never raises (the client may have just left)."""
+    """Show a notification to one client, unless the same one is still on its screen; never raises.
+
+    Identical notifications in a row (a fall replayed after the auto reset, a refusal repeated)
+    would otherwise stack as copies.
+    """
     if client is None:
         return
+    now, key = _clock(), (title, body)
+    with _on_screen_lock:
+        shown = _on_screen.setdefault(client, {})
+        for old in [k for k, until in shown.items() if until <= now]:
+            del shown[old]
+        if key in shown:
+            return
+        shown[key] = now + AUTO_CLOSE_S[level]
     try:
-        client.add_notification(title, body, color=_COLORS[level], auto_close_seconds=_SECONDS[level])
+        client.add_notification(title, body, color=_COLORS[level], auto_close_seconds=AUTO_CLOSE_S[level])
     except Exception:  # a disconnecting client must not break the caller
         log.debug("notification to client %s failed", getattr(client, "client_id", "?"), exc_info=True)
 
@@ -35,6 +67,15 @@ def notify_all(server: viser.ViserServer, title: str, body: str, level: Level = 
     """Show a notification to every connected client."""
     for client in server.get_clients().values():
         notify(client, title, body, level)
+
+
+def _clamp(name: str, value: float, low: float, high: float, unit: str) -> tuple[float, str | None]:
+    if low <= value <= high:
+        return value, None
+    clamped = min(max(value, low), high)
+    u = f" {unit}" if unit else ""
+    f = format_number
+    return clamped, f"{name} {f(value)}{u} is outside [{f(low)}, {f(high)}]{u}; clamped to {f(clamped)}{u}"
 
 
 def checked(name: str, value: object, low: float, high: float, unit: str = "") -> tuple[float, str | None]:
@@ -46,30 +87,29 @@ def checked(name: str, value: object, low: float, high: float, unit: str = "") -
         raise Refused(f"{name} must be a number, got {value!r}")
     if not math.isfinite(value):
         raise Refused(f"{name} must be finite, got {value!r}; kept the previous value")
-    if low <= value <= high:
-        return float(value), None
-    clamped = min(max(float(value), low), high)
-    suffix = f" {unit}" if unit else ""
-    return clamped, f"{name} {value:g}{suffix} is outside [{low:g}, {high:g}]{suffix}; clamped to {clamped:g}{suffix}"
+    return _clamp(name, float(value), low, high, unit)
 
 
-def keep_in_range(handle: viser.GuiNumberHandle, name: str, low: float, high: float, unit: str = "") -> None:
-    """Police a number input: out-of-range values are clamped and non-finite ones restored, with a notice."""
-    last = [handle.value]
+def parse_number(
+    name: str, text: str, low: float, high: float, unit: str = "", *, integer: bool = False
+) -> tuple[float, str | None]:
+    """Typed text as a number in [low, high] (an int if `integer`): clamped with a message, or Refused.
 
-    def on_update(event: viser.GuiEvent) -> None:
-        try:
-            value, message = checked(name, handle.value, low, high, unit)
-        except Refused as exc:
-            handle.value = last[0]
-            notify(event.client, "Value refused", str(exc), "warning")
-            return
-        if message:
-            notify(event.client, "Value clamped", message, "warning")
-            handle.value = type(last[0])(value)
-        last[0] = handle.value
-
-    handle.on_update(guarded(on_update))
+    Takes 800, 12.5, -2.5, 1e3; refuses 1,5 (a decimal comma), abc, NaN, inf and the empty box.
+    """
+    typed = text.strip()
+    if not typed:
+        raise Refused(f"{name} is empty: type a number")
+    if not _NUMBER.fullmatch(typed):
+        hint = "; use a point for decimals" if "," in typed else ""
+        raise Refused(f"{name}: {typed!r} is not a number{hint}")
+    value = float(typed)
+    if not math.isfinite(value):
+        raise Refused(f"{name}: {typed!r} is too large")
+    if integer and value != int(value):
+        raise Refused(f"{name} must be a whole number, got {typed!r}")
+    value, message = _clamp(name, value, low, high, unit)
+    return (int(value) if integer else value), message
 
 
 def guarded(callback: Callable[[viser.GuiEvent], None]) -> Callable[[viser.GuiEvent], None]:

@@ -16,6 +16,7 @@ PLOT_SAMPLE_S = 0.025  # s of simulation between samples: 8 a period of the wn =
 PLOT_PUBLISH_S = 0.1  # s of wall time between chart updates; each re-sends the window (~22 KB, float64)
 CHART_HEIGHT = 135  # px
 Y_SOFT = 2.0  # deg, the pitch chart shows at least +-Y_SOFT
+LIMIT_COLOR = "#e5484d"  # red, dashed: the wheel's torque and speed limits
 _N = int(round(PLOT_WINDOW_S / PLOT_SAMPLE_S))
 # Columns of the ring buffer.
 _T, _PITCH, _RPM, _TORQUE, _COMMAND = range(5)
@@ -82,20 +83,29 @@ def _chart(
     )
 
 
+def _limit_series() -> tuple[uplot.Series, uplot.Series]:
+    """Two dashed red lines at +-the limit, as the rerun recording draws it (short labels: one legend line)."""
+    return _series("+limit", LIMIT_COLOR, 1.0, (6, 4)), _series("-limit", LIMIT_COLOR, 1.0, (6, 4))
+
+
 class LivePlots:
-    """Pitch, wheel RPM and wheel torque (applied and asked) over the last PLOT_WINDOW_S."""
+    """Pitch, wheel RPM and wheel torque (applied and asked) over the last PLOT_WINDOW_S, with the wheel's limits."""
 
     def __init__(self, gui: viser.GuiApi) -> None:
         self.window = RollingWindow(_N, 5)
         self._last_publish = -math.inf
         self._dirty = False
-        rpm_limit = WHEEL_NO_LOAD_SPEED * RAD_S_TO_RPM * 1.05
+        self.rpm_limit = WHEEL_NO_LOAD_SPEED * RAD_S_TO_RPM  # 400 rpm
         time = _series("t (s)", "")
         self.pitch = _chart(gui, (time, _series("pitch (°)", "#ffb03b")), None)
-        self.rpm = _chart(gui, (time, _series("wheel speed (rpm)", "#5aa9ff")), (-rpm_limit, rpm_limit))
+        self.rpm = _chart(
+            gui,
+            (time, _series("wheel speed (rpm)", "#5aa9ff"), *_limit_series()),
+            (-self.rpm_limit * 1.05, self.rpm_limit * 1.05),
+        )
         limit = WHEEL_TORQUE_LIMIT * 1.08
-        torque = (_series("wheel torque (N m)", "#f25f5c"), _series("asked", "#cfd6dd", 1.0, (4, 3)))
-        self.torque = _chart(gui, (time, *torque), (-limit, limit))
+        torque = (_series("torque (N m)", "#f25f5c"), _series("asked", "#cfd6dd", 1.0, (4, 3)))
+        self.torque = _chart(gui, (time, *torque, *_limit_series()), (-limit, limit))
 
     def sample(self, time: float, pitch: float, wheel_speed: float, torque: float, command: float) -> None:
         """Add one sample (SI units); the caller keeps one every PLOT_SAMPLE_S of simulation time."""
@@ -112,6 +122,12 @@ class LivePlots:
             return
         self._dirty, self._last_publish = False, now
         c = self.window.columns()
-        self.pitch.data = (c[_T], c[_PITCH])
-        self.rpm.data = (c[_T], c[_RPM])
-        self.torque.data = (c[_T], c[_TORQUE], c[_COMMAND])
+        t = c[_T]
+        self.pitch.data = (t, c[_PITCH])
+        self.rpm.data = (t, c[_RPM], *_constant(t, self.rpm_limit))
+        self.torque.data = (t, c[_TORQUE], c[_COMMAND], *_constant(t, WHEEL_TORQUE_LIMIT))
+
+
+def _constant(t: np.ndarray, value: float) -> tuple[np.ndarray, np.ndarray]:
+    """+-value at every sample time (uPlot needs one y per x); compresses to nearly nothing on the wire."""
+    return np.full_like(t, value), np.full_like(t, -value)

@@ -119,6 +119,7 @@ class RobotView:
             f"{WORLD}/robot_label", "stance", position=(0.0, 0.0, 1.6), anchor="bottom-center", font_screen_scale=0.9
         )
         self.show_label = True
+        self.torso_position = np.zeros(3)  # m, in the world frame, as last sent
 
     def update(self, model: mujoco.MjModel, data: mujoco.MjData, level: float, phase: str) -> None:
         """Send this frame's poses (call inside server.atomic(), from the simulation loop)."""
@@ -131,6 +132,7 @@ class RobotView:
             self._level = quantized
             self.ring.color = saturation_color(quantized)
         torso = positions[0]
+        self.torso_position = torso  # in the world frame, as sent
         self.label.position = (torso[0], 0.0, torso[2] + 0.42)
         if self.label.text != phase:
             self.label.text = phase
@@ -200,7 +202,8 @@ class CameraFollow:
 
     def __init__(self, scene: viser.SceneApi, x: float, z: float) -> None:
         self.enabled = True
-        self.x, self.z = x, z
+        self.x, self.z = x, z  # the followed point, m: the world frame sits at minus it
+        self.robot = (x, z)  # the robot's latest (x, z), m, followed or not
         self.world = scene.add_frame(WORLD, show_axes=False)
         self._move_world()
 
@@ -213,16 +216,26 @@ class CameraFollow:
         initial.fov, initial.up = CAMERA_FOV, (0.0, 0.0, 1.0)
         initial.position, initial.look_at = LOOK_OFFSET + CAMERA_OFFSET, LOOK_OFFSET
 
+    def shown_robot(self) -> np.ndarray:
+        """Where the robot is drawn (m, scene frame): its position plus the world frame's offset.
+
+        With follow on that is near the origin; with follow off, wherever the robot has gone since.
+        """
+        (x, z), (fx, fz) = self.robot, (self.x, self.z)  # set by the loop thread: at worst a frame old
+        return np.array([x - fx, 0.0, z - fz])
+
     def home(self, client: viser.ClientHandle) -> None:
-        """Put a client's camera back at the side view."""
+        """Put a client's camera at the side view of the robot, wherever it is drawn."""
+        look_at = self.shown_robot() + LOOK_OFFSET
         with client.atomic():
             client.camera.fov = CAMERA_FOV
             client.camera.up_direction = (0.0, 0.0, 1.0)
-            client.camera.position = LOOK_OFFSET + CAMERA_OFFSET
-            client.camera.look_at = LOOK_OFFSET
+            client.camera.position = look_at + CAMERA_OFFSET
+            client.camera.look_at = look_at
 
     def update(self, x: float, z: float, dt: float) -> None:
-        """Move the followed point toward the robot at (x, z) (m) and slide the world to match."""
+        """Note the robot at (x, z) (m); if following, move the followed point toward it and the world to match."""
+        self.robot = (x, z)
         if not self.enabled:
             return
         self.x += (x - self.x) * (1.0 - math.exp(-dt / FOLLOW_TAU_X))

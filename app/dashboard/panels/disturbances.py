@@ -5,8 +5,9 @@ from __future__ import annotations
 import dataclasses
 
 import viser
-from hopper.app.dashboard.feedback import Refused, checked, guarded, keep_in_range, notify
+from hopper.app.dashboard.feedback import guarded
 from hopper.app.dashboard.panels import PanelContext
+from hopper.app.dashboard.panels.entry import NumberEntry
 
 from hopper.commands import Disturb
 from hopper.sim import DISTURBANCE_LIMITS
@@ -22,22 +23,22 @@ KINDS = {
 
 @dataclasses.dataclass
 class DisturbancesPanel:
-    magnitudes: dict[str, viser.GuiNumberHandle[float]]  # by core kind
+    magnitudes: dict[str, NumberEntry]  # typed boxes, by core kind
     apply: viser.GuiButtonGroupHandle
     reset_button: viser.GuiButtonHandle
 
     def reset(self) -> None:
         for kind, _, default in KINDS.values():
-            self.magnitudes[kind].value = default
+            self.magnitudes[kind].show(default)
 
 
 def build_disturbances_panel(gui: viser.GuiApi, ctx: PanelContext) -> DisturbancesPanel:
-    """Magnitudes are checked against hopper.sim.DISTURBANCE_LIMITS before anything is queued."""
+    """Magnitudes are typed, checked against hopper.sim.DISTURBANCE_LIMITS, and used when a button is pressed."""
     magnitudes = {}
     for kind, label, default in KINDS.values():
         limit, unit = DISTURBANCE_LIMITS[kind]
-        magnitudes[kind] = gui.add_number(f"{label} ({unit})", default, min=-limit, max=limit, step=0.1)
-        keep_in_range(magnitudes[kind], f"{label} magnitude", -limit, limit, unit)
+        box = gui.add_text(f"{label} ({unit})", "", hint=f"From -{limit:g} to {limit:g} {unit}")
+        magnitudes[kind] = NumberEntry(box, f"{label} magnitude", -limit, limit, unit, value=default)
     panel = DisturbancesPanel(
         magnitudes=magnitudes,
         apply=gui.add_button_group("Apply", tuple(KINDS), hint="A torque pulse waits for the next flight"),
@@ -46,17 +47,10 @@ def build_disturbances_panel(gui: viser.GuiApi, ctx: PanelContext) -> Disturbanc
 
     @guarded
     def on_apply(event: viser.GuiEvent) -> None:
-        kind, label, default = KINDS[panel.apply.value]
-        limit, unit = DISTURBANCE_LIMITS[kind]
-        handle = panel.magnitudes[kind]
-        try:
-            magnitude, message = checked(f"{label} magnitude", handle.value, -limit, limit, unit)
-        except Refused:
-            handle.value = default
-            raise
-        if message:
-            notify(event.client, "Magnitude clamped", message, "warning")
-            handle.value = magnitude
+        kind, _, _ = KINDS[panel.apply.value]
+        magnitude = panel.magnitudes[kind].commit(event.client)  # what was just typed counts
+        if magnitude is None:  # refused, with a notice: nothing is applied
+            return
         ctx.submit(Disturb(kind, magnitude))
 
     panel.apply.on_click(on_apply)

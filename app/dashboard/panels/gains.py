@@ -1,81 +1,130 @@
-"""Gains panel: the wheel PID's Kp, Ki, Kd (slider plus numeric entry) and wheel on/off."""
+"""Gains panel: the wheel PID's Kp, Ki, Kd (slider to drag, box to type) and wheel on/off."""
 
 from __future__ import annotations
 
 import dataclasses
+import threading
+from collections.abc import Callable
 
 import viser
 from hopper.app.dashboard.feedback import Refused, checked, guarded, notify
 from hopper.app.dashboard.panels import PanelContext
+from hopper.app.dashboard.panels.entry import NumberEntry
 
 from hopper.commands import SetGains, SetWheel
 from hopper.config import GAIN_RANGES, Gains
 
+LABELS = {"kp": "Kp", "ki": "Ki", "kd": "Kd"}
+STEPS = {"kp": 5.0, "ki": 1.0, "kd": 0.5}  # slider steps; typed values may fall between them
+HINTS = {
+    "kp": "Proportional gain",
+    "ki": "Integral gain; the integral is reset at each liftoff",
+    "kd": "Derivative gain on the measured pitch rate",
+}
+
 
 @dataclasses.dataclass
 class GainsPanel:
+    ctx: PanelContext
     kp: viser.GuiSliderHandle[float]
     ki: viser.GuiSliderHandle[float]
     kd: viser.GuiSliderHandle[float]
+    entries: dict[str, NumberEntry]  # the typed boxes, by gain name (kp, ki, kd)
     wheel: viser.GuiCheckboxHandle
     reset_button: viser.GuiButtonHandle
     defaults: Gains
     applied: Gains
+    _lock: threading.RLock = dataclasses.field(default_factory=threading.RLock, repr=False)
+
+    @property
+    def sliders(self) -> dict[str, viser.GuiSliderHandle[float]]:
+        return {"kp": self.kp, "ki": self.ki, "kd": self.kd}
+
+    def apply(self, **changes: float) -> None:
+        """Queue the gains in use with `changes` if they differ, and show the changed ones in slider and box.
+
+        Called from viser's and the boxes' timer threads, hence the lock. Only the changed gains'
+        handles are set: another slider may hold a value whose callback has yet to run.
+        """
+        ctx = self.ctx
+        with self._lock:
+            gains = dataclasses.replace(self.applied, **changes)  # the core's own validation first
+            if gains != self.applied:
+                self.applied = gains
+                ctx.submit(SetGains(gains))
+            for name, value in changes.items():
+                self.sliders[name].value = value  # a program assignment: the slider's handler ignores it
+                if self.entries[name].value != value:  # a typed value is shown by its box already
+                    self.entries[name].show(value)
 
     def reset(self) -> None:
         """Back to the gains the dashboard started with, wheel on."""
-        self.kp.value, self.ki.value, self.kd.value = self.defaults.kp, self.defaults.ki, self.defaults.kd
+        self.apply(**dataclasses.asdict(self.defaults))
         self.wheel.value = True
 
 
+def _hide_slider_boxes(gui: viser.GuiApi, sliders: list[viser.GuiSliderHandle[float]]) -> None:
+    """Hide the number box viser draws beside each slider: it has the faults NumberEntry avoids.
+
+    viser gives a slider's root element the handle's id and draws the box right after it; the id
+    is only reachable through the handle's private state.
+    """
+    selectors = ", ".join(f'[id="{s._impl.uuid}"] + .mantine-NumberInput-root' for s in sliders)
+    gui.add_html(f"<style>{selectors} {{ display: none; }}</style>")
+
+
 def build_gains_panel(gui: viser.GuiApi, ctx: PanelContext, initial: Gains, wheel: bool = True) -> GainsPanel:
-    """Sliders apply at the next control tick; a bad value is clamped or refused with a notification."""
-
-    def slider(label: str, bounds: tuple[float, float], step: float, value: float, hint: str) -> viser.GuiSliderHandle:
-        low, high = bounds
+    """Dragging applies at once, typing after a short quiet time; every slider and box shows the gains in use."""
+    sliders: dict[str, viser.GuiSliderHandle[float]] = {}
+    entries: dict[str, NumberEntry] = {}
+    for name, label in LABELS.items():
+        low, high, unit = GAIN_RANGES[name]
+        value = getattr(initial, name)  # Gains keeps it inside GAIN_RANGES
         marks = ((low, f"{low:g}"), (value, f"{value:g}"), (high, f"{high:g}"))
-        return gui.add_slider(label, low, high, step, min(max(value, low), high), marks=marks, hint=hint)
-
+        sliders[name] = gui.add_slider(label, low, high, STEPS[name], value, marks=marks, hint=f"{HINTS[name]}, {unit}")
+        box = gui.add_text(unit, "", hint=f"Type {label} in {unit}: 800, 12.5 or 1e3; applied after a pause")
+        entries[name] = NumberEntry(box, label, low, high, unit, value=value)
+    _hide_slider_boxes(gui, list(sliders.values()))
     panel = GainsPanel(
-        kp=slider("Kp", GAIN_RANGES["kp"][:2], 5.0, initial.kp, "Proportional gain, N m/rad"),
-        ki=slider("Ki", GAIN_RANGES["ki"][:2], 1.0, initial.ki, "Integral gain, N m/(rad s); reset at each liftoff"),
-        kd=slider("Kd", GAIN_RANGES["kd"][:2], 0.5, initial.kd, "Derivative gain on the measured rate, N m s/rad"),
+        ctx=ctx,
+        kp=sliders["kp"],
+        ki=sliders["ki"],
+        kd=sliders["kd"],
+        entries=entries,
         wheel=gui.add_checkbox("Wheel on", wheel, hint="Off: zero wheel torque, the wheel spins freely"),
         reset_button=gui.add_button("Default gains", icon=viser.Icon.RESTORE, color="dark"),
         defaults=initial,
         applied=initial,
     )
-    ranges = {
-        label: (handle, GAIN_RANGES[label.lower()][:2], GAIN_RANGES[label.lower()].unit)
-        for label, handle in (("Kp", panel.kp), ("Ki", panel.ki), ("Kd", panel.kd))
-    }
 
-    @guarded
-    def on_gain(event: viser.GuiEvent) -> None:
-        values = {}
-        for name, (handle, (low, high), unit) in ranges.items():
+    def on_slider(name: str) -> Callable[[viser.GuiEvent], None]:
+        @guarded
+        def handler(event: viser.GuiEvent) -> None:
+            if event.client is None:  # set by panel.apply(): already in use
+                return
+            low, high, unit = GAIN_RANGES[name]
             try:
-                value, message = checked(name, handle.value, low, high, unit)
+                value, message = checked(LABELS[name], sliders[name].value, low, high, unit)
             except Refused:
-                handle.value = getattr(panel.applied, name.lower())  # restore the last applied gain
+                panel.apply(**{name: getattr(panel.applied, name)})  # show the gain in use again
                 raise
             if message:
                 notify(event.client, "Gain clamped", message, "warning")
-                handle.value = value
-            values[name.lower()] = value
-        gains = Gains(**values)  # the core's own validation, before anything is queued
-        if gains == panel.applied:
-            return
-        panel.applied = gains
-        ctx.submit(SetGains(gains))
+            panel.apply(**{name: value})
+
+        return handler
+
+    def on_typed(name: str) -> Callable[[float, viser.ClientHandle | None], None]:
+        return lambda value, _client: panel.apply(**{name: value})
 
     @guarded
     def on_wheel(_: viser.GuiEvent) -> None:
         enabled = bool(panel.wheel.value)
         ctx.submit(SetWheel(enabled))
 
-    for handle in (panel.kp, panel.ki, panel.kd):
-        handle.on_update(on_gain)
+    for name, slider in sliders.items():
+        slider.on_update(on_slider(name))
+        entries[name].on_apply = on_typed(name)
     panel.wheel.on_update(on_wheel)
     panel.reset_button.on_click(guarded(lambda _: panel.reset()))
     return panel

@@ -5,8 +5,9 @@ from __future__ import annotations
 import dataclasses
 
 import viser
-from hopper.app.dashboard.feedback import Refused, checked, guarded, keep_in_range
+from hopper.app.dashboard.feedback import Refused, guarded
 from hopper.app.dashboard.panels import PanelContext
+from hopper.app.dashboard.panels.entry import NumberEntry
 
 from hopper.commands import SetGravity, SetTerrain
 from hopper.config import GRAVITY_PRESETS, MOON_GRAVITY
@@ -24,7 +25,7 @@ def _preset_name(gravity: float) -> str:
 @dataclasses.dataclass
 class TerrainPanel:
     ctx: PanelContext
-    seed: viser.GuiNumberHandle[int]
+    seed: NumberEntry
     flat: viser.GuiCheckboxHandle
     regenerate: viser.GuiButtonHandle
     next_seed: viser.GuiButtonHandle
@@ -33,13 +34,11 @@ class TerrainPanel:
     default_seed: int
     default_flat: bool
 
-    def apply_terrain(self) -> None:
+    def apply_terrain(self, client: viser.ClientHandle | None = None) -> None:
         """Queue a terrain rebuild from the panel's seed and flat choice (restarts the robot)."""
-        try:
-            value, _ = checked("Seed", self.seed.value, 0, MAX_SEED)
-        except Refused:
-            self.seed.value = self.default_seed
-            raise
+        value = self.seed.commit(client)  # a seed typed just before the click counts
+        if value is None:  # refused, with a notice
+            return
         seed, kind = int(value), "flat" if self.flat.value else "crater"
         self.ctx.submit(SetTerrain(kind, seed))
 
@@ -53,7 +52,7 @@ class TerrainPanel:
     def reset(self) -> None:
         """Back to the starting terrain on the Moon (one rebuild)."""
         self.gravity.value = "Moon"
-        self.seed.value = self.default_seed
+        self.seed.show(self.default_seed)
         if self.flat.value != self.default_flat:
             self.flat.value = self.default_flat  # its callback rebuilds
         else:
@@ -64,9 +63,10 @@ def build_terrain_panel(
     gui: viser.GuiApi, ctx: PanelContext, seed: int, kind: str, gravity: float = MOON_GRAVITY
 ) -> TerrainPanel:
     """Rebuilding hot-swaps the heightfield and restarts the robot; gravity applies at the next tick."""
+    seed_box = gui.add_text("Seed", "", hint=f"A whole number from 0 to {MAX_SEED}; Regenerate applies it")
     panel = TerrainPanel(
         ctx=ctx,
-        seed=gui.add_number("Seed", seed, min=0, max=MAX_SEED, step=1),
+        seed=NumberEntry(seed_box, "Seed", 0, MAX_SEED, value=seed, integer=True),
         flat=gui.add_checkbox("Flat ground", kind == "flat"),
         regenerate=gui.add_button("Regenerate", icon=viser.Icon.REFRESH, hint="Rebuild the terrain, restart the robot"),
         next_seed=gui.add_button(
@@ -82,15 +82,17 @@ def build_terrain_panel(
         default_seed=seed,
         default_flat=kind == "flat",
     )
-    keep_in_range(panel.seed, "Seed", 0, MAX_SEED)
 
-    def next_seed() -> None:
-        panel.seed.value = min(int(panel.seed.value) + 1, MAX_SEED)
-        panel.apply_terrain()
+    def next_seed(event: viser.GuiEvent) -> None:
+        seed = panel.seed.commit(event.client)
+        if seed is None:
+            return
+        panel.seed.show(min(int(seed) + 1, MAX_SEED))
+        panel.apply_terrain(event.client)
 
-    panel.regenerate.on_click(guarded(lambda _: panel.apply_terrain()))
-    panel.next_seed.on_click(guarded(lambda _: next_seed()))
-    panel.flat.on_update(guarded(lambda _: panel.apply_terrain()))
+    panel.regenerate.on_click(guarded(lambda event: panel.apply_terrain(event.client)))
+    panel.next_seed.on_click(guarded(next_seed))
+    panel.flat.on_update(guarded(lambda event: panel.apply_terrain(event.client)))
     panel.gravity.on_update(guarded(lambda _: panel.apply_gravity()))
     panel.reset_button.on_click(guarded(lambda _: panel.reset()))
     return panel

@@ -1,0 +1,113 @@
+"""A typed number: a text box read on the server after a quiet time, never keystroke by keystroke.
+
+viser's number boxes (Mantine NumberInput) filter keys in the browser and send every keystroke:
+"1e9" arrives as 1 then 19, "1,5" as 15, "abc" or "NaN" empties the box and sends nothing, and
+typing 800 sends 8, 80, 800. So the text goes to the server as typed and is checked there.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Callable
+
+import viser
+from hopper.app.dashboard.feedback import Refused, format_number, notify, parse_number
+
+log = logging.getLogger(__name__)
+
+QUIET_S = 0.5  # s without a keystroke before typed text is applied
+
+Apply = Callable[[float, "viser.ClientHandle | None"], None]
+
+
+class NumberEntry:
+    """One number typed in a text box; the box always shows the value in use.
+
+    After QUIET_S without typing (or at once through `commit`, e.g. when a button needs the
+    value), the text is parsed: text that is not a number is refused with a notification and the
+    box shows the value in use again; a number out of [low, high] is clamped, with a notification
+    that gives the range and units. `on_apply(value, client)` then receives the new value (on a
+    timer or viser thread: it must only validate and queue).
+    """
+
+    def __init__(
+        self,
+        handle: viser.GuiTextHandle,
+        name: str,
+        low: float,
+        high: float,
+        unit: str = "",
+        *,
+        value: float,
+        integer: bool = False,
+        on_apply: Apply | None = None,
+        quiet_s: float = QUIET_S,
+    ) -> None:
+        self.handle, self.name, self.low, self.high, self.unit = handle, name, low, high, unit
+        self.integer, self.on_apply, self.quiet_s = integer, on_apply, quiet_s
+        self._value = value
+        self._lock = threading.Lock()
+        self._timer: threading.Timer | None = None
+        self._client: viser.ClientHandle | None = None
+        handle.value = format_number(value)
+        handle.on_update(self._typed)
+
+    @property
+    def value(self) -> float:
+        """The value in use (what the box shows once typing has stopped)."""
+        return self._value
+
+    def show(self, value: float) -> None:
+        """Keep and show a value set by the program (a slider, a reset); no notification, no on_apply."""
+        with self._lock:
+            self._value = value
+            self.handle.value = format_number(value)  # its own update event has no client: ignored
+
+    def commit(self, client: viser.ClientHandle | None = None) -> float | None:
+        """Apply what is typed now; the value in use, or None if the text was refused (and notified)."""
+        with self._lock:
+            if self._timer is not None:
+                self._timer.cancel()
+                self._timer = None
+            client = client or self._client
+            text = self.handle.value
+            if text == format_number(self._value):
+                return self._value
+            try:
+                value, message = parse_number(self.name, text, self.low, self.high, self.unit, integer=self.integer)
+            except Refused as exc:
+                self.handle.value = format_number(self._value)
+                refusal = f"{exc}; kept {format_number(self._value)}{' ' + self.unit if self.unit else ''}"
+            else:
+                refusal = None
+                changed = value != self._value
+                self._value = value
+                self.handle.value = format_number(value)
+        if refusal is not None:
+            notify(client, "Value refused", refusal, "warning")
+            return None
+        if message:
+            notify(client, "Value clamped", message, "warning")
+        if changed and self.on_apply is not None:
+            self.on_apply(value, client)
+        return value
+
+    def _typed(self, event: viser.GuiEvent) -> None:
+        if event.client is None:  # the program's own assignment, not typing
+            return
+        with self._lock:
+            self._client = event.client
+            if self._timer is not None:
+                self._timer.cancel()
+            self._timer = threading.Timer(self.quiet_s, self._quiet)
+            self._timer.daemon = True
+            self._timer.start()
+
+    def _quiet(self) -> None:
+        client = self._client
+        try:
+            self.commit()
+        except Exception as exc:  # a timer thread has nobody to report to but the typist
+            log.exception("applying %s failed", self.name)
+            notify(client, "Something went wrong", f"{type(exc).__name__}: {exc}", "error")

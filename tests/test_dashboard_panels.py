@@ -1,0 +1,241 @@
+"""Dashboard panels and their feedback: notices, typed numbers, charts, camera; no browser.
+
+Browser input is stood in for by `ProbeClient`, which speaks viser's real websocket protocol.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import viser
+from calls import Call
+from hopper.app.dashboard import feedback
+from hopper.app.dashboard.config import DashboardConfig
+from hopper.app.dashboard.feedback import Refused, format_number, notify, parse_number
+from hopper.app.dashboard.plots import LivePlots
+from hopper.app.dashboard.scene import LOOK_OFFSET
+from hopper.app.dashboard.server import Dashboard
+from net import free_port, wait_until
+
+from benchmarks.probe import ProbeClient
+from hopper.commands import SetWheel
+from hopper.config import GAIN_RANGES, WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT
+from hopper.events import Event
+from hopper.metrics import RAD_S_TO_RPM
+from hopper.sim import Simulation
+
+
+@pytest.fixture
+def dashboard(tmp_path: Path):
+    d = Dashboard(DashboardConfig(port=free_port(), sessions_dir=tmp_path / "sessions"), verbose=False).start()
+    yield d
+    d.stop()
+
+
+@pytest.fixture
+def client(dashboard: Dashboard):
+    c = ProbeClient(dashboard.url)
+    assert c.wait_for(lambda p: len(p.gui) > 20 and p.pose_frames > 0), "the probe never saw the page"
+    # viser registers a connection once it has handled its first camera message; before that,
+    # notifications and GUI callbacks miss it.
+    assert wait_until(lambda: len(dashboard.server.get_clients()) == 1), "the server never registered the probe"
+    yield c
+    c.close()
+
+
+def bodies(client: ProbeClient, title: str) -> list[str]:
+    return [n.get("body", "") for n in client.notifications if n.get("title") == title]
+
+
+# -- notices ---------------------------------------------------------------------------------------
+def test_clamp_notices_give_the_range_with_units_and_whole_numbers_as_such(
+    dashboard: Dashboard, client: ProbeClient
+) -> None:
+    # Both at once: a handler must not put back the other slider before that one's handler has run.
+    client.set_gui_value("Ki", 900.0)
+    client.set_gui_value("Kd", -3.0)
+    assert client.wait_for(lambda p: len(bodies(p, "Gain clamped")) == 2), client.notifications
+    assert sorted(bodies(client, "Gain clamped")) == [
+        "Kd -3 N m s/rad is outside [0, 100] N m s/rad; clamped to 0 N m s/rad",
+        "Ki 900 N m/(rad s) is outside [0, 500] N m/(rad s); clamped to 500 N m/(rad s)",
+    ]
+    client.set_gui_value("Seed", 3e9)
+    assert client.wait_for(lambda p: bodies(p, "Value clamped")), client.notifications
+    assert bodies(client, "Value clamped") == ["Seed 3000000000 is outside [0, 2147483647]; clamped to 2147483647"]
+
+
+def test_numbers_in_notices() -> None:
+    assert [format_number(v) for v in (2**31 - 1, 500.0, -5.0, 0.0, 12.5, 1 / 3, 1e20, -2.5e-7)] == [
+        "2147483647",
+        "500",
+        "-5",
+        "0",
+        "12.5",
+        "0.333333",
+        "1e+20",
+        "-2.5e-07",
+    ]
+
+
+class FakeClient:
+    """Records what would be shown."""
+
+    def __init__(self) -> None:
+        self.shown: list[tuple[str, str]] = []
+
+    def add_notification(self, title: str, body: str, **_: Any) -> None:
+        self.shown.append((title, body))
+
+
+def test_a_notification_still_on_screen_is_not_shown_again(monkeypatch: pytest.MonkeyPatch) -> None:
+    now = [100.0]
+    monkeypatch.setattr(feedback, "_clock", lambda: now[0])
+    a, b = FakeClient(), FakeClient()
+    notify(a, "The robot fell", "pitch -60°", "warning")
+    notify(a, "The robot fell", "pitch -60°", "warning")  # still on screen: dropped
+    notify(a, "The robot fell", "pitch +60°", "warning")  # another body: shown
+    notify(b, "The robot fell", "pitch -60°", "warning")  # another client: shown
+    assert a.shown == [("The robot fell", "pitch -60°"), ("The robot fell", "pitch +60°")]
+    assert b.shown == [("The robot fell", "pitch -60°")]
+    now[0] += feedback.AUTO_CLOSE_S["warning"] + 0.1  # closed on its own by now
+    notify(a, "The robot fell", "pitch -60°", "warning")
+    assert a.shown[-1] == ("The robot fell", "pitch -60°") and len(a.shown) == 3
+
+
+def test_a_replayed_fall_shows_one_toast(tmp_path: Path) -> None:
+    """After the auto reset the simulation replays the same fall: same pitch, same time, same text."""
+    d = Dashboard(DashboardConfig(port=free_port(), speed=4.0, sessions_dir=tmp_path), verbose=False).start()
+    try:
+        probe = ProbeClient(d.url)
+        assert wait_until(lambda: len(d.server.get_clients()) == 1)
+        walls: list[float] = []
+
+        class FallClock:
+            def tick(self, sim: Simulation) -> None:
+                pass
+
+            def event(self, sim: Simulation, event: Event) -> None:
+                if event.kind == "fall":
+                    walls.append(time.monotonic())
+
+        d.sim.submit(Call(lambda sim: sim.listeners.append(FallClock())))
+        d.sim.submit(SetWheel(False))  # with the wheel off it tumbles in its first flight
+        assert wait_until(lambda: len(walls) >= 2, timeout=40), "the robot did not fall twice"
+        falls = [e for e in list(d.sim.events) if e.kind == "fall"][:2]
+        # The same toast text (pitch to the degree, time to 10 ms): only the last digits of the pitch differ.
+        assert [f"{e.payload.pitch_deg:+.0f} {e.time:.2f}" for e in falls] == [f"-60 {falls[0].time:.2f}"] * 2
+        assert walls[1] - walls[0] < feedback.AUTO_CLOSE_S["warning"], "the first toast had closed already"
+
+        # The auto reset after the second fall comes after the loop has handled that fall; a marker
+        # sent then reaches the probe after any toast for it (one connection keeps its order).
+        def resets_after_falls() -> int:
+            return sum(e.kind == "reset" and e.payload.reason == "after fall" for e in list(d.sim.events))
+
+        assert wait_until(lambda: resets_after_falls() >= 2, timeout=20)
+        feedback.notify_all(d.server, "marker", "")
+        assert probe.wait_for(lambda p: bodies(p, "marker"))
+        assert len(bodies(probe, "The robot fell")) == 1, bodies(probe, "The robot fell")
+        probe.close()
+    finally:
+        d.stop()
+
+
+# -- typed numbers ---------------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    "text, value",
+    [("800", 800.0), ("1e3", 1000.0), ("12.5", 12.5), (" -2.5 ", -2.5), ("+.5", 0.5), ("5.", 5.0), ("1E-2", 0.01)],
+)
+def test_typed_numbers_that_parse(text: str, value: float) -> None:
+    assert parse_number("Kp", text, -2000.0, 2000.0, "N m/rad") == (value, None)
+
+
+@pytest.mark.parametrize(
+    "text, why",
+    [
+        ("1,5", "a point"),
+        ("abc", "not a number"),
+        ("NaN", "not a number"),
+        ("inf", "not a number"),
+        ("-Infinity", "not a number"),
+        ("", "empty"),
+        ("1e", "not a number"),
+        ("0x10", "not a number"),
+        ("1_000", "not a number"),
+        ("1e999", "too large"),
+    ],
+)
+def test_typed_text_that_is_refused(text: str, why: str) -> None:
+    with pytest.raises(Refused, match=why):
+        parse_number("Kp", text, 0.0, 2000.0, "N m/rad")
+
+
+def test_typed_numbers_are_clamped_with_the_range_and_units() -> None:
+    low, high, unit = GAIN_RANGES["ki"]
+    assert parse_number("Ki", "900", low, high, unit) == (
+        500.0,
+        "Ki 900 N m/(rad s) is outside [0, 500] N m/(rad s); clamped to 500 N m/(rad s)",
+    )
+    assert parse_number("Seed", "1e3", 0, 2**31 - 1, integer=True) == (1000, None)
+    with pytest.raises(Refused, match="whole number"):
+        parse_number("Seed", "12.5", 0, 2**31 - 1, integer=True)
+
+
+# -- charts ----------------------------------------------------------------------------------------
+def test_the_torque_and_speed_charts_draw_the_wheel_limits() -> None:
+    server = viser.ViserServer(port=free_port(), verbose=False)
+    try:
+        plots = LivePlots(server.gui)
+        for i in range(10):
+            plots.sample(i * 0.025, 0.01, 10.0, 5.0, 6.0)
+        plots.publish(now=1.0)
+        rpm_limit = WHEEL_NO_LOAD_SPEED * RAD_S_TO_RPM
+        for chart, limit in ((plots.torque, WHEEL_TORQUE_LIMIT), (plots.rpm, rpm_limit)):
+            lines = [
+                (s, column)
+                for s, column in zip(chart.series, chart.data, strict=True)
+                if "limit" in str(s.get("label", ""))
+            ]
+            assert len(lines) == 2, chart.series
+            levels = sorted(float(column[0]) for _, column in lines)
+            assert levels == pytest.approx([-limit, limit], abs=1e-3)
+            for series, column in lines:
+                assert np.all(column == column[0]) and len(column) == len(chart.data[0]) == 10
+                assert series.get("dash") and series["stroke"] == "#e5484d"
+        assert math.isclose(rpm_limit, 400.0)
+    finally:
+        server.stop()
+
+
+# -- camera ----------------------------------------------------------------------------------------
+def test_side_view_looks_at_the_robot_where_it_is_shown_with_follow_off(
+    dashboard: Dashboard, client: ProbeClient
+) -> None:
+    import mujoco
+
+    client.set_gui_value("Pause", True)
+    client.set_gui_value("Follow robot", False)
+    assert wait_until(lambda: dashboard.pacer.paused and not dashboard.camera.enabled)
+
+    def carry_forward(sim: Simulation) -> None:  # 2.5 m along the strip, as after a few hops
+        sim.data.joint("root_x").qpos[0] += 2.5
+        mujoco.mj_forward(sim.model, sim.data)
+
+    x_before = dashboard.sim.state().x
+    dashboard.sim.submit(Call(carry_forward))
+
+    def shown_torso() -> np.ndarray:
+        return np.asarray(dashboard.robot.torso_position) + np.asarray(dashboard.camera.world.position)
+
+    assert wait_until(lambda: dashboard.robot.torso_position[0] > x_before + 2.4), "the moved robot was not drawn"
+    assert shown_torso()[0] > 2.0, "with follow off the world frame must not have followed"
+    client.set_gui_value("Side view", True)
+    (handle,) = dashboard.server.get_clients().values()
+    assert wait_until(lambda: handle.camera.look_at[0] > 1.0), handle.camera.look_at
+    aim = np.asarray(handle.camera.look_at) - LOOK_OFFSET
+    assert np.linalg.norm(aim - shown_torso()) < 0.03, (aim, shown_torso())
+    assert np.allclose(np.asarray(handle.camera.position) - handle.camera.look_at, [0.0, -4.4, 1.9])
