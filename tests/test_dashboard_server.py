@@ -345,3 +345,13 @@ def test_a_fall_says_what_tripped(dashboard: Dashboard, client: ProbeClient) -> 
     assert client.wait_for(lambda p: "The robot fell" in titles(p), timeout=30)
     body = next(n["body"] for n in client.notifications if n.get("title") == "The robot fell")
     assert "hip lower than 0.35 m above the feet" in body, body
+
+
+def test_realistic_sensing_is_switched_from_the_gains_tab(dashboard: Dashboard, client: ProbeClient) -> None:
+    client.set_gui_value("Realistic sensing", True)
+    assert wait_until(lambda: dashboard.sim.config.sensing == "realistic")
+    assert wait_until(lambda: "sensing realistic" in dashboard.layout.events.html.content)
+    t = dashboard.sim.time
+    assert wait_until(lambda: dashboard.sim.time > t + 0.5) and not dashboard.sim.fallen
+    client.set_gui_value("Realistic sensing", False)
+    assert wait_until(lambda: dashboard.sim.config.sensing == "ideal")

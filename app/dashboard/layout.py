@@ -58,6 +58,7 @@ def build_layout(
     ctx: PanelContext,
     *,
     gains: Gains,
+    sensing: bool,
     seed: int,
     terrain: str,
     gravity: float,
@@ -76,7 +77,7 @@ def build_layout(
         simulation = build_simulation_panel(gui, ctx, speed)
     tabs = gui.add_tab_group()
     with tabs.add_tab("Gains", viser.Icon.ADJUSTMENTS):
-        gains_panel = build_gains_panel(gui, ctx, gains)
+        gains_panel = build_gains_panel(gui, ctx, gains, sensing=sensing)
     with tabs.add_tab("Disturb", viser.Icon.BOLT):
         disturbances = build_disturbances_panel(gui, ctx)
     with tabs.add_tab("World", viser.Icon.PLANET):

@@ -113,6 +113,7 @@ class Dashboard:
             self.server,
             PanelContext(self.server, sim.submit, self),
             gains=sim.gains,
+            sensing=sim.config.sensing == "realistic",
             seed=config.seed,
             terrain=config.terrain,
             gravity=sim.config.gravity,

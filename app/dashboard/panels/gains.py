@@ -11,7 +11,7 @@ from hopper.app.dashboard.feedback import Refused, checked, guarded, notify
 from hopper.app.dashboard.panels import PanelContext
 from hopper.app.dashboard.panels.entry import NumberEntry
 
-from hopper.commands import SetGains, SetWheel
+from hopper.commands import SetGains, SetSensing, SetWheel
 from hopper.config import GAIN_RANGES, Gains
 
 LABELS = {"kp": "Kp", "ki": "Ki", "kd": "Kd"}
@@ -31,9 +31,11 @@ class GainsPanel:
     kd: viser.GuiSliderHandle[float]
     entries: dict[str, NumberEntry]  # the typed boxes, by gain name (kp, ki, kd)
     wheel: viser.GuiCheckboxHandle
+    sensing: viser.GuiCheckboxHandle  # ticked: the controller reads a simulated IMU's estimate
     reset_button: viser.GuiButtonHandle
     defaults: Gains
     applied: Gains
+    default_sensing: bool
     _lock: threading.RLock = dataclasses.field(default_factory=threading.RLock, repr=False)
 
     @property
@@ -61,6 +63,7 @@ class GainsPanel:
         """Back to the gains the dashboard started with, wheel on."""
         self.apply(**dataclasses.asdict(self.defaults))
         self.wheel.value = True
+        self.sensing.value = self.default_sensing
 
 
 def _hide_slider_boxes(gui: viser.GuiApi, sliders: list[viser.GuiSliderHandle[float]]) -> None:
@@ -73,7 +76,9 @@ def _hide_slider_boxes(gui: viser.GuiApi, sliders: list[viser.GuiSliderHandle[fl
     gui.add_html(f"<style>{selectors} {{ display: none; }}</style>")
 
 
-def build_gains_panel(gui: viser.GuiApi, ctx: PanelContext, initial: Gains, wheel: bool = True) -> GainsPanel:
+def build_gains_panel(
+    gui: viser.GuiApi, ctx: PanelContext, initial: Gains, wheel: bool = True, sensing: bool = False
+) -> GainsPanel:
     """Dragging applies at once, typing after a short quiet time; every slider and box shows the gains in use."""
     sliders: dict[str, viser.GuiSliderHandle[float]] = {}
     entries: dict[str, NumberEntry] = {}
@@ -92,9 +97,15 @@ def build_gains_panel(gui: viser.GuiApi, ctx: PanelContext, initial: Gains, whee
         kd=sliders["kd"],
         entries=entries,
         wheel=gui.add_checkbox("Wheel on", wheel, hint="Off: zero wheel torque, the wheel spins freely"),
+        sensing=gui.add_checkbox(
+            "Realistic sensing",
+            sensing,
+            hint="The controller reads a simulated IMU (noise, bias, attitude estimate) with a 3 ms motor delay",
+        ),
         reset_button=gui.add_button("Default gains", icon=viser.Icon.RESTORE, color="dark"),
         defaults=initial,
         applied=initial,
+        default_sensing=sensing,
     )
 
     def on_slider(name: str) -> Callable[[viser.GuiEvent], None]:
@@ -126,5 +137,6 @@ def build_gains_panel(gui: viser.GuiApi, ctx: PanelContext, initial: Gains, whee
         slider.on_update(on_slider(name))
         entries[name].on_apply = on_typed(name)
     panel.wheel.on_update(on_wheel)
+    panel.sensing.on_update(guarded(lambda _: ctx.submit(SetSensing("realistic" if panel.sensing.value else "ideal"))))
     panel.reset_button.on_click(guarded(lambda _: panel.reset()))
     return panel
