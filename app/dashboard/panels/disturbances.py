@@ -15,8 +15,8 @@ from hopper.sim import DISTURBANCE_LIMITS
 # Button label -> (core kind, magnitude label, default magnitude). Defaults are visible but recoverable.
 KINDS = {
     "Pitch kick": ("pitch_kick", "Kick", 1.0),
-    "Push ▶": ("push_forward", "Push ▶", 2.0),
-    "Push ◀": ("push_backward", "Push ◀", 2.0),
+    "Push ▶": ("push_forward", "Push ▶", 4.0),
+    "Push ◀": ("push_backward", "Push ◀", 4.0),
     "Torque pulse": ("torque_pulse", "Pulse", 15.0),
 }
 
