@@ -13,6 +13,7 @@ from pathlib import Path
 import pytest
 from calls import Call
 from hopper.app.dashboard.config import DashboardConfig
+from hopper.app.dashboard.feedback import notify_all
 from hopper.app.dashboard.pacing import MAX_LAG_S, Pacer
 from hopper.app.dashboard.panels.events import describe
 from hopper.app.dashboard.panels.hops import hop_table_html
@@ -129,9 +130,13 @@ def test_other_clients_do_not_get_someone_elses_refusal(dashboard: Dashboard, cl
     other = ProbeClient(dashboard.url)
     try:
         assert other.wait_for(lambda p: len(p.gui) > 20)
+        assert wait_until(lambda: len(dashboard.server.get_clients()) == 2), "the second client never registered"
         client.set_gui_value("Ki", math.nan)
         assert client.wait_for(lambda p: "Value refused" in titles(p))
-        time.sleep(0.5)
+        # Sent to everyone after the refusal: once the other client has it, a refusal sent to it
+        # too would have arrived before it (one connection keeps its order).
+        notify_all(dashboard.server, "marker", "")
+        assert other.wait_for(lambda p: "marker" in titles(p))
         assert "Value refused" not in titles(other)
     finally:
         other.close()

@@ -20,7 +20,9 @@ PACKAGE_DIRS = {"hopper": "hopper", "terrain": "hopper/terrain", "app": "hopper/
 PACKAGE_DIRS["static"] = "hopper/static"
 ASSETS = ["hopper/models/hopper.xml", *(f"hopper/static/{name}" for name in ("help.md", "dashboard.css", "logo.svg"))]
 ASSETS.append("hopper/static/theme.json")
-LOCAL_MODULES = {"hopper", "benchmarks", "net", "calls", "conftest"}  # the project's own, never from a registry
+# The project's own modules, never from a registry: the package, the benchmarks, and the test
+# helpers and test modules that tests import from each other.
+LOCAL_MODULES = {"hopper", "benchmarks"} | {path.stem for path in (REPO / "tests").glob("*.py")}
 
 
 # Left-overs of earlier builds: setuptools would pack a stale build/lib into the wheel, hiding a
