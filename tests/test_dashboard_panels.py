@@ -239,3 +239,14 @@ def test_side_view_looks_at_the_robot_where_it_is_shown_with_follow_off(
     aim = np.asarray(handle.camera.look_at) - LOOK_OFFSET
     assert np.linalg.norm(aim - shown_torso()) < 0.03, (aim, shown_torso())
     assert np.allclose(np.asarray(handle.camera.position) - handle.camera.look_at, [0.0, -4.4, 1.9])
+
+
+def test_the_status_strip_shows_the_wheels_momentum_as_a_share_of_its_capacity() -> None:
+    from hopper.app.dashboard.panels.status import Status, status_html
+
+    status = Status(
+        phase="flight", time=3.0, rtf=1.0, speed=1.0, paused=False, behind=False, hops=2, pitch_deg=0.4,
+        wheel_rpm=-200.0, saturation=0.5, capacity=-0.5, gravity=1.625, recording=False,
+    )  # fmt: skip
+    html = status_html(status)
+    assert "capacity" in html and "-50 %" in html and "-200 rpm" in html

@@ -134,6 +134,8 @@ def test_signals_match_the_physics(run) -> None:
     np.testing.assert_allclose(pitch, np.degrees(probe.pitch).astype(np.float32), rtol=1e-6, atol=1e-6)
     rpm = np.array([v["wheel_rpm"] for v in values])
     np.testing.assert_allclose(rpm, np.array(probe.rpm) * 60 / (2 * math.pi), rtol=1e-6, atol=1e-4)
+    capacity = np.array([v["wheel_capacity_pct"] for v in values])  # momentum / (I_w + armature) w_max
+    np.testing.assert_allclose(capacity, rpm / 400.0 * 100.0, rtol=1e-5, atol=1e-4)
     torque = np.array([v["wheel_torque_nm"] for v in values])
     np.testing.assert_allclose(torque, probe.torque, rtol=1e-6, atol=1e-5)
     assert np.abs(torque).max() > 1.0  # the wheel did work: the comparison is not of zeros

@@ -33,6 +33,7 @@ from hopper.app.dashboard.scene import (
     saturation,
 )
 
+from hopper.config import WHEEL_NO_LOAD_SPEED
 from hopper.events import Event, EventKind, Fall
 from hopper.metrics import RAD_S_TO_RPM
 from hopper.sim import Simulation
@@ -267,6 +268,7 @@ class Dashboard:
                     pitch_deg=math.degrees(s.pitch),
                     wheel_rpm=s.wheel_speed * RAD_S_TO_RPM,
                     saturation=level,
+                    capacity=s.wheel_speed / WHEEL_NO_LOAD_SPEED,
                     gravity=sim.config.gravity,
                     recording=self.recorder.active,
                 )

@@ -63,6 +63,7 @@ def default_blueprint() -> rrb.Blueprint:
                 _plot("wheel speed (rpm)", ("wheel_rpm", "wheel", PURPLE)),
                 _plot("wheel torque (N m)", ("wheel_torque_nm", "torque", ORANGE), extra="/limits/wheel_torque"),
                 rrb.Tabs(
+                    _plot("wheel momentum (% of capacity)", ("wheel_capacity_pct", "capacity used", PURPLE)),
                     _plot("pitch rate (deg/s)", ("pitch_rate_deg_s", "pitch rate", GREEN)),
                     _plot("leg angles (deg)", *[(f"{j}_deg", j, c) for j, c in zip(LEG_JOINTS, colors, strict=True)]),
                     _plot(

@@ -19,7 +19,7 @@ import numpy as np
 import pyarrow as pa
 import rerun as rr
 
-from hopper.config import WHEEL_TORQUE_LIMIT
+from hopper.config import WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT
 from hopper.control import Phase
 from hopper.events import EventKind
 from hopper.layout import LEG_JOINTS
@@ -207,6 +207,7 @@ class Telemetry:
             "pitch_deg": (lay.s_pitch, math.degrees(1.0)),
             "pitch_rate_deg_s": (lay.s_gyro_pitch, math.degrees(1.0)),
             "wheel_rpm": (lay.s_wheel_speed, RAD_S_TO_RPM),
+            "wheel_capacity_pct": (lay.s_wheel_speed, 100.0 / WHEEL_NO_LOAD_SPEED),
             "wheel_torque_nm": (self._nsens + lay.a_wheel, lay.wheel_gear),
             "foot_L_n": (lay.s_foot_l, 1.0),
             "foot_R_n": (lay.s_foot_r, 1.0),

@@ -10,7 +10,17 @@ TIME = "sim_time"  # duration timeline: simulation time, monotonic across resets
 HOP = "hop"  # sequence timeline: hops completed in this recording
 # The estimate is what the controller used (SimConfig.sensing "realistic": the IMU's attitude
 # estimate; "ideal": the truth), beside the truth.
-SIGNALS_F32 = ("pitch_deg", "pitch_rate_deg_s", "wheel_rpm", "wheel_torque_nm", "pitch_est_deg", "pitch_rate_est_deg_s")
+# wheel_capacity_pct: the wheel's momentum, (I_w + armature) * speed, as a signed percentage of its
+# capacity (I_w + armature) * no-load speed: the headroom left for a flight either way.
+SIGNALS_F32 = (
+    "pitch_deg",
+    "pitch_rate_deg_s",
+    "wheel_rpm",
+    "wheel_torque_nm",
+    "pitch_est_deg",
+    "pitch_rate_est_deg_s",
+    "wheel_capacity_pct",
+)
 SIGNALS_F16 = (*(f"{j}_deg" for j in LEG_JOINTS), *(f"{j}_torque_nm" for j in LEG_JOINTS), "foot_L_n", "foot_R_n")
 SIGNALS = SIGNALS_F32 + SIGNALS_F16
 

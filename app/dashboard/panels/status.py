@@ -22,6 +22,7 @@ class Status:
     pitch_deg: float
     wheel_rpm: float
     saturation: float  # 0..1
+    capacity: float  # -1..1, the wheel's momentum as a fraction of its capacity (signed)
     gravity: float  # m/s^2
     recording: bool
 
@@ -43,7 +44,9 @@ def status_html(s: Status) -> str:
         f"<tr><td>pitch</td><td>{s.pitch_deg:+6.1f}°</td><td>hops</td><td>{s.hops}</td></tr>"
         f"<tr><td>wheel</td><td>{s.wheel_rpm:+5.0f} rpm</td>"
         f"<td>limit used</td><td>{s.saturation * 100:3.0f} %</td></tr>"
-        f"<tr><td>gravity</td><td>{s.gravity:g} m/s²</td><td></td><td></td></tr>"
+        f"<tr><td>gravity</td><td>{s.gravity:g} m/s²</td>"
+        f"<td title='wheel momentum / (I_w + armature) w_max: what is left for the next flight'>capacity</td>"
+        f"<td>{s.capacity * 100:+4.0f} %</td></tr>"
         "</table></div>"
     )
 
