@@ -1,9 +1,15 @@
-"""Shared fixtures: small, seeded, headless."""
+"""Shared fixtures: small, seeded, headless; a dashboard on a free loopback port and a probe client."""
 
 from __future__ import annotations
 
-import pytest
+from pathlib import Path
 
+import pytest
+from hopper.app.dashboard.config import DashboardConfig
+from hopper.app.dashboard.server import Dashboard
+from net import free_port, wait_until
+
+from benchmarks.probe import ProbeClient
 from hopper.config import SimConfig
 from hopper.sim import Simulation
 
@@ -11,3 +17,22 @@ from hopper.sim import Simulation
 @pytest.fixture
 def flat_sim() -> Simulation:
     return Simulation(SimConfig(terrain="flat"))
+
+
+@pytest.fixture
+def dashboard(tmp_path: Path):
+    d = Dashboard(DashboardConfig(port=free_port(), sessions_dir=tmp_path / "sessions"), verbose=False).start()
+    yield d
+    d.stop()
+
+
+@pytest.fixture
+def client(dashboard: Dashboard):
+    c = ProbeClient(dashboard.url)
+    assert c.wait_for(lambda p: len(p.gui) > 20 and p.pose_frames > 0), "the probe never saw the page"
+    # Seeing the page is not being a client: viser registers a connection only once it has handled
+    # its first camera message, and until then notifications (sent to server.get_clients()) and GUI
+    # callbacks (dropped for an unknown client) miss it. On a loaded machine that can come later.
+    assert wait_until(lambda: len(dashboard.server.get_clients()) == 1), "the server never registered the probe"
+    yield c
+    c.close()

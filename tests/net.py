@@ -22,3 +22,13 @@ def wait_until(predicate: Callable[[], object], timeout: float = 10.0) -> bool:
             return True
         time.sleep(0.05)
     return False
+
+
+def port_is_free(port: int) -> bool:
+    """Whether a plain bind (no SO_REUSEADDR: what any other program would do) to the port works."""
+    with socket.socket() as s:
+        try:
+            s.bind(("127.0.0.1", port))
+        except OSError:
+            return False
+    return True

@@ -13,18 +13,9 @@ from pathlib import Path
 import pytest
 from hopper.app.dashboard.cli import parse
 from hopper.app.dashboard.config import DashboardConfig, check_sessions_dir
-from net import free_port, wait_until
+from net import free_port, port_is_free, wait_until
 
 REPO = Path(__file__).resolve().parent.parent
-
-
-def port_is_free(port: int) -> bool:
-    with socket.socket() as s:  # a plain bind, no SO_REUSEADDR: what any other program would do
-        try:
-            s.bind(("127.0.0.1", port))
-        except OSError:
-            return False
-    return True
 
 
 def size(path: Path) -> int:

@@ -30,24 +30,6 @@ from hopper.metrics import RAD_S_TO_RPM
 from hopper.sim import Simulation
 
 
-@pytest.fixture
-def dashboard(tmp_path: Path):
-    d = Dashboard(DashboardConfig(port=free_port(), sessions_dir=tmp_path / "sessions"), verbose=False).start()
-    yield d
-    d.stop()
-
-
-@pytest.fixture
-def client(dashboard: Dashboard):
-    c = ProbeClient(dashboard.url)
-    assert c.wait_for(lambda p: len(p.gui) > 20 and p.pose_frames > 0), "the probe never saw the page"
-    # viser registers a connection once it has handled its first camera message; before that,
-    # notifications and GUI callbacks miss it.
-    assert wait_until(lambda: len(dashboard.server.get_clients()) == 1), "the server never registered the probe"
-    yield c
-    c.close()
-
-
 def bodies(client: ProbeClient, title: str) -> list[str]:
     return [n.get("body", "") for n in client.notifications if n.get("title") == title]
 

@@ -18,39 +18,11 @@ from hopper.app.dashboard.pacing import MAX_LAG_S, Pacer
 from hopper.app.dashboard.panels.events import describe
 from hopper.app.dashboard.panels.hops import hop_table_html
 from hopper.app.dashboard.server import Dashboard, PortInUse
-from net import free_port, wait_until
+from net import free_port, port_is_free, wait_until
 
 from benchmarks.probe import ProbeClient
 from hopper.events import Disturbance, Event, EventKind, Liftoff
 from hopper.metrics import HopMetrics
-
-
-def port_is_free(port: int) -> bool:
-    with socket.socket() as s:  # a plain bind, no SO_REUSEADDR: what any other program would do
-        try:
-            s.bind(("127.0.0.1", port))
-        except OSError:
-            return False
-    return True
-
-
-@pytest.fixture
-def dashboard(tmp_path: Path):
-    d = Dashboard(DashboardConfig(port=free_port(), sessions_dir=tmp_path / "sessions"), verbose=False).start()
-    yield d
-    d.stop()
-
-
-@pytest.fixture
-def client(dashboard: Dashboard):
-    c = ProbeClient(dashboard.url)
-    assert c.wait_for(lambda p: len(p.gui) > 20 and p.pose_frames > 0), "the probe never saw the page"
-    # Seeing the page is not being a client: viser registers a connection only once it has handled
-    # its first camera message, and until then notifications (sent to server.get_clients()) and GUI
-    # callbacks (dropped for an unknown client) miss it. On a loaded machine that can come later.
-    assert wait_until(lambda: len(dashboard.server.get_clients()) == 1), "the server never registered the probe"
-    yield c
-    c.close()
 
 
 def titles(client: ProbeClient) -> list[str]:
