@@ -13,8 +13,9 @@ is carried to another gravity by the physics that sets it:
   capture point, vx / w0 ahead of the CoM, lands as far ahead at every g; the feet land around it.
 - The legs' strength does not scale: the hop is capped where landing from it would ask the legs
   for more than LEG_MARGIN of what their 30 N m motors can hold.
-- The wheel's momentum capacity does not scale either: the stance spins the wheel down no faster
-  than the feet can hold (a fraction of m g d), and waits for it before the next push.
+- The wheel's momentum capacity does not scale either, but the ground moment that takes the
+  wheel's momentum out does (a fraction of m g d): the stance waits for the wheel before the next
+  push as long as that takes.
 """
 
 from __future__ import annotations
@@ -49,8 +50,7 @@ LEG_MARGIN = 0.5  # ... and never more than this fraction of the legs' strength,
 SETTLED_SPEED = 0.08  # m/s on the Moon: the stance is settled below this
 CONTACT_ON_WEIGHT = 0.075  # of the robot's weight: a foot touches above this (1 N on the Moon) ...
 CONTACT_OFF_WEIGHT = 0.015  # ... and leaves below this (0.2 N), hysteresis
-DESAT_TIME = 0.25  # s on the Moon, time constant of the stance wheel spin-down ...
-DESAT_MOMENT = 0.3  # ... at most this fraction of the moment the feet can hold (m g spread / 2)
+DRAIN_MOMENT = 0.3  # of the moment the feet can hold (m g spread / 2): the rate they empty the wheel at
 WHEEL_READY = 0.1  # of the momentum capacity: the wheel must be below this before a push
 # The push drives the whole robot's pitch angular momentum to zero through the feet, so the
 # flight starts with the wheel's whole capacity free (Salto's finding, PHYSICS.md): 0.1 s on
@@ -116,10 +116,8 @@ class Gait:
     crouch_min: float  # s
     crouch_max: float  # s
     push_max: float  # s
-    desat_time: float  # s
-    desat_torque: float  # N m
     wheel_ready: float  # rad/s, |wheel speed| below which a push may start
-    wheel_wait: float  # s, longest extra stance to spin a full wheel down at desat_torque
+    wheel_wait: float  # s, longest extra stance to empty a full wheel at DRAIN_MOMENT
     swing_scale: float  # >= 1, leg swing stiffness multiplier for short flights
     momentum_gain: float  # 1/s, rate at which the push drives the pitch momentum to zero
     hold_kp: float  # N m/rad, the wheel holding the torso on the ground
@@ -174,10 +172,8 @@ def derive(gravity: float, gait: GaitParams) -> Gait:
         crouch_min=CROUCH_MIN_S / r,
         crouch_max=CROUCH_MAX_S / r,
         push_max=PUSH_MAX_S / r,
-        desat_time=DESAT_TIME / r,
-        desat_torque=DESAT_MOMENT * ground_moment,
         wheel_ready=WHEEL_READY * WHEEL_NO_LOAD_SPEED,
-        wheel_wait=momentum_capacity() / (DESAT_MOMENT * ground_moment),
+        wheel_wait=momentum_capacity() / (DRAIN_MOMENT * ground_moment),
         swing_scale=max(1.0, r),
         momentum_gain=MOMENTUM_GAIN * r,
         hold_kp=i * HOLD_WN**2,
