@@ -86,13 +86,10 @@ class HopController:
         ground(x, foot) is the terrain height (m) under foot 0 (left) or 1 (right) at world x.
         """
         m, s, q = self.mem, data.sensordata, data.qpos
-        pitch = float(q[layout.q_pitch])
         torso = (float(q[layout.q_x]) + layout.torso_origin[0], float(q[layout.q_z]) + layout.torso_origin[1])
-        hip = landing.hip_position(torso, pitch)
+        hip = landing.hip_position(torso, float(q[layout.q_pitch]))
         vx, vz = float(s[layout.s_com_vel]), float(s[layout.s_com_vel + 2])
-        # The feet's places ahead of the hip, as the kernel's swing will put them.
-        capture, margin = vx * float(m["capture_time"][0]), float(m["capture_margin"][0])
-        mid = capture - min(max(capture, -margin), margin) + float(s[layout.s_com]) - hip[0]
+        mid = float(m["feet_mid"][0])  # where the kernel's swing puts the feet, ahead of the hip
         half = 0.5 * float(m["spread"][0])
         lengths = landing.plan_reach(
             hip, (vx, vz), float(m["gravity"][0]), (mid + half, mid - half), float(m["flight_length"][0]),

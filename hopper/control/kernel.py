@@ -74,6 +74,8 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
     com_dx = sensors[m.s_com] - (qpos[m.q_x] + m.x0)
     com_dz = sensors[m.s_com + 2] - (qpos[m.q_z] + m.z0)
     com_vz = sensors[m.s_com_vel + 2]  # ballistic in flight, unlike the torso's (the legs swing)
+    lean = HIP_OFFSET_Z * math.sin(pitch)  # hip ahead of the torso's CoM
+    hip_x, hip_z = lean - com_dx, HIP_OFFSET_Z * math.cos(pitch) - com_dz  # hip relative to the robot's CoM
     # Support geometry: hip above the feet' centres, the robot's CoM ahead of the feet's midpoint.
     if on_l and on_r:
         height, px = -0.5 * (left.pz + right.pz), 0.5 * (left.px + right.px)
@@ -83,7 +85,7 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
         height, px = 0.0, 0.0
     if contact:
         m.last_contact = time
-    offset_x = com_dx - (HIP_OFFSET_Z * math.sin(pitch) + px)
+    offset_x = com_dx - (lean + px)
 
     # -- phase transitions --
     events = 0
@@ -114,12 +116,7 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
                 m.integral = 0.0  # integral reset at liftoff
                 m.land_l = m.land_r = m.flight_length  # until the apex plans the landing
                 events |= EV_LIFTOFF
-        elif (
-            phase in (STANCE, CROUCH)
-            and on_l
-            and on_r
-            and not captured(m, vx, HIP_OFFSET_Z * math.sin(pitch) - com_dx, left, right)
-        ):
+        elif phase in (STANCE, CROUCH) and on_l and on_r and not captured(m, vx, hip_x, left, right):
             # A push carried the capture point off the feet: hop to catch it (Raibert's recovery;
             # in low gravity a step is a hop anyway). The landing places the feet around it.
             enter(m, PUSH, time)
@@ -159,7 +156,8 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
         # pendulum), measured from the hip.
         capture = vx * m.capture_time
         mid = capture - min(max(capture, -m.capture_margin), m.capture_margin)
-        mid += com_dx - HIP_OFFSET_Z * math.sin(pitch)
+        mid += com_dx - lean
+        m.feet_mid = mid  # the landing planner reads where the swing puts the feet
         half = 0.5 * m.spread
         # Tucked while rising, for clearance over rims ahead; reaching for the landing after the apex.
         tucked = phase == FLIGHT and com_vz >= 0.0
@@ -174,7 +172,7 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
         hr, kr = -LIMP_DAMPING * right.hip_rate, -LIMP_DAMPING * right.knee_rate
         wheel = wheel_torque_bound(wheel_speed, m.hold_kp * pitch + m.hold_kd * rate)
     else:
-        body = Body(pitch, rate, vx, vz, wheel_speed, height, offset_x, sensors[m.s_angmom], com_dx, com_dz)
+        body = Body(pitch, rate, vx, vz, wheel_speed, height, offset_x, sensors[m.s_angmom], hip_x, hip_z)
         wheel, hl, kl, hr, kr = stance(m, phase, body, left, right)
     ctrl[m.a_hip_l], ctrl[m.a_knee_l], ctrl[m.a_hip_r], ctrl[m.a_knee_r] = hl, kl, hr, kr
     if not m.wheel_on:

@@ -26,6 +26,7 @@ _PARAMS = [
     ("push", "f8"),  # m, leg length where the push stops
     ("flight_length", "f8"),  # m, leg length reaching for the landing, after the apex
     ("tuck_length", "f8"),  # m, leg length while rising
+    ("feet_mid", "f8"),  # m, the feet's midpoint ahead of the hip in the swing (the kernel writes it)
     ("land_l", "f8"),  # m, each leg's length reaching for the landing (hopper.control.landing)
     ("land_r", "f8"),
     ("spread", "f8"),  # m between the feet at landing

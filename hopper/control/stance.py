@@ -7,7 +7,7 @@ from typing import NamedTuple
 
 from numba import njit
 
-from hopper.config import HIP_OFFSET_Z, TOTAL_MASS
+from hopper.config import TOTAL_MASS
 from hopper.control.legs import L2, Leg, clamp, push_torques, swing_torques
 from hopper.control.phases import Phase
 from hopper.control.wheel import wheel_torque_bound
@@ -24,8 +24,8 @@ REACH_FORCE = 0.2  # fraction of the weight a free leg may push with while it re
 class Body(NamedTuple):
     """The robot this tick and its support: torso pitch (rad), rate (rad/s), velocity (m/s),
     wheel speed (rad/s), hip height above the supporting feet (m), the whole robot's CoM ahead of
-    them (m), its pitch angular momentum about that CoM (N m s), and where that CoM is relative
-    to the torso's (m)."""
+    them (m), its pitch angular momentum about that CoM (N m s), and the hip relative to that CoM
+    (m): the feet's moments are taken about it."""
 
     pitch: float
     rate: float
@@ -35,8 +35,8 @@ class Body(NamedTuple):
     height: float
     offset_x: float
     momentum: float
-    com_dx: float
-    com_dz: float
+    hip_x: float
+    hip_z: float
 
 
 @njit(cache=True)
@@ -50,9 +50,7 @@ def stance(m, phase: int, body: Body, left: Leg, right: Leg) -> tuple[float, flo
     pitch, rate, vx, vz, wheel_speed = body.pitch, body.rate, body.vx, body.vz, body.wheel_speed
     height, offset_x = body.height, body.offset_x
     both = left.on and right.on
-    # Hip relative to the whole robot's CoM: the feet's moments are taken about it.
-    hip_x = HIP_OFFSET_Z * math.sin(pitch) - body.com_dx
-    hip_z = HIP_OFFSET_Z * math.cos(pitch) - body.com_dz
+    hip_x, hip_z = body.hip_x, body.hip_z
 
     if phase == LANDING:
         az = m.kz * (m.stand - height) - m.landing_damping * vz
