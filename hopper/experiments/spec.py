@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from hopper.config import GAIN_RANGES, GRAVITY_PRESETS, GaitParams, Gains, InvalidConfig, SimConfig, require_finite
+from hopper.config import GAIN_RANGES, GRAVITY_PRESETS, Gains, GaitParams, InvalidConfig, SimConfig, require_finite
 from hopper.control.phases import Phase
 from hopper.sim import DISTURBANCE_LIMITS
 from hopper.stress import Schedule

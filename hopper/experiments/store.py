@@ -84,9 +84,8 @@ class SweepStore:
     def open(self) -> set[str]:
         """Create or check OUT (refusing another sweep's), clean up a killed run, return the done ids."""
         spec_file, text = self.out / "spec.toml", self.spec.to_toml()
-        if spec_file.exists():
-            if spec_file.read_text(encoding="utf-8") != text:
-                raise SpecMismatch(f"{self.out} holds another sweep (its spec.toml differs): use another --out")
+        if spec_file.exists() and spec_file.read_text(encoding="utf-8") != text:
+            raise SpecMismatch(f"{self.out} holds another sweep (its spec.toml differs): use another --out")
         self.out.mkdir(parents=True, exist_ok=True)
         self.episodes_dir.mkdir(exist_ok=True)
         self.hops_dir.mkdir(exist_ok=True)

@@ -15,7 +15,7 @@ import sys
 from collections.abc import Callable
 from typing import Any
 
-from hopper.config import GaitParams, Gains, InvalidConfig
+from hopper.config import Gains, GaitParams, InvalidConfig
 from hopper.experiments.executor import Executor, chunks
 from hopper.experiments.spec import GAIT_FIELDS, Episode
 from hopper.experiments.worker import EpisodeResult
