@@ -78,10 +78,11 @@ class TuneSetup:
     def __post_init__(self) -> None:
         if set(self.seeds) & set(self.heldout):
             raise ValueError(f"held-out seeds overlap the tuning seeds: {sorted(set(self.seeds) & set(self.heldout))}")
-        defaults = self.defaults()
-        for name, (low, high, _) in self.ranges.items():
+        for name in self.ranges:
             if name not in ("kp", "ki", "kd") and name not in GAIT_FIELDS:
                 raise ValueError(f"cannot search {name!r}: not a gain nor a GaitParams field")
+        defaults = self.defaults()
+        for name, (low, high, _) in self.ranges.items():
             if not low <= defaults[name] <= high:
                 raise ValueError(f"{name}'s range [{low:g}, {high:g}] leaves out its default {defaults[name]:g}")
 
@@ -200,7 +201,7 @@ def report_lines(setup: TuneSetup, result: TuneResult) -> list[str]:
         f"score = {FAILURE_WEIGHT:g} x failures + worst landing / {LANDING_LIMIT_DEG:g} deg + worst momentum / 100 %",
         f"{'':22}"
         + "".join(f"{n:>10}" for n in names)
-        + f"{'failures':>10}{'landing':>9}{'momentum':>10}{'peak':>8}{'score':>8}",
+        + f"{'failures':>10}{'landing deg':>13}{'momentum %':>12}{'peak deg':>10}{'score':>8}",
     ]
     for title, seeds, best, default in (
         ("tuning seeds", setup.seeds, result.best_score, result.default_score),
@@ -210,8 +211,8 @@ def report_lines(setup: TuneSetup, result: TuneResult) -> list[str]:
         for label, params, s in (("  defaults", result.defaults, default), ("  best", result.best, best)):
             lines.append(
                 f"{label:22}" + "".join(f"{params[n]:>10.4g}" for n in names)
-                + f"{s.failures:>6}/{s.episodes:<3}{s.worst_landing_deg:>7.2f}d{s.worst_momentum_pct:>9.1f}%"
-                + f"{s.worst_peak_deg:>7.2f}d{s.value:>8.3f}"
+                + f"{f'{s.failures}/{s.episodes}':>10}{s.worst_landing_deg:>13.3f}{s.worst_momentum_pct:>12.1f}"
+                + f"{s.worst_peak_deg:>10.2f}{s.value:>8.3f}"
             )  # fmt: skip
     verdict = "at least as good as" if result.best_heldout.value <= result.default_heldout.value else "WORSE than"
     lines.append(
