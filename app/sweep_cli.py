@@ -195,7 +195,7 @@ def command_sweep(args: argparse.Namespace) -> int:
     print(f"{args.out}: {overall_line(episodes)}")
     for line in axis_lines(episodes, spec.axes()):
         print(line)
-    startup = f", start-up {run.startup_s:.1f} s" if run.startup_s else ""
+    startup = f" (start-up {run.startup_s:.1f} s, episodes {run.work_s:.1f} s)" if run.startup_s else ""
     print(
         f"this run: {run.ran} episodes on {run.executor} ({run.workers} workers) in {run.wall_s:.1f} s{startup}; "
         f"{run.skipped} were already done"

@@ -18,8 +18,9 @@ class SweepRun:
     total: int  # episodes in the spec
     skipped: int  # already done by an earlier run
     ran: int  # done by this run
-    wall_s: float  # this run's, start-up included
+    wall_s: float  # this run's, start-up and shut-down included
     startup_s: float  # the executor's start-up (Ray's: ray.init and the actors)
+    work_s: float  # from the executor ready to the last result written
     executor: str
     workers: int
 
@@ -47,8 +48,9 @@ def run_sweep(
     if skipped:
         announce(f"{out}: {skipped} of {spec.size} episodes already done, {len(todo)} to run")
     if not todo:
-        return SweepRun(spec.size, skipped, 0, time.perf_counter() - start, 0.0, "none", 0)
+        return SweepRun(spec.size, skipped, 0, time.perf_counter() - start, 0.0, 0.0, "none", 0)
     executor = make_executor(todo)
+    ready = time.perf_counter()
     startup = getattr(executor, "startup_s", 0.0)
     announce(f"running {len(todo)} episodes on {executor.name} ({executor.workers} workers)")
     bar = tqdm(total=spec.size, initial=skipped, desc="episodes", unit="ep", file=sys.stderr, disable=not progress)
@@ -60,6 +62,8 @@ def run_sweep(
             bar.update(len(results))
     finally:  # Ctrl-C included: what finished is kept
         store.flush()
+        finished = time.perf_counter()
         bar.close()
         executor.close()
-    return SweepRun(spec.size, skipped, ran, time.perf_counter() - start, startup, executor.name, executor.workers)
+    wall = time.perf_counter() - start
+    return SweepRun(spec.size, skipped, ran, wall, startup, finished - ready, executor.name, executor.workers)
