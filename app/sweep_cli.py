@@ -80,7 +80,11 @@ def executor_options(p: argparse.ArgumentParser) -> None:
         default="auto",
         help="auto: Ray for big jobs or with --address/RAY_ADDRESS, local processes otherwise (default auto)",
     )
-    p.add_argument("--address", help="a Ray cluster's address (default: RAY_ADDRESS, else a local Ray)")
+    p.add_argument(
+        "--address",
+        help="a Ray cluster's HOST:PORT, or auto for the one `ray start` runs here (default: RAY_ADDRESS, else a new "
+        "local Ray)",
+    )
     p.add_argument("--workers", type=int, default=None, help="workers (default: all cores of the machine or cluster)")
 
 

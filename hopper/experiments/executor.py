@@ -127,8 +127,8 @@ class RayExecutor:
         options = {"include_dashboard": False, "log_to_driver": False, "logging_level": logging.ERROR}
         if connect:
             ray.init(address=connect, **options)
-        else:
-            ray.init(num_cpus=workers or os.cpu_count() or 1, **options)
+        else:  # "local": a new instance of our own, never one that `ray start` left running here
+            ray.init(address="local", num_cpus=workers or os.cpu_count() or 1, **options)
         self.ray = ray
         self.address = connect or "local"
         cpus = int(ray.cluster_resources().get("CPU", 1))
