@@ -13,6 +13,7 @@ import math
 import multiprocessing
 import os
 import signal
+import threading
 import time
 from collections.abc import Iterable, Iterator
 from typing import Literal, Protocol
@@ -123,12 +124,17 @@ class RayExecutor:
         import ray
 
         start = time.perf_counter()
+        # ray.init replaces the SIGTERM handler with one that exits 1 (or 15); keep the caller's
+        # (the CLIs turn SIGTERM into Ctrl-C so that results are written and the exit is 130).
+        sigterm = signal.getsignal(signal.SIGTERM) if threading.current_thread() is threading.main_thread() else None
         connect = address or os.environ.get("RAY_ADDRESS")
         options = {"include_dashboard": False, "log_to_driver": False, "logging_level": logging.ERROR}
         if connect:
             ray.init(address=connect, **options)
         else:  # "local": a new instance of our own, never one that `ray start` left running here
             ray.init(address="local", num_cpus=workers or os.cpu_count() or 1, **options)
+        if sigterm is not None:
+            signal.signal(signal.SIGTERM, sigterm)
         self.ray = ray
         self.address = connect or "local"
         cpus = int(ray.cluster_resources().get("CPU", 1))
