@@ -161,6 +161,8 @@ def parser() -> Parser:
     common(compare)
     compare.add_argument("--seeds", type=int, default=10, help="number of seeds (default 10)")
     compare.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
+    compare.add_argument("--executor", choices=("auto", "local", "ray"), default="auto", help="as for sweep")
+    compare.add_argument("--address", help="a Ray cluster's address (as for sweep)")
 
     stress = commands.add_parser(
         "stress",
@@ -174,6 +176,9 @@ def parser() -> Parser:
     stress.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
     stress.add_argument("--json", type=writable_file, metavar="PATH", help="write every case's outcome as JSON")
 
+    from hopper.app.sweep_cli import add_commands  # sweep and tune
+
+    add_commands(commands)
     export = commands.add_parser(
         "terrain", help="export a crater field as a grayscale PNG (as the paper does)", epilog=EXIT_STATUSES
     )
@@ -342,17 +347,35 @@ def _worker_ignores_interrupts() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-def _compare_one(job: tuple[SimConfig, int]) -> dict[str, Any]:
-    return simulate(*job)
-
-
 def command_compare(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    jobs = [(make_config(args, seed, wheel), args.hops) for seed in range(args.seeds) for wheel in (True, False)]
-    workers = max(1, min(args.workers, len(jobs)))
-    with multiprocessing.get_context("spawn").Pool(workers, initializer=_worker_ignores_interrupts) as pool:
-        results = list(tqdm(pool.imap(_compare_one, jobs), total=len(jobs), desc="runs", unit="run", file=sys.stderr))
+    from hopper.experiments.executor import choose, chunks
+    from hopper.experiments.spec import Episode
+
+    episodes = [
+        Episode(kp=args.kp, ki=args.ki, kd=args.kd, gravity=args.gravity, seed=seed, hops_target=args.hops,
+                terrain=args.terrain, wheel=wheel, sensing=args.sensing)
+        for seed in range(args.seeds)
+        for wheel in (True, False)
+    ]  # fmt: skip
+    executor = choose(args.executor, episodes, args.workers, args.address)
+    done = {}
+    try:
+        with tqdm(total=len(episodes), desc="runs", unit="run", file=sys.stderr) as bar:
+            for chunk in executor.map(chunks(episodes, executor.workers)):
+                done |= {r.episode.episode_id: r for r in chunk}
+                bar.update(len(chunk))
+    finally:
+        executor.close()
+    results = []
+    for episode in episodes:
+        r = done[episode.episode_id]
+        results.append({
+            "settings": settings(episode.config(), episode.hops_target), "seed": episode.seed,
+            "wheel": episode.wheel, "fell": r.fell, "sim_time_s": r.sim_time_s, "wall_time_s": r.wall_s,
+            "hops": [hop.as_dict() for hop in r.hops],
+        })  # fmt: skip
     rows, reductions = [], []
     print(f"{'seed':>4} {'on: hops':>9} {'peak deg':>9} {'off: hops':>10} {'peak deg':>9} {'reduction':>10}")
     for on, off in zip(results[::2], results[1::2], strict=False):
@@ -439,6 +462,10 @@ def main(argv: list[str] | None = None) -> int:
         args = parser().parse_args(argv)
         if args.command == "terrain":
             return command_terrain(args)
+        if args.command in ("sweep", "tune"):
+            from hopper.app.sweep_cli import run
+
+            return run(args)
         check_counts(args)
         if args.command == "stress":
             return command_stress(args)

@@ -1,0 +1,269 @@
+"""`hopper-sim sweep` and `hopper-sim tune`: experiments at scale on the executors of hopper.experiments."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from pathlib import Path
+from typing import Any
+
+from hopper.app.sim_cli import EXIT_OK, fail, writable_file
+
+SWEEP_EPILOG = (
+    "exit status: 0 finished (falls are results), 2 bad spec or arguments, 130 interrupted "
+    "(Ctrl-C or SIGTERM): run the same command again and it skips the finished episodes."
+)
+AXIS_FLAGS = {
+    "kp": "N m/rad: 450, 300,450,600, or START:STOP:NUM (linspace)",
+    "ki": "N m/(rad s), as --kp",
+    "kd": "N m s/rad, as --kp",
+    "gravity": "m/s^2 or moon|mars|ceres|earth, comma-separated, or START:STOP:NUM",
+    "seeds": "terrain seeds: N (0..N-1), 3,5,8, or START:STOP (stop excluded)",
+    "hops": "hops per episode, e.g. 3 or 3,7",
+    "terrain": "crater, flat or crater,flat",
+    "wheel": "on, off or on,off",
+    "sensing": "ideal, realistic or ideal,realistic",
+}
+
+
+def add_commands(commands: argparse._SubParsersAction) -> None:
+    """Register `sweep` and `tune` on hopper-sim's subcommands."""
+    sweep = commands.add_parser(
+        "sweep", help="a sweep of episodes to Parquet (spec file and/or flags)", epilog=SWEEP_EPILOG
+    )
+    sweep.add_argument("spec", nargs="?", type=Path, help="TOML spec (hopper/experiments/spec.py); flags override it")
+    sweep.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder (resumed if it exists)")
+    for name, text in AXIS_FLAGS.items():
+        sweep.add_argument(f"--{name}", metavar="VALUES", help=text)
+    sweep.add_argument("--gait", action="append", default=[], metavar="NAME=VALUES", help="a GaitParams axis")
+    sweep.add_argument(
+        "--disturbance",
+        action="append",
+        default=[],
+        metavar="none|KIND:SIZES:PHASE:DELAY[:HOP]",
+        help="a disturbance axis entry, e.g. push_forward:2,4:stance:0.1 (repeat for more)",
+    )
+    executor_options(sweep)
+
+    tune = commands.add_parser(
+        "tune", help="search Kp/Ki/Kd (and gait) for the best worst case over seeds and gravities", epilog=SWEEP_EPILOG
+    )
+    tune.add_argument("--trials", type=int, default=40, help="candidates evaluated, the defaults first (default 40)")
+    tune.add_argument("--seed", type=int, default=0, help="the optimiser's seed: same seed, same result (default 0)")
+    tune.add_argument("--seeds", default="0:4", metavar="SEEDS", help="terrain seeds to tune on (default 0:4)")
+    tune.add_argument("--heldout", default="100:108", metavar="SEEDS", help="held-out seeds (default 100:108)")
+    tune.add_argument("--gravity", default="moon,mars", metavar="VALUES", help="gravities (default moon,mars)")
+    tune.add_argument("--hops", type=int, default=4, help="hops per episode (default 4)")
+    tune.add_argument("--terrain", choices=("crater", "flat"), default="crater")
+    tune.add_argument("--sensing", choices=("ideal", "realistic"), default="ideal")
+    for name, (low, high, log) in default_ranges().items():
+        tune.add_argument(f"--{name}-range", default=f"{low:g}:{high:g}", metavar="LOW:HIGH",
+                          help=f"search range ({'log' if log else 'linear'}; default {low:g}:{high:g})")  # fmt: skip
+    tune.add_argument("--gait", action="append", default=[], metavar="NAME=LOW:HIGH", help="also search a gait field")
+    tune.add_argument("--batch", type=int, default=0, help="candidates evaluated together (default: the workers)")
+    tune.add_argument("--json", type=writable_file, metavar="PATH", help="write the search and its evidence as JSON")
+    executor_options(tune)
+
+
+def default_ranges() -> dict[str, tuple[float, float, bool]]:
+    from hopper.experiments.tune import GAIN_SEARCH
+
+    return GAIN_SEARCH
+
+
+def executor_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--executor",
+        choices=("auto", "local", "ray"),
+        default="auto",
+        help="auto: Ray for big jobs or with --address/RAY_ADDRESS, local processes otherwise (default auto)",
+    )
+    p.add_argument(
+        "--address",
+        help="a Ray cluster's HOST:PORT, or auto for the one `ray start` runs here (default: RAY_ADDRESS, else a new "
+        "local Ray)",
+    )
+    p.add_argument("--workers", type=int, default=None, help="workers (default: all cores of the machine or cluster)")
+
+
+# -- flags to spec -------------------------------------------------------------------------------
+
+
+def _scalar(text: str) -> Any:
+    for convert in (int, float):
+        try:
+            return convert(text)
+        except ValueError:
+            pass
+    return text.strip()
+
+
+def flag_value(name: str, text: str) -> Any:
+    """A flag's text in the TOML spec's shape: a scalar, a list (a,b), or a range (a:b:n, seeds a:b)."""
+    from hopper.experiments.spec import SpecError
+
+    if ":" in text:
+        parts = [_scalar(p) for p in text.split(":")]
+        if len(parts) == 2:
+            return {"start": parts[0], "stop": parts[1]}
+        if len(parts) == 3:
+            return {"start": parts[0], "stop": parts[1], "num": parts[2]}
+        raise SpecError(f"--{name}: a range is START:STOP:NUM (seeds START:STOP), got {text!r}")
+    if "," in text:
+        return [_scalar(p) for p in text.split(",") if p.strip()]
+    return _scalar(text)
+
+
+def _disturbance(text: str) -> dict[str, Any]:
+    from hopper.experiments.spec import SpecError
+
+    if text.strip() == "none":
+        return {"kind": "none"}
+    parts = text.split(":")
+    if len(parts) not in (4, 5):
+        raise SpecError(f"--disturbance: expected none or KIND:SIZES:PHASE:DELAY[:HOP], got {text!r}")
+    entry = {"kind": parts[0], "size": flag_value("disturbance", parts[1]), "phase": parts[2]}
+    entry["delay"] = _scalar(parts[3])
+    if len(parts) == 5:
+        entry["hop"] = _scalar(parts[4])
+    return entry
+
+
+def _named(flag: str, text: str) -> tuple[str, str]:
+    from hopper.experiments.spec import SpecError
+
+    name, sep, values = text.partition("=")
+    if not sep or not name.strip():
+        raise SpecError(f"--{flag}: expected NAME=VALUES, got {text!r}")
+    return name.strip(), values
+
+
+def spec_overrides(args: argparse.Namespace) -> dict[str, Any]:
+    data: dict[str, Any] = {}
+    for name in AXIS_FLAGS:
+        text = getattr(args, name)
+        if text is not None:
+            data[name] = flag_value(name, text)
+    if args.gait:
+        data["gait"] = {
+            name: flag_value(f"gait {name}", values) for name, values in map(lambda t: _named("gait", t), args.gait)
+        }
+    if args.disturbance:
+        data["disturbance"] = [_disturbance(t) for t in args.disturbance]
+    return data
+
+
+def check_out(out: Path) -> None:
+    """OUT is a folder (or can be made one) that can be written, checked before any work."""
+    if out.exists() and not out.is_dir():
+        fail(f"--out {out} is not a folder")
+    folder = out if out.exists() else out.parent
+    if not folder.is_dir():
+        fail(f"--out: folder {folder} does not exist")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        fail(f"--out: cannot write in {folder}")
+
+
+def check_workers(args: argparse.Namespace) -> None:
+    if args.workers is not None and args.workers < 1:
+        fail(f"--workers must be at least 1, got {args.workers}")
+
+
+# -- commands ------------------------------------------------------------------------------------
+
+
+def command_sweep(args: argparse.Namespace) -> int:
+    from hopper.experiments.spec import SpecError, load_spec, parse_spec
+    from hopper.experiments.store import SpecMismatch
+
+    check_workers(args)
+    try:
+        overrides = spec_overrides(args)
+        spec = load_spec(args.spec, overrides) if args.spec is not None else parse_spec(overrides)
+    except SpecError as exc:
+        fail(str(exc))
+    check_out(args.out)
+
+    from hopper.experiments.executor import choose
+    from hopper.experiments.runner import run_sweep
+    from hopper.experiments.store import SweepStore
+    from hopper.experiments.summary import axis_lines, overall_line
+
+    try:
+        run = run_sweep(spec, args.out, lambda todo: choose(args.executor, todo, args.workers, args.address))
+    except SpecMismatch as exc:
+        fail(str(exc))
+    episodes = SweepStore(args.out, spec).read_episodes()
+    print(f"{args.out}: {overall_line(episodes)}")
+    for line in axis_lines(episodes, spec.axes()):
+        print(line)
+    startup = f" (start-up {run.startup_s:.1f} s, episodes {run.work_s:.1f} s)" if run.startup_s else ""
+    print(
+        f"this run: {run.ran} episodes on {run.executor} ({run.workers} workers) in {run.wall_s:.1f} s{startup}; "
+        f"{run.skipped} were already done"
+    )
+    return EXIT_OK
+
+
+def command_tune(args: argparse.Namespace) -> int:
+    from hopper.experiments.spec import SpecError, parse_spec
+    from hopper.experiments.tune import TuneSetup, report_lines, tune
+
+    check_workers(args)
+    if args.trials < 1 or args.hops < 1 or args.batch < 0:
+        fail("--trials and --hops must be at least 1, --batch at least 0")
+    try:
+        axes = parse_spec(
+            {
+                "seeds": flag_value("seeds", args.seeds),
+                "gravity": flag_value("gravity", args.gravity),
+                "hops": args.hops,
+            }
+        )
+        heldout = parse_spec({"seeds": flag_value("heldout", args.heldout)}).seeds
+        ranges = {name: _range(f"{name}-range", getattr(args, f"{name}_range"), log) for name, (_, _, log) in
+                  default_ranges().items()}  # fmt: skip
+        for text in args.gait:
+            name, values = _named("gait", text)
+            ranges[name] = _range(f"gait {name}", values, False)
+        setup = TuneSetup(
+            seeds=axes.seeds, heldout=heldout, gravities=axes.gravity, hops=args.hops, terrain=args.terrain,
+            sensing=args.sensing, ranges=ranges, trials=args.trials, batch=args.batch, seed=args.seed,
+        )  # fmt: skip
+    except (SpecError, ValueError) as exc:
+        fail(str(exc))
+
+    from hopper.experiments.executor import choose
+
+    result = tune(setup, lambda episodes: choose(args.executor, episodes, args.workers, args.address))
+    for line in report_lines(setup, result):
+        print(line)
+    if args.json:
+        args.json.write_text(json.dumps(result.as_dict(setup), indent=2))
+    return EXIT_OK
+
+
+def _range(name: str, text: str, log: bool) -> tuple[float, float, bool]:
+    from hopper.experiments.spec import SpecError
+
+    low, sep, high = text.partition(":")
+    try:
+        lo, hi = float(low), float(high)
+    except ValueError:
+        raise SpecError(f"--{name}: expected LOW:HIGH, got {text!r}") from None
+    if not sep or not lo < hi or (log and lo <= 0):
+        raise SpecError(f"--{name}: expected LOW:HIGH with LOW < HIGH{' and LOW > 0' if log else ''}, got {text!r}")
+    return lo, hi, log
+
+
+COMMANDS = {"sweep": command_sweep, "tune": command_tune}
+
+
+def run(args: argparse.Namespace) -> int:
+    return COMMANDS[args.command](args)
+
+
+if __name__ == "__main__":
+    sys.exit("run it as hopper-sim sweep|tune")

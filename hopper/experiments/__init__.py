@@ -1,0 +1,1 @@
+"""Experiments at scale: sweep specs, episodes run by reusable workers, executors (local or Ray), Parquet, tuning."""

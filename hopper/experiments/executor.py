@@ -1,0 +1,179 @@
+"""Where episodes run: in this process, a local process pool, or Ray actors (locally or on a cluster).
+
+Every executor runs chunks of episodes on `Worker`s (one per process, model built once) and yields
+each chunk's results as it completes. Ray is the engine for large sweeps and clusters; for small
+jobs its start-up (about 14 s here: ray.init 10 s, actors 3.5 s) would dominate, so `choose`
+keeps them on the plain local path (benchmarks/bench_sweep.py measures where the line is).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import multiprocessing
+import os
+import signal
+import threading
+import time
+from collections.abc import Iterable, Iterator
+from typing import Literal, Protocol
+
+from hopper.config import MOON_GRAVITY
+from hopper.experiments.spec import Episode
+from hopper.experiments.worker import EpisodeResult, Worker
+
+Kind = Literal["auto", "local", "ray"]
+Chunk = list[Episode]
+
+# Sizing jobs (measured here with benchmarks/bench_sweep.py; the machine's speed only shifts them).
+HOP_SIM_S = 3.1  # s of simulated time per hop on the Moon (ground + flight), ~ 1/sqrt(g) elsewhere
+STEP_CPU_S = 15e-6  # s of one core per 1 kHz control tick (closed loop, ideal sensing)
+# Ray's start-up is ~14 s here against ~2 s for a process pool: below this much work per core the
+# local pool finishes first by more than 10 %; above it, the start-up is under a tenth of the run.
+RAY_MIN_WORK_PER_CORE_S = 120.0
+CHUNK_CPU_S = 1.0  # s of work per chunk: Ray's per-call cost (~1 ms) is noise, and Ctrl-C loses little
+IN_FLIGHT_PER_WORKER = 2  # chunks queued per Ray actor, so it never waits for the driver
+
+
+def estimated_cpu_s(episode: Episode) -> float:
+    """Rough single-core seconds to simulate `episode` (it may fall sooner)."""
+    sim_s = episode.hops_target * HOP_SIM_S * math.sqrt(MOON_GRAVITY / episode.gravity)
+    return sim_s / 1e-3 * STEP_CPU_S
+
+
+def chunks(episodes: list[Episode], workers: int) -> list[Chunk]:
+    """Consecutive episodes (same terrain mostly: the spec orders terrain and seed outermost) in chunks
+    of about CHUNK_CPU_S, and at least 4 per worker so that the last chunks finish together."""
+    if not episodes:
+        return []
+    total = sum(map(estimated_cpu_s, episodes))
+    count = max(1, min(len(episodes), max(round(total / CHUNK_CPU_S), 4 * workers)))
+    size = math.ceil(len(episodes) / count)
+    return [episodes[i : i + size] for i in range(0, len(episodes), size)]
+
+
+class Executor(Protocol):
+    workers: int
+    name: str
+
+    def map(self, chunks: Iterable[Chunk]) -> Iterator[list[EpisodeResult]]:
+        """Each chunk's results as it completes (any order)."""
+        ...
+
+    def close(self) -> None: ...
+
+
+class InProcess:
+    """One worker in this process: no start-up at all, one core."""
+
+    name, workers = "in-process", 1
+
+    def __init__(self) -> None:
+        self.worker = Worker()
+
+    def map(self, chunks: Iterable[Chunk]) -> Iterator[list[EpisodeResult]]:
+        for chunk in chunks:
+            yield self.worker.run_chunk(chunk)
+
+    def close(self) -> None:
+        pass
+
+
+_process_worker: Worker | None = None
+
+
+def _start_process_worker() -> None:
+    """Pool workers leave Ctrl-C to the parent, which stops them: no traceback from each worker."""
+    global _process_worker
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _process_worker = Worker()
+
+
+def _run_in_process_worker(chunk: Chunk) -> list[EpisodeResult]:
+    assert _process_worker is not None
+    return _process_worker.run_chunk(chunk)
+
+
+class LocalPool:
+    """A pool of spawned processes on this machine, one Worker each (the plain local path)."""
+
+    name = "local pool"
+
+    def __init__(self, workers: int) -> None:
+        self.workers = workers
+        context = multiprocessing.get_context("spawn")  # no fork of a process holding MuJoCo or threads
+        self.pool = context.Pool(workers, initializer=_start_process_worker)
+
+    def map(self, chunks: Iterable[Chunk]) -> Iterator[list[EpisodeResult]]:
+        yield from self.pool.imap_unordered(_run_in_process_worker, chunks)
+
+    def close(self) -> None:
+        self.pool.terminate()  # at the end the workers are idle; on Ctrl-C nothing they do is wanted
+        self.pool.join()
+
+
+class RayExecutor:
+    """Ray actors, one per CPU of the cluster (a local one unless `address` or RAY_ADDRESS says where).
+
+    Each actor is a Worker: it builds the model at its first episode and reuses it for every chunk.
+    """
+
+    name = "ray"
+
+    def __init__(self, address: str | None = None, workers: int | None = None) -> None:
+        import ray
+
+        start = time.perf_counter()
+        # ray.init replaces the SIGTERM handler with one that exits 1 (or 15); keep the caller's
+        # (the CLIs turn SIGTERM into Ctrl-C so that results are written and the exit is 130).
+        sigterm = signal.getsignal(signal.SIGTERM) if threading.current_thread() is threading.main_thread() else None
+        connect = address or os.environ.get("RAY_ADDRESS")
+        options = {"include_dashboard": False, "log_to_driver": False, "logging_level": logging.ERROR}
+        if connect:
+            ray.init(address=connect, **options)
+        else:  # "local": a new instance of our own, never one that `ray start` left running here
+            ray.init(address="local", num_cpus=workers or os.cpu_count() or 1, **options)
+        if sigterm is not None:
+            signal.signal(signal.SIGTERM, sigterm)
+        self.ray = ray
+        self.address = connect or "local"
+        cpus = int(ray.cluster_resources().get("CPU", 1))
+        self.workers = max(1, min(workers or cpus, cpus))
+        remote = ray.remote(num_cpus=1)(Worker)
+        self.actors = [remote.remote() for _ in range(self.workers)]
+        ray.get([a.run_chunk.remote([]) for a in self.actors])  # every actor is up
+        self.startup_s = time.perf_counter() - start
+
+    def map(self, chunks: Iterable[Chunk]) -> Iterator[list[EpisodeResult]]:
+        ray, queue = self.ray, iter(chunks)
+        running: dict[object, object] = {}  # object ref -> actor
+
+        def submit(actor: object) -> None:
+            chunk = next(queue, None)
+            if chunk is not None:
+                running[actor.run_chunk.remote(chunk)] = actor  # type: ignore[attr-defined]
+
+        for actor in self.actors:
+            for _ in range(IN_FLIGHT_PER_WORKER):
+                submit(actor)
+        while running:
+            (ref,), _ = ray.wait(list(running), num_returns=1)
+            actor = running.pop(ref)
+            submit(actor)
+            yield ray.get(ref)
+
+    def close(self) -> None:
+        self.ray.shutdown()  # actors are not detached: they end with this driver
+
+
+def choose(kind: Kind, episodes: list[Episode], workers: int | None = None, address: str | None = None) -> Executor:
+    """The executor for a job: Ray when asked, when a cluster is named, or when the job is big enough;
+    otherwise the local path (in this process for one worker or a tiny job)."""
+    cores = workers or os.cpu_count() or 1
+    if kind == "local" or (kind == "auto" and not (address or os.environ.get("RAY_ADDRESS"))):
+        work = sum(map(estimated_cpu_s, episodes))
+        if kind == "auto" and work / cores >= RAY_MIN_WORK_PER_CORE_S:
+            return RayExecutor(address, workers)
+        cores = min(cores, len(episodes))
+        return InProcess() if cores <= 1 or work < 2.0 else LocalPool(cores)
+    return RayExecutor(address, workers)

@@ -1,0 +1,69 @@
+"""Run a sweep: skip the done episodes, stream the rest through an executor into the store."""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from hopper.experiments.executor import Executor, chunks
+from hopper.experiments.spec import Episode, SweepSpec
+from hopper.experiments.store import SweepStore
+
+
+@dataclasses.dataclass(frozen=True)
+class SweepRun:
+    total: int  # episodes in the spec
+    skipped: int  # already done by an earlier run
+    ran: int  # done by this run
+    wall_s: float  # this run's, start-up and shut-down included
+    startup_s: float  # the executor's start-up (Ray's: ray.init and the actors)
+    work_s: float  # from the executor ready to the last result written
+    executor: str
+    workers: int
+
+
+def pending(spec: SweepSpec, done: set[str]) -> list[Episode]:
+    return [e for e in spec.episodes() if e.episode_id not in done]
+
+
+def run_sweep(
+    spec: SweepSpec,
+    out: Path,
+    make_executor: Callable[[list[Episode]], Executor],
+    progress: bool = True,
+    announce: Callable[[str], None] = lambda line: print(line, file=sys.stderr),
+) -> SweepRun:
+    """Run what OUT does not hold yet. Results are written as they come, and on the way out too:
+    an interrupted run (KeyboardInterrupt propagates) keeps every episode it finished."""
+    from tqdm import tqdm
+
+    start = time.perf_counter()
+    store = SweepStore(out, spec)
+    done = store.open()
+    todo = pending(spec, done)
+    skipped = spec.size - len(todo)
+    if skipped:
+        announce(f"{out}: {skipped} of {spec.size} episodes already done, {len(todo)} to run")
+    if not todo:
+        return SweepRun(spec.size, skipped, 0, time.perf_counter() - start, 0.0, 0.0, "none", 0)
+    executor = make_executor(todo)
+    ready = time.perf_counter()
+    startup = getattr(executor, "startup_s", 0.0)
+    announce(f"running {len(todo)} episodes on {executor.name} ({executor.workers} workers)")
+    bar = tqdm(total=spec.size, initial=skipped, desc="episodes", unit="ep", file=sys.stderr, disable=not progress)
+    ran = 0
+    try:
+        for results in executor.map(chunks(todo, executor.workers)):
+            store.add(results)
+            ran += len(results)
+            bar.update(len(results))
+    finally:  # Ctrl-C included: what finished is kept
+        store.flush()
+        finished = time.perf_counter()
+        bar.close()
+        executor.close()
+    wall = time.perf_counter() - start
+    return SweepRun(spec.size, skipped, ran, wall, startup, finished - ready, executor.name, executor.workers)

@@ -1,0 +1,142 @@
+"""A sweep's output folder: two Parquet datasets written part by part as work completes, and the spec.
+
+    OUT/spec.toml        the resolved spec (hopper.experiments.spec.SweepSpec.to_toml)
+    OUT/episodes/*.parquet   one row per episode (EPISODE_COLUMNS, then one column per swept gait field)
+    OUT/hops/*.parquet       one row per hop: episode_id, the settings, `hop` and every HopMetrics field
+
+A part is written under a hidden temporary name and renamed into place (readers never see half a
+file), hops before episodes: an episode is done when its episodes row exists, and a hops part
+whose episodes part never came (the process was killed between the two) is removed at the next start.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import time
+import typing
+from pathlib import Path
+
+import pyarrow as pa
+import pyarrow.dataset as ds
+import pyarrow.parquet as pq
+
+from hopper.experiments.spec import SweepSpec
+from hopper.experiments.worker import EpisodeResult
+from hopper.metrics import HopMetrics
+
+SETTING_COLUMNS: list[tuple[str, pa.DataType]] = [
+    ("episode_id", pa.string()),
+    ("kp", pa.float64()),  # N m/rad
+    ("ki", pa.float64()),  # N m/(rad s)
+    ("kd", pa.float64()),  # N m s/rad
+    ("gravity", pa.float64()),  # m/s^2
+    ("seed", pa.int64()),
+    ("hops_target", pa.int64()),
+    ("terrain", pa.string()),
+    ("wheel", pa.bool_()),
+    ("sensing", pa.string()),
+    ("disturbance", pa.string()),  # hopper.experiments.spec.describe, "" for none
+    ("disturbance_size", pa.float64()),  # in the disturbance's unit: N m s (kicks), N s (pushes), N m (pulses)
+]
+RESULT_COLUMNS: list[tuple[str, pa.DataType]] = [
+    ("hops_completed", pa.int64()),
+    ("fell", pa.bool_()),
+    ("worst_landing_deg", pa.float64()),  # max over completed hops, 0 without one
+    ("peak_pitch_deg", pa.float64()),  # max over hops
+    ("rms_pitch_rate_deg_s", pa.float64()),  # max over hops
+    ("momentum_used_pct", pa.float64()),  # peak |wheel momentum| / capacity, %
+    ("saturation_s", pa.float64()),  # total
+    ("sim_time_s", pa.float64()),
+    ("wall_s", pa.float64()),
+]
+_ARROW_TYPES = {int: pa.int64(), float: pa.float64(), bool: pa.bool_()}
+HOP_FIELDS: list[tuple[str, pa.DataType]] = [
+    (f.name, _ARROW_TYPES[hint]) for f, hint in zip(
+        dataclasses.fields(HopMetrics), typing.get_type_hints(HopMetrics).values(), strict=True
+    )
+]  # fmt: skip
+FLUSH_S = 2.0  # s between parts at most while results stream in (and at the end, and on Ctrl-C)
+
+
+def schemas(spec: SweepSpec) -> tuple[pa.Schema, pa.Schema]:
+    """(episodes, hops) schemas for a spec: its swept gait fields are float64 setting columns."""
+    settings = SETTING_COLUMNS + [(name, pa.float64()) for name, _ in spec.gait]
+    return pa.schema(settings + RESULT_COLUMNS), pa.schema(settings + [("hop", pa.int64())] + HOP_FIELDS)
+
+
+class SpecMismatch(ValueError):
+    """The output folder holds another sweep."""
+
+
+class SweepStore:
+    """Appends results to OUT's datasets; knows which episodes are done."""
+
+    def __init__(self, out: Path, spec: SweepSpec) -> None:
+        self.out, self.spec = out, spec
+        self.episodes_dir, self.hops_dir = out / "episodes", out / "hops"
+        self.episode_schema, self.hop_schema = schemas(spec)
+        self._pending: list[EpisodeResult] = []
+        self._last_flush = time.monotonic()
+        self._stamp = f"{time.strftime('%Y%m%dT%H%M%S')}-{os.getpid()}"  # parts of this run
+        self._parts = 0
+
+    def open(self) -> set[str]:
+        """Create or check OUT (refusing another sweep's), clean up a killed run, return the done ids."""
+        spec_file, text = self.out / "spec.toml", self.spec.to_toml()
+        if spec_file.exists() and spec_file.read_text(encoding="utf-8") != text:
+            raise SpecMismatch(f"{self.out} holds another sweep (its spec.toml differs): use another --out")
+        self.out.mkdir(parents=True, exist_ok=True)
+        self.episodes_dir.mkdir(exist_ok=True)
+        self.hops_dir.mkdir(exist_ok=True)
+        if not spec_file.exists():
+            _write_atomically(spec_file, text.encode())
+        for folder in (self.episodes_dir, self.hops_dir):
+            for temporary in folder.glob(".tmp-*"):
+                temporary.unlink()
+        committed = {p.name for p in self.episodes_dir.glob("*.parquet")}
+        for orphan in self.hops_dir.glob("*.parquet"):
+            if orphan.name not in committed:
+                orphan.unlink()
+        return self.done_ids()
+
+    def done_ids(self) -> set[str]:
+        table = self.read_episodes(columns=["episode_id"])
+        return set(table.column("episode_id").to_pylist())
+
+    def read_episodes(self, columns: list[str] | None = None) -> pa.Table:
+        if not any(self.episodes_dir.glob("*.parquet")):
+            return self.episode_schema.empty_table().select(columns or self.episode_schema.names)
+        return ds.dataset(self.episodes_dir, format="parquet").to_table(columns=columns)
+
+    def add(self, results: list[EpisodeResult]) -> None:
+        """Queue results; they are written once FLUSH_S has passed since the last part."""
+        self._pending.extend(results)
+        if time.monotonic() - self._last_flush >= FLUSH_S:
+            self.flush()
+
+    def flush(self) -> int:
+        """Write what is queued as one part of each dataset; returns the episodes written."""
+        pending, self._pending = self._pending, []
+        self._last_flush = time.monotonic()
+        if not pending:
+            return 0
+        self._parts += 1
+        name = f"part-{self._stamp}-{self._parts:05d}.parquet"
+        hops = pa.Table.from_pylist([row for r in pending for row in r.hop_rows()], schema=self.hop_schema)
+        episodes = pa.Table.from_pylist([r.row() for r in pending], schema=self.episode_schema)
+        _write_table(self.hops_dir / name, hops)
+        _write_table(self.episodes_dir / name, episodes)  # last: this commits the episodes
+        return len(pending)
+
+
+def _write_table(path: Path, table: pa.Table) -> None:
+    temporary = path.with_name(f".tmp-{path.name}")
+    pq.write_table(table, temporary)
+    os.replace(temporary, path)
+
+
+def _write_atomically(path: Path, data: bytes) -> None:
+    temporary = path.with_name(f".tmp-{path.name}")
+    temporary.write_bytes(data)
+    os.replace(temporary, path)

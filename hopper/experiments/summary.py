@@ -1,0 +1,52 @@
+"""One line per swept axis: for each of its values, episodes, falls and the worst landing and momentum."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pyarrow as pa
+import pyarrow.compute as pc
+
+UNITS = {"kp": "N m/rad", "ki": "N m/(rad s)", "kd": "N m s/rad", "gravity": "m/s^2"}
+
+
+def axis_lines(episodes: pa.Table, axes: dict[str, tuple[Any, ...]]) -> list[str]:
+    """Axes with more than one value; each value: n episodes, falls, worst landing (deg), peak momentum (%)."""
+    lines = []
+    for name, values in axes.items():
+        if len(values) < 2:
+            continue
+        column = episodes.column(name)
+        parts = []
+        for value in values:
+            rows = episodes.filter(pc.equal(column, pa.scalar(value, type=column.type)))
+            if rows.num_rows == 0:
+                continue
+            falls = pc.sum(rows.column("fell")).as_py() or 0
+            landing = pc.max(rows.column("worst_landing_deg")).as_py()
+            momentum = pc.max(rows.column("momentum_used_pct")).as_py()
+            label = _label(value)
+            parts.append(f"{label}: {falls}/{rows.num_rows} fell, land {landing:.2f} deg, wheel {momentum:.0f} %")
+        unit = f" ({UNITS[name]})" if name in UNITS else ""
+        lines.append(f"{name}{unit}: " + "; ".join(parts))
+    return lines
+
+
+def overall_line(episodes: pa.Table) -> str:
+    n = episodes.num_rows
+    if n == 0:
+        return "no episodes"
+    falls = pc.sum(episodes.column("fell")).as_py() or 0
+    landing = pc.max(episodes.column("worst_landing_deg")).as_py()
+    sim = pc.sum(episodes.column("sim_time_s")).as_py()
+    return (
+        f"{n} episodes, {falls} fell ({100 * falls / n:.1f} %), worst landing {landing:.2f} deg, {sim:.0f} s simulated"
+    )
+
+
+def _label(value: Any) -> str:
+    if isinstance(value, bool):
+        return "on" if value else "off"
+    if isinstance(value, float):
+        return f"{value:g}"
+    return str(value) if value != "" else "none"

@@ -1,0 +1,229 @@
+"""Gain search: Optuna's seeded TPE sampler over Kp/Ki/Kd (and gait fields) for the best worst case.
+
+A candidate's score is its worst case over every tuning seed and gravity: failures (a fall, or
+fewer hops than asked) dominate, then the worst landing error against the paper's 3.5 deg, then
+the most wheel momentum used against the capacity. The defaults are the first candidate, so the
+best is never worse than them on the tuning set; the held-out seeds say whether that generalises.
+Candidates are evaluated in batches through an executor (hopper.experiments.executor).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import sys
+from collections.abc import Callable
+from typing import Any
+
+from hopper.config import Gains, GaitParams, InvalidConfig
+from hopper.experiments.executor import Executor, chunks
+from hopper.experiments.spec import GAIT_FIELDS, Episode
+from hopper.experiments.worker import EpisodeResult
+from hopper.stress import LANDING_LIMIT_DEG
+
+# Search ranges (low, high, log scale): a decade around PHYSICS.md's LQR range (kp 340 to 850,
+# kd 17 to 31) and the defaults; ki only trims model error in flight.
+GAIN_SEARCH: dict[str, tuple[float, float, bool]] = {
+    "kp": (100.0, 1500.0, True),  # N m/rad
+    "ki": (0.0, 200.0, False),  # N m/(rad s)
+    "kd": (5.0, 80.0, True),  # N m s/rad
+}
+FAILURE_WEIGHT = 10.0  # per failed episode: more than any landing or momentum figure can make up
+INVALID_SCORE = 1e6  # a candidate the configuration refuses (e.g. a crouch above the stand height)
+
+
+@dataclasses.dataclass(frozen=True)
+class Score:
+    """A candidate's worst case over its episodes (lower `value` is better)."""
+
+    episodes: int
+    failures: int  # fell, or fewer hops than asked
+    worst_landing_deg: float
+    worst_momentum_pct: float
+    worst_peak_deg: float
+
+    @property
+    def value(self) -> float:
+        return (
+            FAILURE_WEIGHT * self.failures
+            + self.worst_landing_deg / LANDING_LIMIT_DEG
+            + self.worst_momentum_pct / 100.0
+        )
+
+
+def score(results: list[EpisodeResult]) -> Score:
+    rows = [r.row() for r in results]
+    return Score(
+        episodes=len(rows),
+        failures=sum(r["fell"] or r["hops_completed"] < r["hops_target"] for r in rows),
+        worst_landing_deg=max(r["worst_landing_deg"] for r in rows),
+        worst_momentum_pct=max(r["momentum_used_pct"] for r in rows),
+        worst_peak_deg=max(r["peak_pitch_deg"] for r in rows),
+    )
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class TuneSetup:
+    seeds: tuple[int, ...]
+    heldout: tuple[int, ...]
+    gravities: tuple[float, ...]  # m/s^2
+    hops: int
+    terrain: str = "crater"
+    sensing: str = "ideal"
+    ranges: dict[str, tuple[float, float, bool]] = dataclasses.field(default_factory=lambda: dict(GAIN_SEARCH))
+    trials: int = 40
+    batch: int = 0  # candidates per batch; 0: the executor's workers
+    seed: int = 0  # the sampler's
+
+    def __post_init__(self) -> None:
+        if set(self.seeds) & set(self.heldout):
+            raise ValueError(f"held-out seeds overlap the tuning seeds: {sorted(set(self.seeds) & set(self.heldout))}")
+        for name in self.ranges:
+            if name not in ("kp", "ki", "kd") and name not in GAIT_FIELDS:
+                raise ValueError(f"cannot search {name!r}: not a gain nor a GaitParams field")
+        defaults = self.defaults()
+        for name, (low, high, _) in self.ranges.items():
+            if not low <= defaults[name] <= high:
+                raise ValueError(f"{name}'s range [{low:g}, {high:g}] leaves out its default {defaults[name]:g}")
+
+    def defaults(self) -> dict[str, float]:
+        gains, gait = dataclasses.asdict(Gains()), dataclasses.asdict(GaitParams())
+        return {name: (gains | gait)[name] for name in (*GAIN_SEARCH, *self.ranges)}
+
+    def episodes(self, params: dict[str, float], seeds: tuple[int, ...]) -> list[Episode]:
+        gains = {k: params.get(k, v) for k, v in dataclasses.asdict(Gains()).items()}
+        gait = tuple((k, v) for k, v in params.items() if k in GAIT_FIELDS)
+        return [
+            Episode(
+                **gains,
+                gravity=g,
+                seed=s,
+                hops_target=self.hops,
+                terrain=self.terrain,
+                wheel=True,
+                sensing=self.sensing,
+                gait=gait,
+            )  # fmt: skip
+            for g in self.gravities
+            for s in seeds
+        ]
+
+
+@dataclasses.dataclass(frozen=True)
+class TuneResult:
+    best: dict[str, float]
+    defaults: dict[str, float]
+    best_score: Score  # on the tuning seeds
+    default_score: Score
+    best_heldout: Score
+    default_heldout: Score
+    history: list[tuple[dict[str, float], float]]  # every candidate and its score value, in order
+
+    def as_dict(self, setup: TuneSetup) -> dict[str, Any]:
+        def s(x: Score) -> dict[str, Any]:
+            return {**dataclasses.asdict(x), "value": x.value}
+
+        return {
+            "setup": {**dataclasses.asdict(setup), "ranges": {k: list(v) for k, v in setup.ranges.items()}},
+            "best": self.best, "defaults": self.defaults,
+            "tuning": {"best": s(self.best_score), "defaults": s(self.default_score)},
+            "heldout": {"best": s(self.best_heldout), "defaults": s(self.default_heldout)},
+            "history": [{"params": p, "score": v} for p, v in self.history],
+        }  # fmt: skip
+
+
+def evaluate(
+    candidates: list[dict[str, float]], seeds: tuple[int, ...], setup: TuneSetup, executor: Executor
+) -> list[Score | None]:
+    """Each candidate's Score over `seeds` x gravities (None if its configuration is refused)."""
+    valid, episodes = {}, []
+    for i, params in enumerate(candidates):
+        eps = setup.episodes(params, seeds)
+        try:
+            eps[0].config()
+        except InvalidConfig:
+            continue
+        valid[i] = eps
+        episodes += eps
+    unique = list({e.episode_id: e for e in episodes}.values())
+    results: dict[str, EpisodeResult] = {}
+    for chunk_results in executor.map(chunks(unique, executor.workers)):
+        results |= {r.episode.episode_id: r for r in chunk_results}
+    return [score([results[e.episode_id] for e in valid[i]]) if i in valid else None for i in range(len(candidates))]
+
+
+def tune(setup: TuneSetup, make_executor: Callable[[list[Episode]], Executor], progress: bool = True) -> TuneResult:
+    import optuna
+    from optuna.distributions import FloatDistribution
+    from tqdm import tqdm
+
+    optuna.logging.set_verbosity(logging.WARNING)
+    distributions = {name: FloatDistribution(low, high, log=log) for name, (low, high, log) in setup.ranges.items()}
+    study = optuna.create_study(direction="minimize", sampler=optuna.samplers.TPESampler(seed=setup.seed))
+    defaults = setup.defaults()
+    study.enqueue_trial({name: defaults[name] for name in distributions})
+    sample = setup.episodes(defaults, setup.seeds) * setup.trials  # sizes the executor
+    executor = make_executor(sample + setup.episodes(defaults, setup.heldout) * 2)
+    batch = setup.batch or executor.workers
+    history: list[tuple[dict[str, float], float]] = []
+    scores: list[Score] = []
+    bar = tqdm(total=setup.trials, desc="candidates", unit="cand", file=sys.stderr, disable=not progress)
+    try:
+        while len(history) < setup.trials:
+            trials = [study.ask(distributions) for _ in range(min(batch, setup.trials - len(history)))]
+            for trial, result in zip(trials, evaluate([t.params for t in trials], setup.seeds, setup, executor),
+                                     strict=True):  # fmt: skip
+                value = result.value if result is not None else INVALID_SCORE
+                study.tell(trial, value)
+                history.append((dict(trial.params), value))
+                scores.append(result)
+            bar.update(len(trials))
+        best_index = min(range(len(history)), key=lambda i: history[i][1])  # the first of equals
+        best = {**defaults, **history[best_index][0]}
+        default_heldout, best_heldout = evaluate([defaults, best], setup.heldout, setup, executor)
+    finally:
+        bar.close()
+        executor.close()
+    return TuneResult(
+        best=best, defaults=defaults, best_score=scores[best_index], default_score=scores[0],
+        best_heldout=best_heldout, default_heldout=default_heldout, history=history,
+    )  # fmt: skip
+
+
+def report_lines(setup: TuneSetup, result: TuneResult) -> list[str]:
+    """The gains found and the evidence: worst cases of best vs defaults, tuning and held-out seeds."""
+    names = list(result.defaults)
+    search = ", ".join(f"{n} [{lo:g}, {hi:g}]{' log' if log else ''}" for n, (lo, hi, log) in setup.ranges.items())
+    gravities = ", ".join(f"{g:g}" for g in setup.gravities)
+    lines = [
+        f"Optuna TPE (seed {setup.seed}), {setup.trials} candidates over {search}; each: seeds "
+        f"{_seeds(setup.seeds)} x gravity {gravities} m/s^2, {setup.hops} hops, {setup.terrain}, {setup.sensing}",
+        f"score = {FAILURE_WEIGHT:g} x failures + worst landing / {LANDING_LIMIT_DEG:g} deg + worst momentum / 100 %",
+        f"{'':22}"
+        + "".join(f"{n:>10}" for n in names)
+        + f"{'failures':>10}{'landing deg':>13}{'momentum %':>12}{'peak deg':>10}{'score':>8}",
+    ]
+    for title, seeds, best, default in (
+        ("tuning seeds", setup.seeds, result.best_score, result.default_score),
+        ("held-out seeds", setup.heldout, result.best_heldout, result.default_heldout),
+    ):
+        lines.append(f"{title} {_seeds(seeds)}")
+        for label, params, s in (("  defaults", result.defaults, default), ("  best", result.best, best)):
+            lines.append(
+                f"{label:22}" + "".join(f"{params[n]:>10.4g}" for n in names)
+                + f"{f'{s.failures}/{s.episodes}':>10}{s.worst_landing_deg:>13.3f}{s.worst_momentum_pct:>12.1f}"
+                + f"{s.worst_peak_deg:>10.2f}{s.value:>8.3f}"
+            )  # fmt: skip
+    verdict = "at least as good as" if result.best_heldout.value <= result.default_heldout.value else "WORSE than"
+    lines.append(
+        f"on the held-out seeds the best gains are {verdict} the defaults "
+        f"(score {result.best_heldout.value:.3f} vs {result.default_heldout.value:.3f})"
+    )
+    lines.append("best: " + " ".join(f"--{n} {result.best[n]:.6g}" for n in names if n in ("kp", "ki", "kd")))
+    return lines
+
+
+def _seeds(seeds: tuple[int, ...]) -> str:
+    if len(seeds) > 2 and list(seeds) == list(range(seeds[0], seeds[-1] + 1)):
+        return f"{seeds[0]}-{seeds[-1]}"
+    return ",".join(map(str, seeds))

@@ -1,0 +1,164 @@
+"""Run episodes on one Simulation built once: each episode reconfigures it in place and resets it.
+
+A fresh `Simulation(config)` and a reused one give identical episodes (tests/test_sweep.py), so a
+sweep's rows are what `hopper-sim run` gives for the same settings.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from hopper.config import WHEEL_NO_LOAD_SPEED, SimConfig
+from hopper.control.memory import new_memory
+from hopper.experiments.spec import Episode
+from hopper.metrics import HopMetrics
+from hopper.model import set_terrain, set_wheel_enabled, terrain_heights
+from hopper.sim import Simulation
+from hopper.stress import Schedule
+
+
+@dataclasses.dataclass(frozen=True)
+class EpisodeResult:
+    """What one episode did: its hops and the figures the episodes table holds."""
+
+    episode: Episode
+    hops: tuple[HopMetrics, ...]
+    fell: bool
+    sim_time_s: float
+    wall_s: float
+    saturation_s: float  # s, every hop's plus the unfinished one's
+    momentum_used_pct: float  # peak |wheel speed| / no-load speed = peak |wheel momentum| / capacity, %
+    applied: bool  # the disturbance happened (its phase came); True without one
+
+    def row(self) -> dict[str, Any]:
+        """The episodes-table row (hopper.experiments.store.EPISODE_COLUMNS)."""
+        done = [h for h in self.hops if h.completed]
+        return {
+            "episode_id": self.episode.episode_id,
+            **self.episode.settings(),
+            "hops_completed": len(done),
+            "fell": self.fell,
+            "worst_landing_deg": max((h.landing_pitch_deg for h in done), default=0.0),
+            "peak_pitch_deg": max((h.peak_pitch_deg for h in self.hops), default=0.0),
+            "rms_pitch_rate_deg_s": max((h.rms_pitch_rate_deg_s for h in self.hops), default=0.0),
+            "momentum_used_pct": self.momentum_used_pct,
+            "saturation_s": self.saturation_s,
+            "sim_time_s": self.sim_time_s,
+            "wall_s": self.wall_s,
+        }
+
+    def hop_rows(self) -> list[dict[str, Any]]:
+        """The hops-table rows: the settings, then `hop` (1-based) and every HopMetrics field."""
+        head = {"episode_id": self.episode.episode_id, **self.episode.settings()}
+        return [{**head, "hop": hop.index, **hop.as_dict()} for hop in self.hops]
+
+
+class Worker:
+    """One process's simulation, built at its first episode and reused (reset, not rebuilt) after."""
+
+    def __init__(self) -> None:
+        self.sim: Simulation | None = None
+        self._blank: np.ndarray | None = None  # the controller's memory as construction leaves it
+        self._terrain: tuple[str, int] | None = None
+        self.built = 0  # models compiled (1 after the first episode, whatever follows)
+
+    def run_chunk(self, episodes: list[Episode]) -> list[EpisodeResult]:
+        return [self.run(e) for e in episodes]
+
+    def run(self, episode: Episode) -> EpisodeResult:
+        """Simulate one episode to its hops, a fall or the time limit (as `hopper-sim run` does)."""
+        start = time.perf_counter()
+        sim = self._prepare(episode.config())
+        hops, schedule = episode.hops_target, episode.disturbance
+        max_time = 5.0 + 2.0 * hops * sim.controller.gait.hop_time_bound(sim.config.gravity)
+        applied = schedule is None or _disturb_when_due(sim, schedule, hops, max_time)
+        if not sim.fallen and len(sim.hops) < hops:
+            sim.run(hops, max_time=max_time - sim.time)
+        mem = sim.controller.mem
+        peak_wheel = max((h.peak_wheel_rpm * 2 * math.pi / 60 for h in sim.hops), default=0.0)
+        peak_wheel = max(peak_wheel, float(mem["acc_peak_wheel"][0]))  # the unfinished hop's
+        saturation = sum(h.saturation_time_s for h in sim.hops) + float(mem["acc_saturation"][0])
+        return EpisodeResult(
+            episode=episode,
+            hops=tuple(sim.hops),
+            fell=sim.fallen,
+            sim_time_s=sim.time,
+            wall_s=time.perf_counter() - start,
+            saturation_s=saturation,
+            momentum_used_pct=100.0 * peak_wheel / WHEEL_NO_LOAD_SPEED,
+            applied=applied,
+        )
+
+    def _prepare(self, config: SimConfig) -> Simulation:
+        """The simulation set to `config`, standing at the start, as Simulation(config) leaves it."""
+        sim = self.sim
+        if sim is None:
+            sim = self.sim = Simulation(config)
+            self.built += 1
+            # HopController.__init__'s memory before configure(): the layout, torso origin and dt.
+            self._blank = new_memory(sim.layout)
+            (self._blank["x0"], self._blank["z0"]), self._blank["dt"] = sim.layout.torso_origin, config.timestep
+            self._terrain = (config.terrain, config.seed)
+            return sim
+        if config.timestep != sim.config.timestep or config.craters != sim.config.craters:
+            raise ValueError("a worker's episodes share the timestep and crater parameters")
+        if (config.terrain, config.seed) != self._terrain:
+            sim.heights = terrain_heights(config)
+            swap_terrain(sim.model, sim.heights)
+            self._terrain = (config.terrain, config.seed)
+        sim.model.opt.gravity[2] = -config.gravity
+        set_wheel_enabled(sim.model, config.wheel)
+        sim.config = config
+        sim.controller.mem[0] = self._blank[0]  # no state of the last episode survives
+        sim.controller.configure(config)
+        sim.events.clear()  # a worker runs thousands of episodes: keep only this one's
+        sim.ticks = 0  # the health check's phase, as in a new Simulation
+        sim.reset(reason="start")
+        return sim
+
+
+def _disturb_when_due(sim: Simulation, d: Schedule, hops: int, max_time: float) -> bool:
+    """Step until the schedule's moment (then disturb), the hops, a fall or the time limit.
+
+    The moment: `d.delay_s` after entering `d.phase` in hop `d.hop` (hopper.stress's convention).
+    """
+    mem, limit = sim.controller.mem, sim.time + max_time
+    while len(sim.hops) < hops and not sim.fallen and sim.time < limit:
+        if (
+            len(sim.hops) == d.hop - 1
+            and sim.phase is d.phase
+            and sim.time - float(mem["phase_start"][0]) >= (d.delay_s - 1e-9)
+        ):
+            sim.disturb(d.kind, d.magnitude)  # type: ignore[arg-type]
+            return True
+        if len(sim.hops) >= d.hop:
+            return False  # its hop is over: the phase never came
+        sim.step()
+    return False
+
+
+def swap_terrain(model: mujoco.MjModel, heights: np.ndarray) -> None:
+    """hopper.model.set_terrain, plus the bounds the compiler derives from the heightfield's size.
+
+    The terrain geom's size, bounding sphere and boxes follow its elevation; left at the old
+    terrain's, a higher new terrain could be missed by the broad phase. These are MuJoCo's compile
+    rules for an hfield geom (size z = size[2]/4 + base/2; box from -base to size[2]); the tests
+    check the swapped model against a freshly compiled one, array by array.
+    """
+    set_terrain(model, heights)
+    hfield, geom = model.hfield("terrain").id, model.geom("terrain").id
+    sx, sy, top, base = model.hfield_size[hfield]
+    model.geom_size[geom] = (sx, sy, 0.25 * top + 0.5 * base)
+    model.geom_aabb[geom] = (0.0, 0.0, 0.5 * (top - base), sx, sy, 0.5 * (top + base))
+    model.geom_rbound[geom] = math.sqrt(sx * sx + sy * sy + max(top, base) ** 2)
+    body = model.geom_bodyid[geom]
+    if model.body_bvhnum[body] != 1:  # the world body holds more than the terrain: not this model
+        raise ValueError("swap_terrain expects the terrain to be the world body's only geom")
+    aabb = model.geom_aabb[geom]
+    model.bvh_aabb[model.body_bvhadr[body]] = (*(model.geom_pos[geom] + aabb[:3]), *aabb[3:])

@@ -1,0 +1,237 @@
+"""`hopper-sim sweep`: specs, workers that reuse one model, the Parquet contract, and a resumed sweep on Ray."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import random
+import signal
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.dataset as ds
+import pytest
+from net import wait_until
+
+from hopper.config import GRAVITY_PRESETS, SimConfig
+from hopper.control.phases import Phase
+from hopper.experiments.executor import InProcess, chunks
+from hopper.experiments.runner import run_sweep
+from hopper.experiments.spec import SpecError, parse_spec
+from hopper.experiments.store import RESULT_COLUMNS, SETTING_COLUMNS, SweepStore
+from hopper.experiments.worker import Worker, swap_terrain
+from hopper.metrics import HopMetrics
+from hopper.model import build_model, terrain_heights
+from hopper.stress import Case, Schedule, run_case
+
+
+def hopper_sim(*args: str, cwd: Path | None = None, timeout: float = 120) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "hopper.app.sim_cli", *args], capture_output=True, text=True, timeout=timeout, cwd=cwd
+    )
+
+
+def test_a_spec_expands_its_axes_and_reads_back_resolved() -> None:
+    spec = parse_spec({
+        "kp": {"start": 300, "stop": 800, "num": 3}, "seeds": {"start": 4, "stop": 6}, "gravity": ["moon", 3.72],
+        "wheel": [True, "off"], "gait": {"apex_height": [0.2, 0.25]},
+        "disturbance": [{"kind": "none"}, {"kind": "pitch_kick", "size": [1.0, -1.0], "phase": "stance", "delay": 0.1}],
+    })  # fmt: skip
+    assert spec.kp == (300.0, 550.0, 800.0) and spec.seeds == (4, 5) and spec.gravity == (1.625, 3.72)
+    assert spec.wheel == (True, False) and spec.gait == (("apex_height", (0.2, 0.25)),)
+    assert spec.disturbance == (None, Schedule("pitch_kick", 1.0, Phase.STANCE, 0.1, 2), Schedule("pitch_kick", -1.0,
+                                Phase.STANCE, 0.1, 2))  # fmt: skip
+    episodes = list(spec.episodes())
+    assert len(episodes) == spec.size == 3 * 2 * 2 * 2 * 2 * 3
+    assert len({e.episode_id for e in episodes}) == len(episodes), "ids must tell every episode apart"
+    assert parse_spec(tomllib.loads(spec.to_toml())) == spec
+    kicked = next(e for e in episodes if e.disturbance is not None)
+    assert kicked.settings()["disturbance"] == "pitch_kick +1 N m s at stance +0.1 s of hop 2"
+    assert kicked.settings()["disturbance_size"] == 1.0 and kicked.config().gait.apex_height in (0.2, 0.25)
+    # the id depends on the settings only, never on the spec's order or size
+    a, b = parse_spec({"seeds": [5], "kp": 300}), parse_spec({"kp": [300], "seeds": 6})
+    assert next(a.episodes()).episode_id == next(e for e in b.episodes() if e.seed == 5).episode_id
+
+
+@pytest.mark.parametrize(
+    "data, message",
+    [
+        ({"kpp": 3}, "unknown key 'kpp'"),
+        ({"kp": 5000}, "kp must be a finite number in [0, 2000] N m/rad"),
+        ({"kp": {"start": 1, "stop": 2}}, "a range is {start, stop, num}"),
+        ({"gravity": "pluto"}, "neither m/s^2 nor one of moon"),
+        ({"seeds": -2}, "seeds: expected an integer"),
+        ({"gait": {"crouch_height": 0.9}}, "crouch_height must be"),
+        ({"gait": {"leg": 1.0}}, "unknown parameter 'leg'"),
+        ({"disturbance": [{"kind": "shove", "size": 1, "phase": "stance", "delay": 0}]}, "kind 'shove' is not one of"),
+        ({"disturbance": [{"kind": "pitch_kick", "size": 9.0, "phase": "stance", "delay": 0}]}, "size must be"),
+        ({"disturbance": [{"kind": "pitch_kick", "size": 1.0, "phase": "nap", "delay": 0}]}, "phase 'nap'"),
+        ({"kd": [20, 20]}, "kd: a value is repeated"),
+    ],
+)
+def test_bad_specs_are_refused_with_the_reason(data: dict, message: str) -> None:
+    with pytest.raises(SpecError) as caught:
+        parse_spec(data)
+    assert message in str(caught.value)
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["spec.toml", "--out", "o"], "spec.toml is not valid TOML"),
+        (["--out", "o", "--kp", "1:2"], "a range is {start, stop, num}"),
+        (["--out", "file.txt", "--seeds", "1"], "is not a folder"),
+    ],
+)
+def test_the_cli_refuses_a_bad_spec_in_one_line_before_any_work(tmp_path: Path, args: list[str], message: str) -> None:
+    (tmp_path / "spec.toml").write_text("kp = [300,\n")
+    (tmp_path / "file.txt").write_text("")
+    result = hopper_sim("sweep", *args, cwd=tmp_path)
+    assert result.returncode == 2, result
+    assert result.stderr.count("\n") == 1 and message in result.stderr, result.stderr
+    assert result.stderr.startswith("hopper-sim: error: ") and result.stdout == ""
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file.txt", "spec.toml"], "work started"
+
+
+def test_swapping_the_terrain_gives_the_model_a_fresh_compile_gives() -> None:
+    for before, after in ((SimConfig(seed=0), SimConfig(seed=5)), (SimConfig(seed=3), SimConfig(terrain="flat"))):
+        model = build_model(before)
+        swap_terrain(model, terrain_heights(after))
+        fresh = build_model(after)
+        differ = [
+            name for name in dir(fresh)
+            if isinstance(getattr(fresh, name), np.ndarray) and not np.array_equal(getattr(fresh, name),
+                                                                                   getattr(model, name))
+        ]  # fmt: skip
+        assert differ == [], f"{before.seed} -> {after.terrain} {after.seed}: {differ}"
+
+
+def test_a_reused_worker_gives_exactly_the_episodes_of_fresh_simulations() -> None:
+    spec = parse_spec({
+        "seeds": [0, 1], "hops": 2, "kp": [300, 450], "wheel": ["on", "off"], "sensing": ["ideal", "realistic"],
+        "gravity": ["moon", "mars"], "gait": {"apex_height": [0.25, 0.2]},
+        "disturbance": [{"kind": "none"}, {"kind": "pitch_kick", "size": 1.0, "phase": "flight", "delay": 0.2}],
+    })  # fmt: skip
+    episodes = list(spec.episodes())
+    random.Random(3).shuffle(episodes)
+    episodes = episodes[:14]  # every setting changes from one to the next, in no helpful order
+    worker = Worker()
+    reused = [worker.run(e) for e in episodes]
+    assert worker.built == 1, "the worker must build its model once"
+    for episode, result in zip(episodes, reused, strict=True):
+        fresh = Worker().run(episode)
+        assert (fresh.hops, fresh.fell, fresh.sim_time_s, fresh.saturation_s, fresh.momentum_used_pct) == (
+            result.hops, result.fell, result.sim_time_s, result.saturation_s, result.momentum_used_pct
+        ), episode  # fmt: skip
+
+
+def test_a_disturbed_episode_is_the_stress_battery_case() -> None:
+    from hopper.experiments.spec import Episode
+
+    push = Schedule("push_forward", 6.0, Phase.CROUCH, 0.1)
+    episode = Episode(kp=450.0, ki=50.0, kd=30.0, gravity=GRAVITY_PRESETS["moon"], seed=0, hops_target=4,
+                      terrain="flat", wheel=True, sensing="ideal", disturbance=push)  # fmt: skip
+    worker = Worker()
+    worker.run(dataclasses.replace(episode, terrain="crater", seed=9, disturbance=None))  # a worker with a past
+    result = worker.run(episode)
+    outcome = run_case(Case("ground", "push", episode.config(), 4, push))
+    assert result.applied and outcome.applied
+    row = result.row()
+    assert (row["hops_completed"], row["fell"]) == (outcome.hops, outcome.fell)
+    assert row["worst_landing_deg"] == outcome.worst_landing_deg and row["peak_pitch_deg"] == outcome.worst_peak_deg
+
+
+def test_the_parquet_datasets_follow_the_contract(tmp_path: Path) -> None:
+    spec = parse_spec({"seeds": 2, "hops": 2, "wheel": ["on", "off"], "gait": {"apex_height": [0.25]}})
+    run = run_sweep(spec, tmp_path / "out", lambda todo: InProcess(), progress=False, announce=lambda _: None)
+    assert (run.ran, run.skipped) == (4, 0)
+    episodes = ds.dataset(tmp_path / "out" / "episodes", format="parquet").to_table()
+    hops = ds.dataset(tmp_path / "out" / "hops", format="parquet").to_table()
+    settings = [name for name, _ in SETTING_COLUMNS] + ["apex_height"]
+    assert episodes.column_names == settings + [name for name, _ in RESULT_COLUMNS]
+    hop_fields = list(HopMetrics.__dataclass_fields__)
+    assert hops.column_names == settings + ["hop"] + hop_fields
+    assert episodes.schema.field("seed").type == pa.int64() and episodes.schema.field("wheel").type == pa.bool_()
+    assert episodes.schema.field("fell").type == pa.bool_() and hops.schema.field("completed").type == pa.bool_()
+    rows = episodes.to_pylist()
+    assert len({r["episode_id"] for r in rows}) == 4
+    for r in rows:
+        own = [h for h in hops.to_pylist() if h["episode_id"] == r["episode_id"]]
+        assert [h["hop"] for h in own] == list(range(1, len(own) + 1))
+        assert all(h["seed"] == r["seed"] and h["wheel"] == r["wheel"] for h in own)
+        assert r["hops_completed"] == sum(h["completed"] for h in own)
+        assert r["disturbance"] == "" and r["disturbance_size"] == 0.0 and r["terrain"] == "crater"
+        if r["wheel"]:
+            assert not r["fell"] and r["hops_completed"] == 2 and 0 < r["momentum_used_pct"] < 100
+        else:  # wheel off: the robot tumbles in its first flight (README)
+            assert r["fell"] and r["peak_pitch_deg"] > 30
+    assert tomllib.loads((tmp_path / "out" / "spec.toml").read_text())["seeds"] == [0, 1]
+
+
+def test_a_killed_runs_leftovers_are_cleaned_and_another_spec_is_refused(tmp_path: Path) -> None:
+    spec, out = parse_spec({"seeds": 1, "hops": 1}), tmp_path / "out"
+    run_sweep(spec, out, lambda todo: InProcess(), progress=False, announce=lambda _: None)
+    orphan = out / "hops" / "part-killed-00001.parquet"  # its episodes part never came
+    orphan.write_bytes((next((out / "hops").glob("*.parquet"))).read_bytes())
+    (out / "episodes" / ".tmp-part-x.parquet").write_bytes(b"half a file")
+    again = run_sweep(spec, out, lambda todo: InProcess(), progress=False, announce=lambda _: None)
+    assert (again.ran, again.skipped) == (0, 1)
+    assert not orphan.exists() and not (out / "episodes" / ".tmp-part-x.parquet").exists()
+    result = hopper_sim("sweep", "--out", str(out), "--seeds", "2", "--hops", "1")
+    assert result.returncode == 2 and "holds another sweep" in result.stderr, result.stderr
+
+
+def test_chunks_keep_the_order_and_cover_every_episode() -> None:
+    episodes = list(parse_spec({"seeds": 5, "kp": [300, 400, 500], "hops": 2}).episodes())
+    parts = chunks(episodes, workers=2)
+    assert [e for part in parts for e in part] == episodes and len(parts) >= 8
+
+
+def test_a_sweep_on_a_local_ray_interrupted_half_way_resumes_without_redoing_episodes(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    flags = ["sweep", "--out", str(out), "--seeds", "10", "--kp", "300,450,600,750", "--wheel", "on,off", "--hops",
+             "2", "--executor", "ray", "--workers", "2"]  # fmt: skip
+    total = 10 * 4 * 2
+    env = {k: v for k, v in os.environ.items() if k != "RAY_ADDRESS"}  # a local Ray, started by the CLI
+    process = subprocess.Popen([sys.executable, "-m", "hopper.app.sim_cli", *flags], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True, env=env)  # fmt: skip
+    try:
+        assert wait_until(lambda: any((out / "episodes").glob("part-*.parquet")), timeout=90), "no episode written"
+        process.send_signal(signal.SIGINT)
+        _, err = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 130, err
+    assert err.strip().splitlines()[-1] == "hopper-sim: interrupted" and "Traceback" not in err, err
+    first = {p.name: p.stat().st_mtime_ns for p in (out / "episodes").glob("*.parquet")}
+    done = ds.dataset(out / "episodes", format="parquet").to_table().column("episode_id").to_pylist()
+    assert 0 < len(done) < total, f"interrupted after {len(done)} of {total}: not half way"
+
+    result = subprocess.run([sys.executable, "-m", "hopper.app.sim_cli", *flags], capture_output=True, text=True,
+                            timeout=180, env=env)  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert f"{len(done)} of {total} episodes already done, {total - len(done)} to run" in result.stderr
+    kept = {p.name: p.stat().st_mtime_ns for p in (out / "episodes").glob("*.parquet") if p.name in first}
+    assert kept == first, "the first run's parts were rewritten"
+    table = ds.dataset(out / "episodes", format="parquet").to_table()
+    ids = table.column("episode_id").to_pylist()
+    assert len(ids) == total and len(set(ids)) == total, "an episode is missing or was run twice"
+    new = [i for name in set(p.name for p in (out / "episodes").glob("*.parquet")) - set(first)
+           for i in ds.dataset(out / "episodes" / name).to_table().column("episode_id").to_pylist()]  # fmt: skip
+    assert not set(new) & set(done) and len(new) == total - len(done)
+    hops = ds.dataset(out / "hops", format="parquet").to_table()
+    assert hops.num_rows == sum(r["hops_completed"] + (1 if r["fell"] else 0) for r in table.to_pylist())
+    assert "wheel: on: 0/40 fell" in result.stdout and "off: 40/40 fell" in result.stdout, result.stdout
+    # What the Ray actors computed is what a fresh simulation gives.
+    spec = parse_spec(tomllib.loads((out / "spec.toml").read_text()))
+    rows = {r["episode_id"]: r for r in table.to_pylist()}
+    for episode in list(spec.episodes())[::23]:
+        mine = Worker().run(episode).row()
+        theirs = rows[episode.episode_id]
+        assert {k: v for k, v in mine.items() if k != "wall_s"} == {k: v for k, v in theirs.items() if k != "wall_s"}
+    assert SweepStore(out, spec).done_ids() == set(ids)

@@ -1,0 +1,86 @@
+"""`hopper-sim tune`: a seeded search that starts from the defaults and reports them beside its best."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from hopper.experiments.executor import InProcess
+from hopper.experiments.tune import TuneSetup, score, tune
+from hopper.experiments.worker import Worker
+
+FLAGS = ["--trials", "5", "--seeds", "0:2", "--heldout", "7:8", "--gravity", "moon", "--hops", "1", "--workers", "1"]
+
+
+def hopper_sim(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "hopper.app.sim_cli", *args], capture_output=True, text=True, timeout=120, cwd=cwd
+    )
+
+
+def test_tune_is_reproducible_with_its_seed_and_reports_best_against_defaults(tmp_path: Path) -> None:
+    runs = [hopper_sim("tune", *FLAGS, "--seed", "3", "--json", str(tmp_path / f"{i}.json")) for i in range(2)]
+    for r in runs:
+        assert r.returncode == 0, r.stderr
+    assert runs[0].stdout == runs[1].stdout, "same seed, same search, same gains"
+    report = json.loads((tmp_path / "0.json").read_text())
+    history = [h["params"] for h in report["history"]]
+    assert len(history) == 5 and history[0] == {"kp": 450.0, "ki": 50.0, "kd": 30.0}, "the defaults come first"
+    assert len({tuple(h.values()) for h in history}) == 5, "the sampler proposes new gains"
+    tuning, heldout = report["tuning"], report["heldout"]
+    assert tuning["best"]["value"] <= tuning["defaults"]["value"]
+    assert tuning["best"]["episodes"] == 2 and heldout["best"]["episodes"] == heldout["defaults"]["episodes"] == 1
+    assert report["best"] == min(report["history"], key=lambda h: h["score"])["params"]
+    lines = runs[0].stdout.splitlines()
+    assert any(line.startswith("held-out seeds 7") for line in lines) and lines[-1].startswith("best: --kp ")
+
+
+def test_a_candidate_score_is_its_worst_case() -> None:
+    setup = TuneSetup(seeds=(0,), heldout=(1,), gravities=(1.625,), hops=1, terrain="flat")
+    wheel_on = Worker().run(setup.episodes(setup.defaults(), (0,))[0])
+    fallen = Worker().run(dataclasses.replace(wheel_on.episode, wheel=False))
+    on, both = score([wheel_on]), score([wheel_on, fallen])
+    assert on.failures == 0 and both.failures == 1  # the wheel-off robot tumbles in its first flight
+    assert both.value - on.value == pytest.approx(10.0), "a failure outweighs any landing or momentum figure"
+    assert both.worst_peak_deg == max(on.worst_peak_deg, fallen.row()["peak_pitch_deg"]) > 30
+
+
+def test_tune_searches_a_gait_field_too() -> None:
+    setup = TuneSetup(seeds=(0,), heldout=(1,), gravities=(1.625,), hops=1, trials=3, terrain="flat",
+                      ranges={"kp": (300.0, 600.0, False), "apex_height": (0.2, 0.3, False)})  # fmt: skip
+    result = tune(setup, lambda episodes: InProcess(), progress=False)
+    assert set(result.best) == {"kp", "ki", "kd", "apex_height"} and 0.2 <= result.best["apex_height"] <= 0.3
+    assert [p for p, _ in result.history][0] == {"kp": 450.0, "apex_height": 0.25}
+    other = tune(dataclasses.replace(setup, seed=1), lambda episodes: InProcess(), progress=False)
+    assert other.history[1:] != result.history[1:], "another sampler seed searches elsewhere"
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--seeds", "0:3", "--heldout", "2:5"], "held-out seeds overlap the tuning seeds: [2]"),
+        (["--kd-range", "0:50"], "LOW > 0"),
+    ],
+)
+def test_bad_tune_arguments_fail_in_one_line(tmp_path: Path, args: list[str], message: str) -> None:
+    result = hopper_sim("tune", *args, cwd=tmp_path)
+    assert result.returncode == 2, result
+    assert result.stderr.count("\n") == 1 and message in result.stderr, result.stderr
+
+
+@pytest.mark.parametrize(
+    "ranges, message",
+    [
+        ({"kp": (500.0, 900.0, False)}, "kp's range [500, 900] leaves out its default 450"),
+        ({"wings": (1.0, 2.0, False)}, "cannot search 'wings'"),
+    ],
+)
+def test_a_search_that_cannot_start_from_the_defaults_is_refused(ranges: dict, message: str) -> None:
+    with pytest.raises(ValueError, match=re.escape(message)):
+        TuneSetup(seeds=(0,), heldout=(1,), gravities=(1.625,), hops=1, ranges=ranges)
