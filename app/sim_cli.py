@@ -23,6 +23,7 @@ import numpy as np
 from hopper.app.signals import raise_if_stop_requested, stop_like_ctrl_c
 
 from hopper.config import GRAVITY_PRESETS, Gains, InvalidConfig, SimConfig
+from hopper.scenarios import SCENARIOS, scenario
 
 T = TypeVar("T")
 
@@ -144,6 +145,12 @@ def parser() -> Parser:
             help="what the controller reads: the true pitch, or a simulated IMU's estimate (default ideal)",
         )
         p.add_argument("--json", type=writable_file, metavar="PATH", help="write the results as JSON")
+        p.add_argument(
+            "--scenario",
+            choices=tuple(SCENARIOS),
+            default="default",
+            help="gait preset: default, or paper (the paper's backward leg sweep in flight; hopper/scenarios.py)",
+        )
 
     run = commands.add_parser("run", help="simulate one robot until N hops or a fall", epilog=EXIT_STATUSES)
     common(run)
@@ -225,6 +232,7 @@ def make_config(args: argparse.Namespace, seed: int, wheel: bool) -> SimConfig:
         wheel=wheel,
         gains=Gains(kp=args.kp, ki=args.ki, kd=args.kd),
         sensing=args.sensing,
+        gait=scenario(args.scenario).gait,
     )
 
 
