@@ -20,10 +20,12 @@ from pathlib import Path
 from typing import Any, NoReturn, TypeVar
 
 import numpy as np
+from hopper.app import report_cli
 from hopper.app.signals import raise_if_stop_requested, stop_like_ctrl_c
 
 from hopper.config import GRAVITY_PRESETS, Gains, InvalidConfig, SimConfig
 from hopper.scenarios import SCENARIOS, scenario
+from hopper.trace import TraceRecorder
 
 T = TypeVar("T")
 
@@ -186,6 +188,7 @@ def parser() -> Parser:
     )
     export.add_argument("--seed", type=seed, default=0, help="terrain seed (default 0)")
     export.add_argument("--png", type=writable_file, required=True, metavar="PATH", help="16-bit grayscale PNG")
+    report_cli.add_parser(commands, EXIT_STATUSES)
     return top
 
 
@@ -250,6 +253,8 @@ def simulate(
     from hopper.sim import Simulation  # keeps `--help` and argument errors fast
 
     sim = Simulation(config)
+    trace = TraceRecorder(config.timestep)  # the time series `hopper-sim report` draws
+    sim.listeners.append(trace)
     telemetry, url = None, None
     if rrd is not None or viewer != "off":
         from hopper.app.rerun_viewer import ViewerError, open_viewer
@@ -277,6 +282,7 @@ def simulate(
             "sim_time_s": sim.time,
             "wall_time_s": time.perf_counter() - start,
             "hops": [hop.as_dict() for hop in sim.hops],
+            "trace": trace.as_dict(),
         }
         if report is not None:
             report(result)
@@ -447,6 +453,8 @@ def main(argv: list[str] | None = None) -> int:
         args = parser().parse_args(argv)
         if args.command == "terrain":
             return command_terrain(args)
+        if args.command == "report":
+            return report_cli.command_report(args)
         check_counts(args)
         if args.command == "stress":
             return command_stress(args)
