@@ -30,6 +30,7 @@ class Section:
     header: Sequence[str] = ()
     rows: Sequence[Sequence[Any]] = ()
     note: str = ""
+    pre: str = ""  # preformatted text (a spec file)
 
 
 def flatten(settings: dict[str, Any], prefix: str = "") -> list[tuple[str, Any]]:
@@ -85,5 +86,7 @@ def render(title: str, subtitle: str, settings: dict[str, Any], sections: Sequen
             parts.append(_table(s.header, s.rows))
         if s.note:
             parts.append(f'<p class="note">{html.escape(s.note)}</p>')
+        if s.pre:
+            parts.append(f"<pre>{html.escape(s.pre)}</pre>")
     parts.append("</body></html>")
     return "\n".join(parts)

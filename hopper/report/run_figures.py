@@ -135,7 +135,7 @@ def hop_metrics(on: Sequence[Run], off: Sequence[Run] = ()) -> Figure:
         if off:
             _bars(ax, off, key, 0.2, style.WHEEL_OFF, "wheel off (zero torque, free to spin)")
         ax.set_ylabel(unit)
-        ax.legend(loc="upper right")
+        style.legend_above(ax)
     ax_r.set_xlabel("hop")
     hops = _per_hop([*on, *off], "peak_pitch_deg")[0]
     ax_r.set_xticks(hops)
