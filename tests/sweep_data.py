@@ -78,7 +78,7 @@ def write_sweep(
             if chunk:
                 pq.write_table(pa.Table.from_pylist(chunk), out / name / f"part-{k:05d}.parquet")
     (out / "spec.toml").write_text(
-        f"hops = {hops}\nterrain = \"flat\"\n[axes]\nkp = {list(kps)}\nkd = {list(kds)}\n"
+        f'hops = {hops}\nterrain = "flat"\n[axes]\nkp = {list(kps)}\nkd = {list(kds)}\n'
         f"gravity = {list(gravities)}\ndisturbance_size = {list(kicks)}\n"
     )
     return out

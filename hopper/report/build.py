@@ -9,8 +9,10 @@ from typing import Any
 
 from matplotlib.figure import Figure
 
+from hopper.config import GaitParams
 from hopper.report import page, run_figures, style
 from hopper.report.runs import Run
+from hopper.scenarios import scenario_of
 
 HOP_TABLE = (  # HopMetrics key, column heading
     ("index", "hop"),
@@ -71,9 +73,21 @@ def run_report(on: Sequence[Run], off: Sequence[Run], title: str, subtitle: str)
                              "Time with |wheel torque| ≥ 98 % of 29.5 N m in each hop (ground and flight).",
                              run_figures.saturation(list(on))))  # fmt: skip
     tables = [hop_table(shown)]
-    if len(on) + len(off) > 2 or (on and off and len(on) > 1):
+    if on and off:
         tables.append(seed_table(on, off))
-    return Report(title, subtitle, shown.settings, figures, tables)
+    return Report(title, subtitle, with_scenario(shown.settings), figures, tables)
+
+
+def with_scenario(settings: dict[str, Any]) -> dict[str, Any]:
+    """The settings, led by the name of the gait preset they use (hopper.scenarios)."""
+    gait = settings.get("gait")
+    if not isinstance(gait, dict):
+        return {"scenario": "unknown (no gait in the input)", **settings}
+    try:
+        name = scenario_of(GaitParams(**gait))
+    except (TypeError, ValueError):  # a gait of another version
+        name = None
+    return {"scenario": name or "a gait of its own", **settings}
 
 
 def hop_table(run: Run) -> page.Section:

@@ -107,8 +107,7 @@ def gain_map(sweep: Sweep, wheel: bool = True) -> Figure:
     title = f"Worst landing error over Kp x Kd ({'wheel on' if wheel else 'wheel off'})"
     fig, (ax,) = style.new_figure(1, height=max(2.6, 0.5 * len(kds) + 1.5), sharex=False, title=title)
     ax.grid(False)
-    cmap = style.plt.get_cmap("viridis").copy()
-    cmap.set_bad("#bbbbbb")
+    cmap = style.plt.get_cmap("viridis").with_extremes(bad="#bbbbbb")
     top = max(2 * LANDING_LIMIT_DEG, np.nanmax(worst) if np.isfinite(worst).any() else 0.0)
     image = ax.imshow(np.ma.masked_invalid(worst), origin="lower", aspect="auto", cmap=cmap, vmin=0.0, vmax=top)
     bar = fig.colorbar(image, ax=ax)
