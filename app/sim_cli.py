@@ -25,7 +25,6 @@ from hopper.app.signals import raise_if_stop_requested, stop_like_ctrl_c
 
 from hopper.config import GRAVITY_PRESETS, Gains, InvalidConfig, SimConfig
 from hopper.scenarios import SCENARIOS, scenario
-from hopper.trace import TraceRecorder
 
 T = TypeVar("T")
 
@@ -251,6 +250,7 @@ def simulate(
     With a served viewer the recording stays open, served, after the report until Ctrl-C.
     """
     from hopper.sim import Simulation  # keeps `--help` and argument errors fast
+    from hopper.trace import TraceRecorder
 
     sim = Simulation(config)
     trace = TraceRecorder(config.timestep)  # the time series `hopper-sim report` draws

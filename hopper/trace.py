@@ -5,8 +5,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from hopper.events import Event
-from hopper.metrics import RAD_S_TO_RPM
+# Light on purpose (no hopper.control, hence no numba): hopper-sim imports this at start-up.
+RAD_S_TO_RPM = 60.0 / (2.0 * math.pi)
 
 TRACE_HZ = 100.0  # Hz: a 1.2 s lunar flight gets 120 samples, the wheel's 33 ms loop time is resolved
 # Column names with their units, in the order they are written.
@@ -40,7 +40,7 @@ class TraceRecorder:
         c["wheel_torque_nm"].append(round(s.wheel_torque, 4))
         c["phase"].append(sim.phase.label)
 
-    def event(self, sim: Any, event: Event) -> None:
+    def event(self, sim: Any, event: Any) -> None:  # hopper.events.Event
         pass
 
     def as_dict(self) -> dict[str, Any]:
