@@ -112,8 +112,11 @@ def _bars(ax, runs: Sequence[Run], key: str, offset: float, color: str, label: s
     fell = [any(len(r.hops) > i and not r.hops[i]["completed"] for r in runs) for i in range(len(hops))]
     bars = ax.bar(hops + offset, med, width=0.38, color=color, label=label, yerr=(low, high) if len(runs) > 1 else None,
                   error_kw={"elinewidth": 0.8, "capsize": 2, "ecolor": "#333333"})  # fmt: skip
-    for bar, f in zip(bars, fell, strict=True):
-        if f:
+    for bar, f, m in zip(bars, fell, med, strict=True):
+        if not f:  # the value over the bar: small ones would not show against the paper's band
+            ax.annotate(f"{m:.3g}", (bar.get_x() + bar.get_width() / 2, bar.get_height()), ha="center",
+                        textcoords="offset points", xytext=(0, 2), fontsize=6, color="#333333")  # fmt: skip
+        else:
             bar.set_hatch("///")
             bar.set_edgecolor("black")
             ax.annotate("fell", (bar.get_x() + bar.get_width() / 2, bar.get_height()), ha="center",
@@ -125,7 +128,8 @@ def hop_metrics(on: Sequence[Run], off: Sequence[Run] = ()) -> Figure:
     (paper Fig. 5). With several runs (seeds), bars are medians and whiskers the range."""
     n = len(on) or len(off)
     what = f"over {n} seeds" if n > 1 else (on or off)[0].label.split(",")[0]
-    fig, (ax_p, ax_r) = style.new_figure(2, height=2.5, title=f"Per-hop flight metrics, wheel on vs off ({what})")
+    states = "wheel on vs off" if on and off else ("wheel on" if on else "wheel off")
+    fig, (ax_p, ax_r) = style.new_figure(2, height=2.5, title=f"Per-hop flight metrics, {states} ({what})")
     for ax, key, unit, paper in (
         (ax_p, "peak_pitch_deg", "peak mid-air pitch (deg)", PAPER_PEAK_DEG),
         (ax_r, "rms_pitch_rate_deg_s", "RMS pitch rate in flight (deg/s)", PAPER_RMS_DEG_S),
