@@ -100,7 +100,7 @@ def seed_table(on: Sequence[Run], off: Sequence[Run]) -> page.Section:
     """Per seed: the worst of each figure with the wheel on, the wheel-off peak and the reduction."""
     off_by_seed = {r.seed: r for r in off}
     rows = []
-    for run in on:
+    for run in sorted(on, key=lambda r: str(r.seed)):
         done = [h for h in run.hops if h["completed"]]
         peak = max((h["peak_pitch_deg"] for h in run.hops), default=0.0)
         twin = off_by_seed.get(run.seed)
