@@ -14,6 +14,7 @@ import pyarrow.dataset as ds
 from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 
+from hopper.config import GaitParams
 from hopper.report import page, style
 from hopper.report.build import Named, Report
 
@@ -45,9 +46,14 @@ class Sweep:
         done = self.column("hops_completed") >= self.column("hops_target")
         return done & ~self.column("fell").astype(bool) & (landing <= LANDING_LIMIT_DEG)
 
+    def settings(self) -> list[str]:
+        """The contract's setting columns present, and any swept gait parameter (named as in GaitParams)."""
+        gait = [f.name for f in dataclasses.fields(GaitParams)]
+        return [c for c in (*SETTINGS, *gait) if c in self.episodes.column_names]
+
     def varied(self) -> list[str]:
         """The setting columns that take more than one value."""
-        return [c for c in SETTINGS if c in self.episodes.column_names and len(_unique(self.column(c))) > 1]
+        return [c for c in self.settings() if len(_unique(self.column(c))) > 1]
 
 
 def _unique(values: np.ndarray) -> list:
@@ -197,7 +203,7 @@ def sweep_report(sweep: Sweep, title: str) -> Report:
         "episodes": sweep.episodes.num_rows,
         "hop rows": sweep.hops.num_rows if sweep.hops is not None else "not found",
         **{f"values.{c}": ", ".join(f"{v:g}" if isinstance(v, float) else str(v) for v in _unique(sweep.column(c)))
-           for c in SETTINGS if c in sweep.episodes.column_names},
+           for c in sweep.settings()},
     }  # fmt: skip
     fell = int(pc.sum(sweep.episodes.column("fell").cast(pa.int64())).as_py())
     subtitle = f"{sweep.episodes.num_rows} episodes, {fell} fell; varied: {', '.join(sweep.varied()) or 'nothing'}"
