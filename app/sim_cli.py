@@ -20,9 +20,11 @@ from pathlib import Path
 from typing import Any, NoReturn, TypeVar
 
 import numpy as np
+from hopper.app import report_cli
 from hopper.app.signals import raise_if_stop_requested, stop_like_ctrl_c
 
 from hopper.config import GRAVITY_PRESETS, Gains, InvalidConfig, SimConfig
+from hopper.scenarios import SCENARIOS, scenario
 
 T = TypeVar("T")
 
@@ -144,6 +146,12 @@ def parser() -> Parser:
             help="what the controller reads: the true pitch, or a simulated IMU's estimate (default ideal)",
         )
         p.add_argument("--json", type=writable_file, metavar="PATH", help="write the results as JSON")
+        p.add_argument(
+            "--scenario",
+            choices=tuple(SCENARIOS),
+            default="default",
+            help="gait preset: default, or paper (the paper's backward leg sweep in flight; hopper/scenarios.py)",
+        )
 
     run = commands.add_parser("run", help="simulate one robot until N hops or a fall", epilog=EXIT_STATUSES)
     common(run)
@@ -184,6 +192,7 @@ def parser() -> Parser:
     )
     export.add_argument("--seed", type=seed, default=0, help="terrain seed (default 0)")
     export.add_argument("--png", type=writable_file, required=True, metavar="PATH", help="16-bit grayscale PNG")
+    report_cli.add_parser(commands, EXIT_STATUSES)
     return top
 
 
@@ -230,6 +239,7 @@ def make_config(args: argparse.Namespace, seed: int, wheel: bool) -> SimConfig:
         wheel=wheel,
         gains=Gains(kp=args.kp, ki=args.ki, kd=args.kd),
         sensing=args.sensing,
+        gait=scenario(args.scenario).gait,
     )
 
 
@@ -239,14 +249,21 @@ def simulate(
     rrd: Path | None = None,
     viewer: str = "off",
     report: Callable[[dict[str, Any]], None] | None = None,
+    trace: bool = True,
 ) -> dict[str, Any]:
     """Run one episode (optionally recorded), `report` its JSON-ready result and return it.
 
     With a served viewer the recording stays open, served, after the report until Ctrl-C.
+    `trace` adds the 100 Hz time series `hopper-sim report` draws (hopper.trace): a Python call
+    every tick, ~10 % of a run's wall time here; leave it out where only the metrics count.
     """
     from hopper.sim import Simulation  # keeps `--help` and argument errors fast
+    from hopper.trace import TraceRecorder
 
     sim = Simulation(config)
+    recorder = TraceRecorder(config.timestep) if trace else None
+    if recorder is not None:
+        sim.listeners.append(recorder)
     telemetry, url = None, None
     if rrd is not None or viewer != "off":
         from hopper.app.rerun_viewer import ViewerError, open_viewer
@@ -275,6 +292,8 @@ def simulate(
             "wall_time_s": time.perf_counter() - start,
             "hops": [hop.as_dict() for hop in sim.hops],
         }
+        if recorder is not None:
+            result["trace"] = recorder.as_dict()
         if report is not None:
             report(result)
         if telemetry is not None and url:  # the server lives in this process
@@ -466,6 +485,8 @@ def main(argv: list[str] | None = None) -> int:
             from hopper.app.sweep_cli import run
 
             return run(args)
+        if args.command == "report":
+            return report_cli.command_report(args)
         check_counts(args)
         if args.command == "stress":
             return command_stress(args)

@@ -95,6 +95,14 @@ class GaitParams:
     crouch_lean: float = 0.1  # m, torso CoM ahead of the feet midpoint before the push
     stance_time: float = 0.25  # s, minimum stabilisation time before the crouch
     friction: float = 0.7  # friction coefficient the stance forces assume (model: 0.8)
+    # The paper's flight (hopper.scenarios "paper"): right after liftoff both legs swing back from
+    # their liftoff angle by sweep_angle along a minimum-jerk path of sweep_time, then forward to
+    # the landing pose in sweep_return_time, their swing servo sweep_stiffness times as fast; the
+    # torso takes the reaction. 0 deg: no sweep, the legs tuck while rising (the default).
+    sweep_angle: float = 0.0  # deg, world angle of the hip-to-foot line, backward
+    sweep_time: float = 0.0  # s
+    sweep_return_time: float = 0.0  # s
+    sweep_stiffness: float = 1.0  # x the swing servo's natural frequency (hopper.control.legs)
 
     def __post_init__(self) -> None:
         require_finite("apex_height", self.apex_height, 0.02, 3.0)
@@ -102,6 +110,10 @@ class GaitParams:
         require_finite("crouch_height", self.crouch_height, 0.45, self.stand_height)
         require_finite("stand_height", self.stand_height, 0.5, 0.98)
         require_finite("push_length", self.push_length, self.stand_height, 0.99)
+        require_finite("sweep_angle", self.sweep_angle, 0.0, 60.0, "deg")
+        require_finite("sweep_time", self.sweep_time, 0.0, 2.0, "s")
+        require_finite("sweep_return_time", self.sweep_return_time, 0.0, 2.0, "s")
+        require_finite("sweep_stiffness", self.sweep_stiffness, 0.5, 4.0)
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)

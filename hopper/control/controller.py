@@ -39,6 +39,8 @@ class HopController:
         m["land_l"] = m["land_r"] = gait.flight_length
         m["lean"] = gait.crouch_lean
         m["friction"] = gait.friction
+        m["sweep_angle"], m["sweep_time"] = math.radians(gait.sweep_angle), gait.sweep_time
+        m["sweep_return"], m["sweep_scale"] = gait.sweep_return_time, gait.sweep_stiffness
         self._configure_sensing(config)
 
     def _configure_sensing(self, config: SimConfig) -> None:

@@ -14,7 +14,7 @@ from numba import njit
 
 from hopper.config import HIP_OFFSET_Z
 from hopper.control.contact import debounce
-from hopper.control.legs import Leg, leg_state, swing_torques
+from hopper.control.legs import Leg, clamp, leg_angle, leg_state, swing_to_angle, swing_torques
 from hopper.control.phases import FALL_HIP_HEIGHT, FALL_PITCH, FallCause, Phase
 from hopper.control.sensing import delayed, sense
 from hopper.control.stance import Body, stance
@@ -27,6 +27,10 @@ BOUNCE_CONFIRM_S = 0.08  # s both feet off in any other ground phase before it i
 CAPTURE_SLACK = 0.03  # m beyond the outer foot that the capture point may be before a recovery hop
 ASCENT_FRACTION = 0.3  # of the liftoff speed: a contact while rising faster than this is a graze
 LIMP_DAMPING = 0.5  # N m s/rad on each leg joint between the end of the push and the liftoff
+# A leg sweep runs at constant speed between ramps of this share of its time: a steady reaction on
+# the torso, its momentum above the wheel's capacity for most of the sweep (a minimum-jerk path
+# peaks briefly and gives a sharper, shorter excursion for the same peak deviation).
+SWEEP_RAMP = 0.25
 # Event bits returned by the kernel.
 EV_LIFTOFF, EV_TOUCHDOWN, EV_FALL, EV_APEX = 1, 2, 4, 8
 
@@ -36,6 +40,27 @@ def enter(m, phase: int, time: float) -> None:  # noqa: ANN001 (a MEMORY record)
     m.phase, m.phase_start, m.push_done = phase, time, False
     if phase != PUSH and phase != FLIGHT:
         m.recovering = False
+
+
+@njit(cache=True)
+def minimum_jerk(s: float) -> float:
+    """The minimum-jerk path's share of the way at `s` of its time (clamped to [0, 1])."""
+    s = min(max(s, 0.0), 1.0)
+    return s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
+
+
+@njit(cache=True)
+def trapezoid(s: float, ramp: float) -> float:
+    """Share of the way at `s` of the time on a path whose speed ramps up linearly over `ramp` of
+    the time, holds, and ramps down as long (0 < ramp <= 0.5)."""
+    s = min(max(s, 0.0), 1.0)
+    if s < ramp:
+        done = 0.5 * s * s / ramp
+    elif s > 1.0 - ramp:
+        done = 1.0 - ramp - 0.5 * (1.0 - s) * (1.0 - s) / ramp
+    else:
+        done = s - 0.5 * ramp
+    return done / (1.0 - ramp)
 
 
 @njit(cache=True)
@@ -115,6 +140,8 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
                 enter(m, FLIGHT, time)
                 m.integral = 0.0  # integral reset at liftoff
                 m.land_l = m.land_r = m.flight_length  # until the apex plans the landing
+                m.sweep_from_l, m.sweep_from_r = leg_angle(left), leg_angle(right)  # a sweep starts here
+                m.sweep_len_l, m.sweep_len_r = math.hypot(left.px, left.pz), math.hypot(right.px, right.pz)
                 events |= EV_LIFTOFF
         elif phase in (STANCE, CROUCH) and on_l and on_r and not captured(m, vx, hip_x, left, right):
             # A push carried the capture point off the feet: hop to catch it (Raibert's recovery;
@@ -161,8 +188,26 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
         half = 0.5 * m.spread
         # Tucked while rising, for clearance over rims ahead; reaching for the landing after the apex.
         tucked = phase == FLIGHT and com_vz >= 0.0
-        hl, kl = swing_torques(left, m.tuck_length if tucked else m.land_l, mid + half, m.swing_scale)
-        hr, kr = swing_torques(right, m.tuck_length if tucked else m.land_r, mid - half, m.swing_scale)
+        if phase == FLIGHT and m.sweep_angle > 0.0:
+            # The paper's flight: both legs swing back hard from their liftoff angle (world frame) at
+            # their liftoff length (extending them could drive a foot back into the ground), then
+            # forward to the landing pose along a minimum-jerk path. The torso takes the legs'
+            # reaction; the wheel must take it from the torso.
+            scale, flown = m.swing_scale * m.sweep_scale, time - m.phase_start
+            if flown < m.sweep_time:
+                s = trapezoid(flown / m.sweep_time, SWEEP_RAMP)
+                hl, kl = swing_to_angle(left, m.sweep_len_l, m.sweep_from_l + m.sweep_angle * s, scale)
+                hr, kr = swing_to_angle(right, m.sweep_len_r, m.sweep_from_r + m.sweep_angle * s, scale)
+            else:
+                s = minimum_jerk((flown - m.sweep_time) / m.sweep_return if m.sweep_return > 0.0 else 1.0)
+                held_l, held_r = m.sweep_from_l + m.sweep_angle, m.sweep_from_r + m.sweep_angle
+                land_l = -math.asin(clamp((mid + half) / m.land_l, 0.9))
+                land_r = -math.asin(clamp((mid - half) / m.land_r, 0.9))
+                hl, kl = swing_to_angle(left, m.land_l, held_l + (land_l - held_l) * s, scale)
+                hr, kr = swing_to_angle(right, m.land_r, held_r + (land_r - held_r) * s, scale)
+        else:
+            hl, kl = swing_torques(left, m.tuck_length if tucked else m.land_l, mid + half, m.swing_scale)
+            hr, kr = swing_torques(right, m.tuck_length if tucked else m.land_r, mid - half, m.swing_scale)
         if phase == FLIGHT:
             wheel = wheel_pid(m, pitch, rate, wheel_speed)
     elif m.push_done:

@@ -70,9 +70,24 @@ def swing_torques(
     legs do not fight the torso's rotation. `scale` (>= 1) multiplies the natural frequency for
     short flights; `max_knee_torque` caps the length servo (N m).
     """
-    k, d = scale * scale, scale
     angle = -math.asin(clamp(foot_x / length, 0.9))  # world angle, + = foot behind the hip
-    torque = k * SWING_K * (angle - math.atan2(-leg.px, -leg.pz)) - d * SWING_D * (leg.hip_rate + leg.knee_rate / 2)
+    return swing_to_angle(leg, length, angle, scale, max_knee_torque)
+
+
+@njit(cache=True)
+def leg_angle(leg: Leg) -> float:
+    """The virtual leg's (hip to foot) world angle, rad, + = foot behind the hip."""
+    return math.atan2(-leg.px, -leg.pz)
+
+
+@njit(cache=True)
+def swing_to_angle(
+    leg: Leg, length: float, angle: float, scale: float = 1.0, max_knee_torque: float = LEG_TORQUE_LIMIT
+) -> tuple[float, float]:
+    """PD of the virtual leg toward world `angle` (rad, + = foot behind the hip) and `length` (m);
+    see swing_torques."""
+    k, d = scale * scale, scale
+    torque = k * SWING_K * (angle - leg_angle(leg)) - d * SWING_D * (leg.hip_rate + leg.knee_rate / 2)
     knee_target = -2.0 * math.acos(min(length / (L1 + L2), 0.999))
     bend = clamp(k * KNEE_K * (knee_target - leg.knee) - d * KNEE_D * leg.knee_rate, max_knee_torque)
     return clamp(torque, LEG_TORQUE_LIMIT), clamp(torque / 2 + bend, LEG_TORQUE_LIMIT)

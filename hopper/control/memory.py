@@ -32,6 +32,10 @@ _PARAMS = [
     ("spread", "f8"),  # m between the feet at landing
     ("lean", "f8"),  # m, torso CoM ahead of the feet midpoint before the push
     ("friction", "f8"),  # friction coefficient the stance forces assume
+    ("sweep_angle", "f8"),  # rad, the legs' backward sweep from their liftoff angle (0: none; GaitParams)
+    ("sweep_time", "f8"),  # s the sweep takes
+    ("sweep_return", "f8"),  # s the forward swing to the landing pose takes after the sweep
+    ("sweep_scale", "f8"),  # x the swing servo's natural frequency during the sweep
     ("x0", "f8"),  # m, torso x in the XML (root_x measures from it)
     ("z0", "f8"),  # m, torso z in the XML (root_z measures from it)
     # The gait at this gravity: every field of hopper.control.gait.Gait (units there).
@@ -65,6 +69,10 @@ _STATE = [
     ("phase_start", "f8"),  # s
     ("push_done", "?"),  # the push reached its speed or length; the legs now swing
     ("recovering", "?"),  # this push is a recovery hop (the capture point left the feet)
+    ("sweep_from_l", "f8"),  # rad, each virtual leg's world angle at liftoff (where a sweep starts)
+    ("sweep_from_r", "f8"),
+    ("sweep_len_l", "f8"),  # m, each virtual leg's length at liftoff (held through a sweep)
+    ("sweep_len_r", "f8"),
     ("integral", "f8"),  # rad s, flight PID integral
     ("saturated", "?"),  # the wheel command was clamped this tick
     ("contact_l", "?"),  # debounced foot contact

@@ -1,0 +1,146 @@
+"""`hopper-sim report INPUT --out DIR`: the paper's figures of a run, a recording or a sweep.
+
+INPUT is a run's JSON (`hopper-sim run --json`), a comparison's (`compare --json`: wheel on and
+off over seeds), a rerun recording (`.rrd`), or a sweep (its output directory, or a Parquet file
+or folder of its `episodes` dataset). DIR receives every figure as PNG and PDF and report.html,
+one self-contained page with the figures and the settings.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+KINDS = ("run JSON", "compare JSON", ".rrd recording", "sweep directory or Parquet")
+
+
+def add_parser(commands: argparse._SubParsersAction, epilog: str) -> None:
+    """Register `report` on hopper-sim's subcommands."""
+    report = commands.add_parser(
+        "report", help="figures (PNG, PDF) and one HTML page from a run's JSON, a .rrd or a sweep", epilog=epilog
+    )
+    report.add_argument("input", type=Path, metavar="INPUT", help="; ".join(KINDS))
+    report.add_argument("--out", type=Path, required=True, metavar="DIR", help="folder for the figures and report.html")
+    report.add_argument("--seed", type=int, default=None, help="compare JSON: the seed whose time series is drawn")
+    report.add_argument(
+        "--no-simulate",
+        action="store_true",
+        help="run JSON: do not simulate the wheel-off twin (nor re-simulate a JSON without a trace)",
+    )
+
+
+def kind(path: Path) -> str:
+    """Which input `path` is ('json', 'rrd', 'sweep'); ValueError with the reason otherwise."""
+    if not path.exists():
+        raise ValueError(f"{path} does not exist")
+    if path.is_dir():
+        if (path / "episodes").is_dir() or any(path.glob("*.parquet")):
+            return "sweep"
+        raise ValueError(f"{path} is a folder without an episodes/ dataset or Parquet files")
+    suffix = path.suffix.lower()
+    if suffix in (".json", ".rrd", ".parquet"):
+        return {".json": "json", ".rrd": "rrd", ".parquet": "sweep"}[suffix]
+    raise ValueError(f"{path}: expected a .json, .rrd, .parquet or a sweep directory")
+
+
+def out_folder(path: Path) -> Path:
+    """The output folder, created; ValueError if it cannot be."""
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        probe = path / ".hopper-report-write-test"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as exc:
+        raise ValueError(f"cannot write to {path}: {exc.strerror or exc}") from None
+    return path
+
+
+def _simulated(settings: dict[str, Any], wheel: bool) -> dict[str, Any]:
+    """The run `settings` describe, with the wheel on or off, simulated again (deterministic)."""
+    from hopper.app.sim_cli import sim_config, simulate
+
+    config = dataclasses.replace(sim_config(settings), wheel=wheel)
+    print(f"simulating seed {config.seed}, wheel {'on' if wheel else 'off'}, {settings['hops']} hops", file=sys.stderr)
+    return simulate(config, int(settings["hops"]))
+
+
+def _json_report(path: Path, args: argparse.Namespace):  # noqa: ANN202 (hopper.report.build.Report)
+    from hopper.report.build import run_report
+    from hopper.report.runs import kind_of, run_from_result
+
+    try:
+        document = json.loads(path.read_text())
+        what = kind_of(document)
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"{path}: {exc}") from None
+    results = document["runs"] if what == "compare" else [document]
+    source = f"{what} JSON"
+    runs = []
+    for result in results:
+        if "trace" not in result:  # written before runs carried a trace: the run is deterministic
+            if args.no_simulate:
+                raise ValueError(f"{path}: no trace in the result (written by an older hopper-sim); drop --no-simulate")
+            result = _simulated(result["settings"], bool(result["settings"]["wheel"]))
+            source = f"{what} JSON, re-simulated for its trace"
+        runs.append(run_from_result(result, source))
+    on = [r for r in runs if r.wheel]
+    off = [r for r in runs if not r.wheel]
+    if what == "run" and not args.no_simulate:  # the paper's comparison needs the other wheel state
+        twin = run_from_result(_simulated(runs[0].settings, not runs[0].wheel), "re-simulated")
+        (off if runs[0].wheel else on).append(twin)
+    if args.seed is not None:
+        chosen = [r for r in on if r.seed == args.seed]
+        if not chosen:
+            raise ValueError(f"--seed {args.seed}: no wheel-on run of that seed in {path}")
+        on = chosen + [r for r in on if r.seed != args.seed]
+    title = f"Hopper run report: {path.name}"
+    seeds = sorted({r.seed for r in runs})
+    subtitle = f"{source}: {len(on)} run(s) with the wheel on, {len(off)} with it off; seeds {seeds}"
+    return run_report(on, off, title, subtitle)
+
+
+def _rrd_report(path: Path):  # noqa: ANN202
+    from hopper.report.build import run_report
+    from hopper.report.rrd import read_run
+
+    run = read_run(path)
+    subtitle = (
+        f"read from the recording with rerun's reader; {len(run.hops)} hop(s). A recording holds no gait "
+        "parameters, so no wheel-off twin is simulated: report a run's JSON for the comparison."
+    )
+    on, off = ([run], []) if run.wheel else ([], [run])
+    return run_report(on, off, f"Hopper recording report: {path.name}", subtitle)
+
+
+def _sweep_report(path: Path):  # noqa: ANN202
+    from hopper.report.sweep import load, sweep_report
+
+    return sweep_report(load(path), f"Hopper sweep report: {path.name}")
+
+
+def command_report(args: argparse.Namespace) -> int:
+    from hopper.app.sim_cli import EXIT_OK, fail
+
+    try:
+        what = kind(args.input)
+        out = out_folder(args.out)
+    except ValueError as exc:
+        fail(str(exc))
+    from hopper.report.build import write
+
+    try:
+        if what == "json":
+            report = _json_report(args.input, args)
+        elif what == "rrd":
+            report = _rrd_report(args.input)
+        else:
+            report = _sweep_report(args.input)
+    except (ValueError, KeyError) as exc:
+        fail(str(exc).strip("'\""))
+    paths = write(report, out)
+    print(f"{len(paths)} files in {out}: {', '.join(p.name for p in paths)}")
+    return EXIT_OK

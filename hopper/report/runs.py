@@ -1,0 +1,83 @@
+"""A run as the figures see it: settings, hop table and a time series, from `hopper-sim` JSON."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+
+from hopper.trace import TRACE_COLUMNS
+
+FLOAT_COLUMNS = tuple(c for c in TRACE_COLUMNS if c != "phase")
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class Run:
+    """One episode. `trace` holds TRACE_COLUMNS as arrays (shape (n,); phase as str); `hops` the
+    HopMetrics of each hop as dicts (hopper.metrics names and units)."""
+
+    label: str
+    wheel: bool
+    fell: bool
+    settings: dict[str, Any]  # hopper-sim's `settings` (SimConfig as a dict), or what a recording says
+    hops: list[dict[str, Any]]
+    trace: dict[str, np.ndarray]
+    source: str  # where it came from: "run JSON", "compare JSON", ".rrd", "re-simulated"
+
+    @property
+    def seed(self) -> int | None:
+        return self.settings.get("seed")
+
+    def flights(self) -> list[tuple[float, float]]:
+        """(liftoff, touchdown) times of each hop, s."""
+        return [(h["touchdown_time_s"] - h["flight_time_s"], h["touchdown_time_s"]) for h in self.hops]
+
+
+def wheel_label(wheel: bool) -> str:
+    return "wheel on" if wheel else "wheel off (zero torque, free to spin)"
+
+
+def trace_arrays(trace: dict[str, Any]) -> dict[str, np.ndarray]:
+    """A JSON trace's columns as numpy arrays; KeyError names a missing column."""
+    missing = [c for c in TRACE_COLUMNS if c not in trace]
+    if missing:
+        raise KeyError(f"the trace lacks {', '.join(missing)}")
+    out = {c: np.asarray(trace[c], dtype=float) for c in FLOAT_COLUMNS}
+    out["phase"] = np.asarray(trace["phase"], dtype=str)
+    return out
+
+
+def run_from_result(result: dict[str, Any], source: str) -> Run:
+    """A Run from one result of `hopper-sim run --json` (or one of `compare --json`'s runs).
+
+    The result must hold a `trace` (hopper-sim writes one since the report existed; an older
+    result is re-simulated from its settings by the CLI first)."""
+    settings = result["settings"]
+    wheel = bool(result.get("wheel", settings.get("wheel", True)))
+    return Run(
+        label=f"seed {settings.get('seed', '?')}, {wheel_label(wheel)}",
+        wheel=wheel,
+        fell=bool(result["fell"]),
+        settings=settings,
+        hops=list(result["hops"]),
+        trace=trace_arrays(result["trace"]),
+        source=source,
+    )
+
+
+def kind_of(document: dict[str, Any]) -> str:
+    """'run' for `hopper-sim run --json`, 'compare' for `compare --json`; ValueError otherwise."""
+    if "runs" in document and isinstance(document["runs"], list):
+        return "compare"
+    if "settings" in document and "hops" in document:
+        return "run"
+    raise ValueError("not a hopper-sim run or compare result (no 'settings' and 'hops', nor 'runs')")
+
+
+def pair_runs(runs: list[Run]) -> list[tuple[Run | None, Run | None]]:
+    """(wheel on, wheel off) per seed, in seed order; either side may be missing."""
+    by_seed: dict[Any, dict[bool, Run]] = {}
+    for run in runs:
+        by_seed.setdefault(run.seed, {})[run.wheel] = run
+    return [(sides.get(True), sides.get(False)) for _, sides in sorted(by_seed.items(), key=lambda kv: str(kv[0]))]

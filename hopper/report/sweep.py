@@ -1,0 +1,210 @@
+"""A sweep's figures: Kp x Kd maps of the worst landing with falls marked, success against gravity and
+disturbance size, read from the sweep's Parquet datasets (the `episodes` / `hops` contract).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
+import pyarrow.dataset as ds
+from matplotlib.figure import Figure
+from matplotlib.patches import Rectangle
+
+from hopper.config import GaitParams
+from hopper.report import page, style
+from hopper.report.build import Named, Report
+
+LANDING_LIMIT_DEG = 3.5  # the paper's landing bound: an episode succeeds within it, all hops done, no fall
+REQUIRED = ("kp", "kd", "gravity", "wheel", "disturbance_size", "hops_target", "hops_completed", "fell",
+            "worst_landing_deg")  # fmt: skip
+# Setting columns of the contract, summarised per value when a sweep varies them.
+SETTINGS = ("kp", "ki", "kd", "gravity", "seed", "hops_target", "terrain", "wheel", "sensing", "disturbance",
+            "disturbance_size")  # fmt: skip
+RESULTS = ("hops_completed", "fell", "worst_landing_deg", "peak_pitch_deg", "rms_pitch_rate_deg_s",
+           "momentum_used_pct", "saturation_s", "sim_time_s", "wall_s")  # fmt: skip
+
+
+@dataclasses.dataclass(frozen=True)
+class Sweep:
+    """A sweep's episodes (one row each), its hops if found, and its spec's text if found."""
+
+    episodes: pa.Table
+    hops: pa.Table | None
+    spec: str | None
+    source: Path
+
+    def column(self, name: str) -> np.ndarray:
+        return self.episodes.column(name).to_numpy(zero_copy_only=False)
+
+    def success(self) -> np.ndarray:
+        """Per episode: all hops done, no fall, every landing within LANDING_LIMIT_DEG."""
+        landing = np.nan_to_num(self.column("worst_landing_deg").astype(float), nan=np.inf)
+        done = self.column("hops_completed") >= self.column("hops_target")
+        return done & ~self.column("fell").astype(bool) & (landing <= LANDING_LIMIT_DEG)
+
+    def settings(self) -> list[str]:
+        """The contract's setting columns present, and any swept gait parameter (named as in GaitParams)."""
+        gait = [f.name for f in dataclasses.fields(GaitParams)]
+        return [c for c in (*SETTINGS, *gait) if c in self.episodes.column_names]
+
+    def varied(self) -> list[str]:
+        """The setting columns that take more than one value."""
+        return [c for c in self.settings() if len(_unique(self.column(c))) > 1]
+
+
+def _unique(values: np.ndarray) -> list:
+    return sorted(set(values.tolist()), key=lambda v: (str(type(v)), v))
+
+
+def _dataset(path: Path) -> pa.Table:
+    return ds.dataset(path, format="parquet").to_table()
+
+
+def load(path: Path) -> Sweep:
+    """A sweep directory (episodes/, hops/, spec.toml), or a Parquet file or folder of episodes.
+
+    ValueError, one line, for a hops-only dataset or missing columns."""
+    path = Path(path)
+    spec, hops = None, None
+    try:
+        if path.is_dir() and (path / "episodes").is_dir():
+            episodes = _dataset(path / "episodes")
+            if (path / "hops").is_dir():
+                hops = _dataset(path / "hops")
+            if (path / "spec.toml").is_file():
+                spec = (path / "spec.toml").read_text()
+        else:
+            episodes = _dataset(path)
+    except (OSError, pa.ArrowException) as exc:
+        raise ValueError(f"{path}: cannot read it as Parquet ({exc})") from None
+    names = episodes.column_names
+    if "hop" in names and "fell" not in names:
+        raise ValueError(f"{path} holds a sweep's hops; give the sweep's directory or its episodes dataset")
+    missing = [c for c in REQUIRED if c not in names]
+    if missing:
+        raise ValueError(f"{path}: not a sweep's episodes dataset (no {', '.join(missing)})")
+    if episodes.num_rows == 0:
+        raise ValueError(f"{path}: the sweep has no episodes yet")
+    return Sweep(episodes, hops, spec, path)
+
+
+def gain_map(sweep: Sweep, wheel: bool = True) -> Figure:
+    """Kp x Kd coloured by the worst landing error over every episode in the cell (other axes and
+    seeds pooled); falls marked with their count. Grey: every episode in the cell fell before landing."""
+    mask = sweep.column("wheel").astype(bool) == wheel
+    kp_all, kd_all = sweep.column("kp")[mask], sweep.column("kd")[mask]
+    landing = sweep.column("worst_landing_deg")[mask].astype(float)
+    fell = sweep.column("fell")[mask].astype(bool)
+    kps, kds = _unique(kp_all), _unique(kd_all)
+    worst = np.full((len(kds), len(kps)), np.nan)
+    falls = np.zeros_like(worst, dtype=int)
+    counts = np.zeros_like(worst, dtype=int)
+    for i, kd in enumerate(kds):
+        for j, kp in enumerate(kps):
+            cell = (kp_all == kp) & (kd_all == kd)
+            counts[i, j], falls[i, j] = cell.sum(), fell[cell].sum()
+            values = landing[cell]
+            if np.isfinite(values).any():
+                worst[i, j] = np.nanmax(values)
+    title = f"Worst landing error over Kp x Kd ({'wheel on' if wheel else 'wheel off'})"
+    fig, (ax,) = style.new_figure(1, height=max(2.6, 0.5 * len(kds) + 1.5), sharex=False, title=title)
+    ax.grid(False)
+    cmap = style.plt.get_cmap("viridis").with_extremes(bad="#bbbbbb")
+    top = max(2 * LANDING_LIMIT_DEG, np.nanmax(worst) if np.isfinite(worst).any() else 0.0)
+    image = ax.imshow(np.ma.masked_invalid(worst), origin="lower", aspect="auto", cmap=cmap, vmin=0.0, vmax=top)
+    bar = fig.colorbar(image, ax=ax)
+    bar.set_label("worst landing pitch error (deg)")
+    bar.ax.axhline(LANDING_LIMIT_DEG, color="white", lw=1.5)
+    for i in range(len(kds)):
+        for j in range(len(kps)):
+            text = "all fell" if not np.isfinite(worst[i, j]) else f"{worst[i, j]:.2f}°"
+            if falls[i, j]:  # falls: a red frame, a cross in the corner and the count
+                text += f"\n{falls[i, j]}/{counts[i, j]} fell"
+                ax.add_patch(Rectangle((j - 0.48, i - 0.48), 0.96, 0.96, fill=False, edgecolor=style.LIMIT, lw=2.5))
+                ax.plot(j + 0.4, i + 0.36, "X", color=style.LIMIT, markersize=9)
+            dark = not np.isfinite(worst[i, j]) or worst[i, j] > 0.6 * top
+            ax.text(j, i, text, ha="center", va="center", fontsize=8, color="black" if dark else "white")
+    ax.set_xticks(range(len(kps)), [f"{v:g}" for v in kps])
+    ax.set_yticks(range(len(kds)), [f"{v:g}" for v in kds])
+    ax.set_xlabel("Kp (N m/rad)")
+    ax.set_ylabel("Kd (N m s/rad)")
+    return fig
+
+
+def success_against(sweep: Sweep, column: str, label: str) -> Figure:
+    """Share of successful episodes (all hops, no fall, landings within 3.5 deg) per value of
+    `column`, one line per wheel state, with the episode count at each point."""
+    x_all, ok, wheel = sweep.column(column).astype(float), sweep.success(), sweep.column("wheel").astype(bool)
+    fig, (ax,) = style.new_figure(1, height=2.8, sharex=False, title=f"Success rate against {label.split(' (')[0]}")
+    for state, color in ((True, style.WHEEL_ON), (False, style.WHEEL_OFF)):
+        rows = wheel == state
+        if not rows.any():
+            continue
+        xs = _unique(x_all[rows])
+        rate = [100.0 * ok[rows & (x_all == x)].mean() for x in xs]
+        n = [int((rows & (x_all == x)).sum()) for x in xs]
+        name = "wheel on" if state else "wheel off (zero torque, free to spin)"
+        ax.plot(xs, rate, "o-", color=color, label=name)
+        for x, r, k in zip(xs, rate, n, strict=True):
+            ax.annotate(f"n={k}", (x, r), textcoords="offset points", xytext=(0, 6), ha="center", fontsize=7)
+    ax.set_ylim(-5, 112)
+    ax.set_xlabel(label)
+    ax.set_ylabel("successful episodes (%)")
+    style.legend_above(ax)
+    return fig
+
+
+def axis_table(sweep: Sweep) -> page.Section:
+    """One line per value of each varied setting: episodes, success, falls, worst landing."""
+    ok, fell = sweep.success(), sweep.column("fell").astype(bool)
+    landing = sweep.column("worst_landing_deg").astype(float)
+    rows = []
+    for name in sweep.varied():
+        values = sweep.column(name)
+        for v in _unique(values):
+            sel = values == v
+            worst = np.nanmax(landing[sel]) if np.isfinite(landing[sel]).any() else float("nan")
+            rows.append([name, v, int(sel.sum()), 100.0 * ok[sel].mean(), int(fell[sel].sum()), worst])
+    header = ["setting", "value", "episodes", "success (%)", "falls", "worst landing (deg)"]
+    note = (f"Success: all hops done, no fall, every landing within {LANDING_LIMIT_DEG:g} deg. "
+            f"{sweep.episodes.num_rows} episodes, {int(ok.sum())} successful.")  # fmt: skip
+    return page.Section("Per setting value", header=header, rows=rows, note=note)
+
+
+def sweep_report(sweep: Sweep, title: str) -> Report:
+    """The heat map(s), success against gravity and against disturbance size (when the sweep varies
+    them), the per-value table and the spec."""
+    figures, skipped = [], []
+    for wheel in (True, False):
+        if (sweep.column("wheel").astype(bool) == wheel).any():
+            state = "on" if wheel else "off"
+            figures.append(Named(f"gain_map_wheel_{state}", f"Kp x Kd, wheel {state}",
+                                 "Worst landing pitch error over every episode in each cell (other settings pooled); "
+                                 "red crosses and counts: episodes that fell. White line on the scale: 3.5 deg.",
+                                 gain_map(sweep, wheel)))  # fmt: skip
+    for column, label in (("gravity", "gravity (m/s²)"), ("disturbance_size", "disturbance size (N m s)")):
+        if len(_unique(sweep.column(column))) > 1:
+            figures.append(Named(f"success_vs_{column}", f"Success rate against {label}",
+                                 "Episodes with all hops done, no fall and every landing within 3.5 deg.",
+                                 success_against(sweep, column, label)))  # fmt: skip
+        else:
+            skipped.append(f"{column} takes one value ({_unique(sweep.column(column))[0]:g}): no figure against it")
+    tables = [axis_table(sweep)]
+    if skipped:
+        tables.append(page.Section("Not drawn", note="; ".join(skipped) + "."))
+    if sweep.spec:
+        tables.append(page.Section("spec.toml", pre=sweep.spec))
+    settings = {
+        "source": str(sweep.source),
+        "episodes": sweep.episodes.num_rows,
+        "hop rows": sweep.hops.num_rows if sweep.hops is not None else "not found",
+        **{f"values.{c}": ", ".join(f"{v:g}" if isinstance(v, float) else str(v) for v in _unique(sweep.column(c)))
+           for c in sweep.settings()},
+    }  # fmt: skip
+    fell = int(pc.sum(sweep.episodes.column("fell").cast(pa.int64())).as_py())
+    subtitle = f"{sweep.episodes.num_rows} episodes, {fell} fell; varied: {', '.join(sweep.varied()) or 'nothing'}"
+    return Report(title, subtitle, settings, figures, tables)

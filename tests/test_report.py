@@ -1,0 +1,267 @@
+"""`hopper-sim report`: the paper's figures from a run's JSON, a comparison, a .rrd and a sweep's Parquet,
+all from real simulated episodes; PNG, PDF and one self-contained HTML page."""
+
+from __future__ import annotations
+
+import argparse
+import base64
+import io
+import json
+import math
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pyarrow.dataset as ds
+import pytest
+from hopper.app import report_cli
+from hopper.app.sim_cli import simulate
+from PIL import Image
+from sweep_data import write_sweep
+
+from hopper.config import SimConfig
+from hopper.report import build, page
+from hopper.report.rrd import read_run
+from hopper.report.runs import run_from_result
+from hopper.report.sweep import LANDING_LIMIT_DEG, gain_map, load, sweep_report
+from hopper.sim import Simulation
+from hopper.telemetry import Telemetry
+from hopper.trace import TRACE_COLUMNS, TraceRecorder
+
+RUN_FIGURES = ("translation", "pitch_wheel", "wheel_torque", "hop_metrics", "saturation")
+UNIT = re.compile(r"\(.+\)")  # an axis label names its unit in parentheses
+
+
+def hopper_sim(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "hopper.app.sim_cli", *args], capture_output=True, text=True, timeout=300, cwd=cwd
+    )
+
+
+def cli(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    """hopper-sim's main() in this process (what the process runs, without its start-up cost)."""
+    from hopper.app.sim_cli import main
+
+    try:
+        code = main(list(argv))
+    except SystemExit as exc:
+        code = int(exc.code)
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def args(**overrides: object) -> argparse.Namespace:
+    return argparse.Namespace(**{"seed": None, "no_simulate": False, **overrides})
+
+
+@pytest.fixture(scope="module")
+def run_json(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A real 2-hop run on crater seed 0, as `hopper-sim run --json` writes it."""
+    path = tmp_path_factory.mktemp("run") / "run.json"
+    path.write_text(json.dumps(simulate(SimConfig(seed=0), 2)))
+    return path
+
+
+@pytest.fixture(scope="module")
+def sweep_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A real 2 x 2 Kp x Kd sweep at two gravities, with and without a 1.8 N m s flight kick."""
+    return write_sweep(tmp_path_factory.mktemp("sweep") / "out", kps=(100.0, 900.0), kds=(5.0, 40.0),
+                       gravities=(1.625, 3.72), kicks=(0.0, 1.8))  # fmt: skip
+
+
+def test_the_trace_is_the_run_the_hop_table_describes(run_json: Path) -> None:
+    result = json.loads(run_json.read_text())
+    trace = result["trace"]
+    assert list(trace) == ["hz", *TRACE_COLUMNS] and trace["hz"] == 100.0
+    t = np.array(trace["t_s"])
+    assert np.allclose(np.diff(t), 0.01) and abs(t[-1] - result["sim_time_s"]) <= 0.01
+    pitch, x = np.array(trace["pitch_deg"]), np.array(trace["x_m"])
+    for hop in result["hops"]:
+        up, down = hop["touchdown_time_s"] - hop["flight_time_s"], hop["touchdown_time_s"]
+        flight = (t > up) & (t <= down)
+        inside = (t > up + 0.015) & (t < down - 0.015)  # a sample is the state after its tick
+        assert set(np.array(trace["phase"])[inside]) == {"flight"}
+        # The 1 kHz peak bounds the 100 Hz samples, which come within a sample's motion of it.
+        sampled = np.abs(pitch[flight]).max()
+        assert sampled <= hop["peak_pitch_deg"] + 1e-3 and sampled >= 0.7 * hop["peak_pitch_deg"]
+    first, second = result["hops"]
+    travelled = np.interp(second["touchdown_time_s"], t, x) - np.interp(first["touchdown_time_s"], t, x)
+    assert travelled == pytest.approx(second["distance_m"], abs=0.01)
+
+
+def test_report_of_a_run_json_writes_png_pdf_and_one_self_contained_page(run_json: Path, tmp_path: Path) -> None:
+    out = tmp_path / "report"
+    result = hopper_sim("report", str(run_json), "--out", str(out))
+    assert result.returncode == 0, result.stderr
+    assert "simulating seed 0, wheel off" in result.stderr  # the paper's comparison needs the wheel-off twin
+    for name in RUN_FIGURES:
+        with Image.open(out / f"{name}.png") as image:
+            assert image.width >= 1000 and image.height >= 300
+        assert (out / f"{name}.pdf").read_bytes().startswith(b"%PDF")
+    html = (out / "report.html").read_text()
+    assert not re.search(r"""(src|href)=["']?(https?:|//|file:)""", html), "the page must need nothing else"
+    images = re.findall(r'src="data:image/png;base64,([^"]+)"', html)
+    assert len(images) == len(RUN_FIGURES)
+    for data in images:
+        with Image.open(io.BytesIO(base64.b64decode(data))) as image:
+            image.verify()
+    for setting in ("gains.kp", "gains.kd", "gravity", "terrain", "seed", "gait.sweep_angle", "scenario"):
+        assert f">{setting}<" in html, setting
+
+
+def test_the_run_report_compares_wheel_on_with_the_simulated_wheel_off_twin(run_json: Path) -> None:
+    report = report_cli._json_report(run_json, args())
+    try:
+        assert [n.name for n in report.figures] == list(RUN_FIGURES)
+        # Every axis that holds data names its quantity and unit.
+        for named in report.figures:
+            for ax in named.figure.axes:
+                if ax.lines or ax.patches or ax.images:
+                    assert UNIT.search(ax.get_ylabel()), (named.name, ax.get_ylabel())
+                    if ax.get_xlabel():
+                        assert UNIT.search(ax.get_xlabel()) or ax.get_xlabel() == "hop", ax.get_xlabel()
+        pitch = report.figures[1].figure.axes[1]  # wheel on vs off, below the pitch and rpm plot
+        on, off = (np.abs(line.get_ydata()).max() for line in pitch.lines[:2])
+        assert off > 45.0 and on < 2.0  # with the wheel off the torso tumbles to the fall limit
+    finally:
+        for named in report.figures:
+            build.style.close(named.figure)
+
+
+def test_a_compare_json_gets_a_per_seed_table_with_the_reduction(run_json: Path, tmp_path: Path) -> None:
+    on = json.loads(run_json.read_text())
+    off = simulate(SimConfig(seed=0, wheel=False), 2)
+    path = tmp_path / "compare.json"
+    path.write_text(json.dumps({"median_peak_reduction_pct": 0.0, "seeds": [], "runs": [on, off]}))
+    report = report_cli._json_report(path, args())
+    for named in report.figures:
+        build.style.close(named.figure)
+    table = next(t for t in report.tables if t.title.startswith("Per seed"))
+    (row,) = table.rows
+    peak_on = max(h["peak_pitch_deg"] for h in on["hops"])
+    peak_off = max(h["peak_pitch_deg"] for h in off["hops"])
+    assert row[0] == 0 and row[2] == peak_on and row[7] == peak_off
+    assert row[8] == pytest.approx(100 * (peak_off - peak_on) / peak_off) and row[8] > 65.0
+
+
+def test_a_json_without_a_trace_is_simulated_again_for_it(run_json: Path, tmp_path: Path) -> None:
+    old = json.loads(run_json.read_text())
+    del old["trace"]  # as hopper-sim wrote it before the report existed
+    path = tmp_path / "old.json"
+    path.write_text(json.dumps(old))
+    report = report_cli._json_report(path, args())
+    for named in report.figures:
+        build.style.close(named.figure)
+    assert report.subtitle.startswith("run JSON, re-simulated for its trace")
+    fresh = run_from_result(json.loads(run_json.read_text()), "run JSON")
+    assert [r[4] for r in report.tables[0].rows] == [h["peak_pitch_deg"] for h in fresh.hops]  # deterministic
+
+
+def test_a_recording_read_back_with_rerun_gives_the_same_series(tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    sim = Simulation(SimConfig(terrain="flat"))
+    direct = TraceRecorder(sim.config.timestep)
+    sim.listeners.append(direct)
+    with Telemetry(sim, path=tmp_path / "run.rrd"):
+        sim.run(2)
+    run = read_run(tmp_path / "run.rrd")
+    assert run.wheel and not run.fell and run.settings["terrain"] == "flat" and run.settings["gains"]["kp"] == 450.0
+    assert [h["index"] for h in run.hops] == [1, 2]
+    for mine, hop in zip(run.hops, sim.hops, strict=True):
+        assert mine["peak_pitch_deg"] == pytest.approx(hop.peak_pitch_deg, abs=0.005)  # the table rounds
+    # The recording's rows are the state at the start of each tick, the trace's the state after it:
+    # compare at the same times.
+    t = np.array(direct.columns["t_s"])
+    for name in ("pitch_deg", "wheel_rpm", "x_m", "z_m"):
+        mine = np.interp(t, run.trace["t_s"], run.trace[name])
+        theirs = np.array(direct.columns[name])
+        inside = t <= run.trace["t_s"][-1]
+        scale = max(np.abs(theirs).max(), 1e-6)
+        assert np.abs(mine[inside] - theirs[inside]).max() < 0.02 * scale, name
+    assert set(run.trace["phase"]) >= {"stance", "crouch", "push", "flight", "landing"}
+    out = tmp_path / "rrd-report"
+    code, _, err = cli(capsys, "report", str(tmp_path / "run.rrd"), "--out", str(out))
+    assert code == 0, err
+    assert all((out / f"{name}.png").is_file() for name in RUN_FIGURES)
+
+
+def test_a_sweep_report_maps_the_gains_and_the_success_rates(sweep_dir: Path, tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    sweep = load(sweep_dir)
+    episodes = ds.dataset(sweep_dir / "episodes").to_table().to_pylist()
+    assert sweep.episodes.num_rows == len(episodes) == 16 and sweep.hops is not None and "kp" in sweep.spec
+    ok = [e for e in episodes if not e["fell"] and e["hops_completed"] >= e["hops_target"]
+          and e["worst_landing_deg"] <= LANDING_LIMIT_DEG]  # fmt: skip
+    assert int(sweep.success().sum()) == len(ok)
+    assert 0 < len(ok) < len(episodes), "the test sweep must hold both outcomes"
+    fig = gain_map(sweep)
+    ax = fig.axes[0]
+    cells = np.ma.filled(ax.images[0].get_array(), np.nan)
+    for e in episodes:  # each cell holds the worst landing over its episodes
+        j, i = [100.0, 900.0].index(e["kp"]), [5.0, 40.0].index(e["kd"])
+        same = [x["worst_landing_deg"] for x in episodes if x["kp"] == e["kp"] and x["kd"] == e["kd"]]
+        assert cells[i, j] == pytest.approx(np.nanmax(same))
+    marked = sum("fell" in t.get_text() for t in ax.texts)
+    assert marked == len({(e["kp"], e["kd"]) for e in episodes if e["fell"]})
+    build.style.close(fig)
+    report = sweep_report(sweep, "t")
+    names = [n.name for n in report.figures]
+    assert names == ["gain_map_wheel_on", "success_vs_gravity", "success_vs_disturbance_size"]
+    for named in report.figures:
+        build.style.close(named.figure)
+    rates = {(r[0], r[1]): r[3] for r in report.tables[0].rows}
+    for size in (0.0, 1.8):
+        chosen = [e for e in episodes if e["disturbance_size"] == size]
+        assert rates[("disturbance_size", size)] == pytest.approx(100 * sum(e in ok for e in chosen) / len(chosen))
+    out = tmp_path / "sweep-report"
+    code, _, err = cli(capsys, "report", str(sweep_dir), "--out", str(out))
+    assert code == 0, err
+    assert {p.name for p in out.glob("*.png")} == {f"{n}.png" for n in names}
+    assert "spec.toml" in (out / "report.html").read_text()
+    part = sorted((sweep_dir / "episodes").glob("*.parquet"))[0]  # one part file is a sweep too
+    assert load(part).episodes.num_rows == len(ds.dataset(part).to_table())
+
+
+@pytest.mark.parametrize(
+    "make, message",
+    [
+        (lambda d: d / "missing.json", "does not exist"),
+        (lambda d: _write(d / "x.txt", "hello"), "expected a .json, .rrd, .parquet or a sweep directory"),
+        (lambda d: _write(d / "x.json", '{"a": 1}'), "not a hopper-sim run or compare result"),
+        (lambda d: _write(d / "x.json", "{not json"), "x.json: Expecting property name"),
+        (lambda d: _write(d / "x.rrd", "not a recording"), "cannot read it as a rerun recording"),
+        (lambda d: _write(d / "x.parquet", "not parquet"), "cannot read it as Parquet"),
+        (lambda d: d, "is a folder without an episodes/ dataset or Parquet files"),
+    ],
+)
+def test_bad_inputs_fail_in_one_line(tmp_path: Path, capsys, make, message: str) -> None:  # noqa: ANN001
+    path = make(tmp_path)
+    code, out, err = cli(capsys, "report", str(path), "--out", str(tmp_path / "out"))
+    assert code == 2, (out, err)
+    assert err.startswith("hopper-sim: error: ") and err.count("\n") == 1, err
+    assert message in err and out == ""
+
+
+def test_bad_input_in_a_real_process_is_one_line_too(tmp_path: Path) -> None:
+    result = hopper_sim("report", str(tmp_path / "nothing.rrd"), "--out", str(tmp_path / "out"))
+    assert result.returncode == 2 and result.stderr.count("\n") == 1 and "does not exist" in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def test_a_hops_dataset_or_an_unwritable_out_is_refused(sweep_dir: Path, tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    code, _, err = cli(capsys, "report", str(sweep_dir / "hops"), "--out", str(tmp_path / "o"))
+    assert code == 2 and "holds a sweep's hops" in err, err
+    blocker = _write(tmp_path / "file", "")
+    code, _, err = cli(capsys, "report", str(sweep_dir), "--out", str(blocker / "sub"))
+    assert code == 2 and "cannot write to" in err, err
+
+
+def test_the_page_escapes_and_flattens_settings() -> None:
+    html = page.render("t <x>", "s", {"gains": {"kp": 1.5}, "name": "<b>"}, [page.Section("n", note="a & b")])
+    assert ">gains.kp<" in html and "&lt;b&gt;" in html and "a &amp; b" in html and "<b>" not in html
+    assert math.isclose(float(re.search(r"<td>([\d.]+)</td>", html).group(1)), 1.5)
+
+
+def _write(path: Path, text: str) -> Path:
+    path.write_text(text)
+    return path
