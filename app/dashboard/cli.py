@@ -97,8 +97,7 @@ def parser() -> Parser:
         "--token",
         default=DEFAULTS.token,
         metavar="TOKEN|auto",
-        help="access token every client must present (required off loopback); 'auto' generates one, "
-        "printed in the URL",
+        help="access token every client must present (required off loopback); 'auto' prints a new one in the URL",
     )
     p.add_argument(
         "--public-view", action="store_true", help="clients without the token may watch, read-only, instead of no data"
