@@ -211,7 +211,7 @@ class OperatorChanged:
 
     kind: ClassVar[EventKind] = EventKind.OPERATOR
     operator: str | None  # who operates now, e.g. "client 3 (127.0.0.1)"; None: nobody
-    previous: str | None  # who operated before; None: nobody
+    previous: str | None  # who operated before, e.g. "client 1"; None: nobody
     reason: OperatorReason
 
     def describe(self) -> str:

@@ -111,6 +111,12 @@ class Roles:
             return seat.name if seat is not None else None
 
     @property
+    def seated(self) -> list[int]:
+        """Client ids in order of arrival (the first is the longest connected)."""
+        with self._lock:
+            return list(self._seats)
+
+    @property
     def askers(self) -> list[int]:
         with self._lock:
             return list(self._askers)
@@ -210,7 +216,7 @@ class Roles:
                     self._transfer(successor, "disconnected")
                 else:
                     self.operator = None
-                    self.submit(Announce(OperatorChanged(None, seat.name, "disconnected")))
+                    self.submit(Announce(OperatorChanged(None, f"client {client.client_id}", "disconnected")))
             self._refresh()
 
     async def _after_replay(self, seat: Seat) -> None:
@@ -261,7 +267,9 @@ class Roles:
             self._askers.remove(client_id)
         new = self._seats[client_id]
         old = self._seats.get(previous) if previous is not None else None
-        self.submit(Announce(OperatorChanged(new.name, self._name(previous, old), reason)))
+        # The one who operated before by number only: their address is in the event that named them.
+        before = f"client {previous}" if previous is not None else None
+        self.submit(Announce(OperatorChanged(new.name, before, reason)))
         log.info("operator: %s (%s)", new.name, reason)
         self._refresh()
         if reason != "first":
@@ -270,19 +278,13 @@ class Roles:
             why = " after a time without input" if reason == "idle" else ""
             notify(old.client, f"Control passed to {new.name}{why}", "Your controls are read-only; ask to get it back.")
 
-    @staticmethod
-    def _name(client_id: int | None, seat: Seat | None) -> str | None:
-        if seat is not None:
-            return seat.name
-        return f"client {client_id}" if client_id is not None else None
-
     def _refresh(self) -> None:
         for seat in self._seats.values():
             self._show(seat)
 
     def _show(self, seat: Seat) -> None:
         """Bring one client's widgets and greying up to date (sends only what changed)."""
-        if seat.view is None or seat.client.client_id not in self._ws._client_state_from_id:  # gone
+        if seat.view is None or _gone(seat.client):
             return
         try:
             self._grey(seat, seat.client.client_id != self.operator)
@@ -348,8 +350,15 @@ def _div(content: str) -> str:
     return f"<div class='hd-role'>{content}</div>"
 
 
+def _gone(client: viser.ClientHandle) -> bool:
+    """Whether the client's connection has closed (viser warns about messages queued after that)."""
+    return client._websock_connection.get_message_buffer().done
+
+
 def _send(client: viser.ClientHandle, message: Any) -> None:
     """Queue a message for one client only (viser has no public per-client update of a shared widget)."""
+    if _gone(client):
+        return
     try:
         client._websock_connection.queue_message(message)
     except Exception:
