@@ -28,6 +28,7 @@ class EventKind(enum.StrEnum):
     COMMAND_FAILED = "command_failed"
     RECORDING = "recording"
     SENSING = "sensing"
+    OPERATOR = "operator"
 
 
 DisturbanceKind = Literal["pitch_kick", "push_forward", "push_backward", "torque_pulse"]
@@ -203,10 +204,34 @@ class Recording:
         return f"recording {'started' if self.state == 'started' else 'saved'}: {where}"
 
 
+OperatorReason = Literal["first", "handed over", "disconnected", "idle"]
+
+
+@dataclasses.dataclass(frozen=True)
+class OperatorChanged:
+    """Who may change the settings of a shared live session (front ends with several viewers)."""
+
+    kind: ClassVar[EventKind] = EventKind.OPERATOR
+    operator: str | None  # who operates now, e.g. "client 3 (127.0.0.1)"; None: nobody
+    previous: str | None  # who operated before, e.g. "client 1"; None: nobody
+    reason: OperatorReason
+
+    def describe(self) -> str:
+        now = f"operator {self.operator}" if self.operator else "no operator"
+        if self.reason == "first" or self.previous is None:
+            return f"{now} (first to connect)" if self.operator else now
+        why = {
+            "handed over": f"handed over by {self.previous}",
+            "disconnected": f"{self.previous} left",
+            "idle": f"{self.previous} was idle",
+        }.get(self.reason, self.reason)
+        return f"{now}: {why}"
+
+
 Payload = (
     Liftoff | Apex | Touchdown | Fall | Reset | GainsChanged | WheelChanged | SensingChanged | GravityChanged
     | TerrainChanged
-    | Disturbance | DisturbanceArmed | Diverged | CommandFailed | Recording
+    | Disturbance | DisturbanceArmed | Diverged | CommandFailed | Recording | OperatorChanged
 )  # fmt: skip
 
 

@@ -27,6 +27,7 @@ SAMPLES = [
     ev.Diverged("non-finite state"),
     ev.CommandFailed("Disturb", "ValueError: bad"),
     ev.Recording("started", "/tmp/a.rrd"),
+    ev.OperatorChanged("client 2 (127.0.0.1)", "client 1", "handed over"),
 ]
 
 

@@ -93,6 +93,22 @@ def parser() -> Parser:
         metavar="DIR",
         help="folder for recordings started with the Record button",
     )
+    p.add_argument(
+        "--token",
+        default=DEFAULTS.token,
+        metavar="TOKEN|auto",
+        help="access token every client must present (required off loopback); 'auto' prints a new one in the URL",
+    )
+    p.add_argument(
+        "--public-view", action="store_true", help="clients without the token may watch, read-only, instead of no data"
+    )
+    p.add_argument(
+        "--idle-timeout",
+        type=float,
+        default=DEFAULTS.idle_timeout,
+        metavar="S",
+        help="s without input after which the operator's control passes to the next viewer",
+    )
     return p
 
 
@@ -132,7 +148,8 @@ def serve(dashboard: Dashboard) -> None:
     try:
         raise_if_stop_requested()  # a signal during start-up may have been swallowed (app/signals.py)
         dashboard.start()
-        print(f"{PROG}: serving {dashboard.url}  (Ctrl-C to stop)", flush=True)
+        # The token's one appearance: this line on stdout, for whoever started the server.
+        print(f"{PROG}: serving {dashboard.page_url}  (Ctrl-C to stop)", flush=True)
         if dashboard.recorder.path is not None:
             print(f"{PROG}: recording to {dashboard.recorder.path}", flush=True)
         if dashboard.recorder.viewer_url:

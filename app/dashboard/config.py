@@ -9,6 +9,7 @@ import tempfile
 from pathlib import Path
 from typing import Literal
 
+from hopper.app.dashboard.access import AUTO, check_token, generate_token, is_loopback
 from hopper.app.dashboard.pacing import MAX_SPEED, MIN_SPEED
 
 from hopper.config import Gains, InvalidConfig, SimConfig
@@ -44,6 +45,12 @@ class DashboardConfig:
     """Stream the recording to a rerun viewer: spawn one, serve one on loopback, or neither."""
     sessions_dir: Path = Path("sessions")
     """Folder for recordings started with the Record button."""
+    token: str | None = dataclasses.field(default=None, repr=False)  # never in a repr, hence never in a log
+    """Access token every client must present; required off loopback; 'auto' generates one."""
+    public_view: bool = False
+    """Clients without the token may watch (read-only) instead of being refused."""
+    idle_timeout: float = 300.0
+    """s without input after which the operator's control passes to a viewer."""
 
     def __post_init__(self) -> None:
         try:
@@ -51,6 +58,19 @@ class DashboardConfig:
         except ValueError:
             if self.host != "localhost":
                 raise InvalidConfig(f"host must be an IP address or 'localhost', got {self.host!r}") from None
+        if self.token == AUTO:
+            object.__setattr__(self, "token", generate_token())  # frozen: settled once, here
+        if self.token is not None:
+            check_token(self.token)
+        elif not is_loopback(self.host):
+            raise InvalidConfig(
+                f"serving on {self.host}, which is not a loopback address, needs an access token: "
+                "add --token auto (or --token TOKEN)"
+            )
+        if self.public_view and self.token is None:
+            raise InvalidConfig("--public-view needs --token: without a token every client may already operate")
+        if not (isinstance(self.idle_timeout, (int, float)) and 0 < self.idle_timeout < float("inf")):
+            raise InvalidConfig(f"idle-timeout must be a positive number of seconds, got {self.idle_timeout!r}")
         if not isinstance(self.port, int) or not 1 <= self.port <= 65535:
             raise InvalidConfig(f"port must be an integer in [1, 65535], got {self.port!r}")
         if not MIN_SPEED <= self.speed <= MAX_SPEED:

@@ -40,6 +40,8 @@ class Layout:
     plots: LivePlots
     hops: HopTable
     events: EventLog
+    control: viser.GuiFolderHandle  # each client's own role widgets go in here (app/dashboard/roles.py)
+    viewer_safe: tuple[viser.GuiButtonHandle, ...]  # inputs a viewer may use: they change nothing shared
 
 
 def configure_theme(server: viser.ViserServer) -> None:
@@ -75,6 +77,7 @@ def build_layout(
     gui.add_html(f"<style>{assets.stylesheet()}</style>")
     gui.add_html(f"<div class='hd-logo'><img src='{assets.logo_data_uri()}' alt='lunar hopper' height='44'></div>")
     status = build_status_panel(gui)
+    control = gui.add_folder("Control")
     with gui.add_folder("Simulation"):
         simulation = build_simulation_panel(gui, ctx, speed)
     tabs = gui.add_tab_group()
@@ -90,7 +93,7 @@ def build_layout(
         view = build_view_panel(gui, server.scene, camera, trail, robot)
     with tabs.add_tab("Record", viser.Icon.PLAYER_RECORD):
         record = build_record_panel(gui, recorder)
-    build_help_button(gui, assets.help_markdown())
+    help_button = build_help_button(gui, assets.help_markdown())
     server.gui.main_panel.dock_right()
     server.gui.main_panel.set_width(theme.right_panel_width)
 
@@ -104,5 +107,17 @@ def build_layout(
     live.dock_left()
     live.set_width(theme.left_panel_width)
     return Layout(
-        status, simulation, gains_panel, analysis, disturbances, terrain_panel, view, record, plots, hops, events
+        status,
+        simulation,
+        gains_panel,
+        analysis,
+        disturbances,
+        terrain_panel,
+        view,
+        record,
+        plots,
+        hops,
+        events,
+        control=control,
+        viewer_safe=(help_button, view.home),
     )

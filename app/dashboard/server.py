@@ -15,6 +15,7 @@ import threading
 import time
 
 import viser
+from hopper.app.dashboard.access import Access, Gatekeeper, page_url
 from hopper.app.dashboard.config import DashboardConfig
 from hopper.app.dashboard.feedback import notify_all
 from hopper.app.dashboard.layout import Layout, build_layout
@@ -23,6 +24,7 @@ from hopper.app.dashboard.panels import PanelContext
 from hopper.app.dashboard.panels.status import Status
 from hopper.app.dashboard.plots import PLOT_SAMPLE_S
 from hopper.app.dashboard.recording import Recorder
+from hopper.app.dashboard.roles import Roles
 from hopper.app.dashboard.scene import (
     CameraFollow,
     RobotView,
@@ -92,6 +94,8 @@ class Dashboard:
             self.recorder.close_now(self.sim)
             raise
         try:
+            # First: a client without the token must get nothing of what _build sends.
+            self.gatekeeper = Gatekeeper(self.server, Access(config.token, config.public_view))
             if self.server.get_port() != config.port:  # lost a race for the port after the check
                 raise PortInUse(f"cannot serve on {config.host}:{config.port}: port taken while starting")
             self._build()
@@ -128,10 +132,23 @@ class Dashboard:
         self.recorder.listeners.append(self._recording_changed)
         sim.listeners.append(self)
         self.layout.analysis.update_plant(sim.config)
+        self.roles = Roles(  # after every shared input exists: it greys them for viewers
+            self.server,
+            sim.submit,
+            folder=self.layout.control,
+            viewer_safe=self.layout.viewer_safe,
+            gatekeeper=self.gatekeeper,
+            idle_timeout_s=config.idle_timeout,
+        )
 
     @property
     def url(self) -> str:
         return f"http://{self.config.host}:{self.server.get_port()}"
+
+    @property
+    def page_url(self) -> str:
+        """The address to open, with the access token if there is one (never log it)."""
+        return page_url(self.config.host, self.server.get_port(), self.config.token)
 
     # -- lifecycle -------------------------------------------------------------------------
     def start(self) -> Dashboard:
@@ -259,6 +276,7 @@ class Dashboard:
         self.layout.plots.publish(now)
         self.frames += 1
         if with_status:
+            self.roles.poll()  # an idle operator's control passes on
             self.layout.status.show(
                 Status(
                     phase=sim.phase.label,

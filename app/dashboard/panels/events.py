@@ -25,6 +25,7 @@ SHOWN = frozenset(
         EventKind.COMMAND_FAILED,
         EventKind.RECORDING,
         EventKind.SENSING,
+        EventKind.OPERATOR,
     }
 )
 QUIET_RESETS = ("start", "terrain", "diverged")  # the event that caused them is shown already

@@ -1,0 +1,365 @@
+"""Roles in a shared session: one operator changes the settings, every other client watches read-only.
+
+The authority is on the server: every message a browser sends passes `Roles.allows` before viser
+dispatches it, so a viewer's crafted GUI update is dropped however it was made; the greyed
+controls (viser's `disabled`, sent to that client alone) only say so. The first client to connect
+operates; a viewer may ask for control and the operator hands it over; an operator who leaves or
+sends no input for `idle_timeout_s` passes it to the first who asked, else to the longest
+connected viewer. Every change is an OperatorChanged event (log and recordings).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import dataclasses
+import html
+import logging
+import threading
+import time
+from collections.abc import Callable, Iterable
+from typing import Any
+
+import viser
+import viser._messages as messages
+from hopper.app.dashboard.access import Gatekeeper
+from hopper.app.dashboard.feedback import guarded, notify
+
+from hopper.commands import Command
+from hopper.events import OperatorChanged, OperatorReason
+from hopper.sim import Simulation
+
+log = logging.getLogger(__name__)
+
+IDLE_TIMEOUT_S = 300.0  # s without input before an operator's control passes to a viewer
+REPLAY_WAIT_S = 20.0  # s at most to wait for a new client's replay of the scene before greying its controls
+REPLAY_MARGIN_S = 0.2  # s after viser has queued the replay's last window, for it to be sent
+# Per-client, harmless from anyone: the camera, and answers to the server's own requests.
+VIEWER_MESSAGES = (messages.ViewerCameraMessage, messages.GetRenderResponseMessage)
+# Allowed from a viewer when they name one of the viewer-safe inputs (Help, Side view).
+INPUT_MESSAGES = (messages.GuiUpdateMessage, messages.GuiButtonHoldMessage)
+# Refused from everyone: a share tunnel would publish the session past --host and the token.
+NEVER = (messages.ShareUrlRequest, messages.ShareUrlDisconnect)
+
+
+@dataclasses.dataclass(frozen=True)
+class Announce:
+    """Command: put an OperatorChanged event in the simulation's log (on the loop thread)."""
+
+    payload: OperatorChanged
+
+    def apply(self, sim: Simulation) -> None:
+        sim.emit(self.payload)
+
+
+@dataclasses.dataclass
+class ControlView:
+    """One client's own widgets in the Control folder: who operates, Ask for control, Hand over."""
+
+    line: viser.GuiHtmlHandle
+    ask: viser.GuiButtonHandle
+    hand: viser.GuiButtonHandle
+
+
+@dataclasses.dataclass
+class Seat:
+    client: viser.ClientHandle
+    name: str  # "client 3 (127.0.0.1)"
+    may_operate: bool  # False: a --public-view client without the token
+    view: ControlView | None = None  # built once the client has the scene
+    read_only: bool | None = None  # the greying last sent to this client (None: none yet)
+
+
+class Roles:
+    """Who operates a viser server's shared GUI; install once, after every shared input exists."""
+
+    def __init__(
+        self,
+        server: viser.ViserServer,
+        submit: Callable[[Command], None],
+        *,
+        folder: viser.GuiFolderHandle,
+        viewer_safe: Iterable[Any] = (),
+        gatekeeper: Gatekeeper | None = None,
+        idle_timeout_s: float = IDLE_TIMEOUT_S,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.server, self.submit, self.folder, self.gatekeeper = server, submit, folder, gatekeeper
+        self.viewer_safe = frozenset(handle._impl.uuid for handle in viewer_safe)
+        self.idle_timeout_s, self.clock = idle_timeout_s, clock
+        self.operator: int | None = None
+        self.refused = 0  # messages dropped from non-operators, for tests
+        self._seats: dict[int, Seat] = {}  # in order of arrival: the first is the longest connected
+        self._askers: list[int] = []
+        self._last_input = clock()
+        self._lock = threading.RLock()
+        self._ws = server._websock_server  # viser 1.1.1: no public hook sees messages before dispatch
+        dispatch = self._ws._handle_incoming_message
+
+        async def gated(client_id: int, message: Any) -> None:
+            if self.allows(client_id, message):
+                await dispatch(client_id, message)
+
+        self._ws._handle_incoming_message = gated
+        # Async: run on viser's event loop in the order they happen (thread-pool callbacks may not).
+        server.on_client_connect(self._connected)
+        server.on_client_disconnect(self._disconnected)
+
+    # -- queries -----------------------------------------------------------------------------
+    def name_of(self, client_id: int | None) -> str | None:
+        with self._lock:
+            seat = self._seats.get(client_id) if client_id is not None else None
+            return seat.name if seat is not None else None
+
+    @property
+    def seated(self) -> list[int]:
+        """Client ids in order of arrival (the first is the longest connected)."""
+        with self._lock:
+            return list(self._seats)
+
+    @property
+    def askers(self) -> list[int]:
+        with self._lock:
+            return list(self._askers)
+
+    # -- the authority check (viser's event loop) ---------------------------------------------
+    def allows(self, client_id: int, message: Any) -> bool:
+        """Whether a message from this client may reach viser's handlers (and the simulation)."""
+        if isinstance(message, NEVER):
+            return False
+        if isinstance(message, VIEWER_MESSAGES):
+            return True
+        with self._lock:
+            if client_id == self.operator:
+                self._last_input = self.clock()
+                return True
+            if isinstance(message, INPUT_MESSAGES) and message.uuid in self.viewer_safe:
+                return True
+            self.refused += 1
+            seat = self._seats.get(client_id)
+        if seat is not None:
+            self._refused(seat, message)
+        return False
+
+    def _refused(self, seat: Seat, message: Any) -> None:
+        """Show the refused client what runs again (its widget may have moved) and why."""
+        uuid = getattr(message, "uuid", None)
+        handle = self.server.gui._gui_input_handle_from_uuid.get(uuid) if isinstance(uuid, str) else None
+        if handle is not None:
+            _send(seat.client, messages.GuiUpdateMessage(handle._impl.uuid, {"value": handle._impl.value}))
+        operator = self.name_of(self.operator) or "nobody"
+        notify(seat.client, "Read-only", f"{operator} operates; ask for control in the Control panel.", "warning")
+
+    # -- changes -------------------------------------------------------------------------------
+    def ask(self, client_id: int) -> None:
+        """A viewer asks for control: the operator is told and may hand it over."""
+        with self._lock:
+            seat = self._seats.get(client_id)
+            if seat is None or not seat.may_operate or client_id == self.operator or client_id in self._askers:
+                return
+            self._askers.append(client_id)
+            operator = self._seats.get(self.operator) if self.operator is not None else None
+            self._refresh()
+        if operator is not None:
+            notify(
+                operator.client,
+                f"{seat.name.capitalize()} asks for control",
+                "Hand it over in the Control panel (it also passes after "
+                f"{self.idle_timeout_s / 60:g} min without input).",
+            )
+
+    def hand_over(self, by: int, to: int | None = None) -> bool:
+        """The operator `by` hands control to `to` (default: the next in line); False if not allowed."""
+        with self._lock:
+            if by != self.operator:
+                return False
+            target = to if to is not None else self._successor()
+            if target is None or target == by or not self._eligible(target):
+                return False
+            self._transfer(target, "handed over")
+            return True
+
+    def poll(self, now: float | None = None) -> None:
+        """Pass control on from an operator idle past the timeout (called often, from any thread)."""
+        now = self.clock() if now is None else now
+        with self._lock:
+            if self.operator is None or now - self._last_input < self.idle_timeout_s:
+                return
+            successor = self._successor()
+            if successor is not None:
+                self._transfer(successor, "idle")
+
+    # -- viser callbacks (event loop) -----------------------------------------------------------
+    async def _connected(self, client: viser.ClientHandle) -> None:
+        info = self.gatekeeper.info(client.client_id) if self.gatekeeper is not None else None
+        if self.gatekeeper is not None and info is None:  # refused by the gate, or already gone
+            return
+        address = info.address if info is not None else "?"
+        seat = Seat(client, f"client {client.client_id} ({address})", info is None or info.grant == "operate")
+        with self._lock:
+            self._seats[client.client_id] = seat
+            if self.operator is None and seat.may_operate:
+                self._transfer(client.client_id, "first")
+            else:
+                self._refresh()
+        asyncio.get_running_loop().create_task(self._after_replay(seat))
+
+    async def _disconnected(self, client: viser.ClientHandle) -> None:
+        with self._lock:
+            seat = self._seats.pop(client.client_id, None)
+            if client.client_id in self._askers:
+                self._askers.remove(client.client_id)
+            if seat is None:
+                return
+            if client.client_id == self.operator:
+                successor = self._successor()
+                if successor is not None:
+                    self._transfer(successor, "disconnected")
+                else:
+                    self.operator = None
+                    self.submit(Announce(OperatorChanged(None, f"client {client.client_id}", "disconnected")))
+            self._refresh()
+
+    async def _after_replay(self, seat: Seat) -> None:
+        """Build the client's widgets and grey its controls once it has the scene's GUI.
+
+        A per-client update for a widget the browser has not created yet is dropped by it, and
+        viser sends the replay of the shared scene and per-client messages on separate queues;
+        so wait until the replay's last window has left (viser's own cursor of it).
+        """
+        buffer = self._ws._broadcast_buffer
+        target = buffer.message_counter - 1
+        deadline = time.monotonic() + REPLAY_WAIT_S
+        while buffer.generator_cursors.get(seat.client.client_id, -1) < target and time.monotonic() < deadline:
+            if seat.client.client_id not in self._seats:
+                return
+            await asyncio.sleep(0.05)
+        await asyncio.sleep(REPLAY_MARGIN_S)
+        with self._lock:
+            if self._seats.get(seat.client.client_id) is not seat:
+                return
+            try:
+                seat.view = self._build_view(seat)
+            except Exception:  # a client that left meanwhile
+                log.debug("building the control view of %s failed", seat.name, exc_info=True)
+                return
+            self._show(seat)
+
+    # -- internals (under the lock) ---------------------------------------------------------------
+    def _eligible(self, client_id: int) -> bool:
+        seat = self._seats.get(client_id)
+        return seat is not None and seat.may_operate
+
+    def _successor(self) -> int | None:
+        """The first who asked, else the longest connected viewer who may operate."""
+        for client_id in self._askers:
+            if client_id != self.operator and self._eligible(client_id):
+                return client_id
+        for client_id, seat in self._seats.items():
+            if client_id != self.operator and seat.may_operate:
+                return client_id
+        return None
+
+    def _transfer(self, client_id: int, reason: OperatorReason) -> None:
+        previous = self.operator
+        self.operator = client_id
+        self._last_input = self.clock()
+        if client_id in self._askers:
+            self._askers.remove(client_id)
+        new = self._seats[client_id]
+        old = self._seats.get(previous) if previous is not None else None
+        # The one who operated before by number only: their address is in the event that named them.
+        before = f"client {previous}" if previous is not None else None
+        self.submit(Announce(OperatorChanged(new.name, before, reason)))
+        log.info("operator: %s (%s)", new.name, reason)
+        self._refresh()
+        if reason != "first":
+            notify(new.client, "You have control", "Your changes now drive the simulation.")
+        if old is not None:
+            why = " after a time without input" if reason == "idle" else ""
+            notify(old.client, f"Control passed to {new.name}{why}", "Your controls are read-only; ask to get it back.")
+
+    def _refresh(self) -> None:
+        for seat in self._seats.values():
+            self._show(seat)
+
+    def _show(self, seat: Seat) -> None:
+        """Bring one client's widgets and greying up to date (sends only what changed)."""
+        if seat.view is None or _gone(seat.client):
+            return
+        try:
+            self._grey(seat, seat.client.client_id != self.operator)
+            line, ask, hand = self._texts(seat)
+            view = seat.view
+            if view.line.content != line:
+                view.line.content = line
+            view.ask.visible = ask is not None
+            if ask is not None:
+                view.ask.label, view.ask.disabled = ask
+            view.hand.visible = hand is not None
+            if hand is not None:
+                view.hand.label = hand
+        except Exception:  # the client is leaving; its disconnect callback cleans up
+            log.debug("updating the control view of %s failed", seat.name, exc_info=True)
+
+    def _texts(self, seat: Seat) -> tuple[str, tuple[str, bool] | None, str | None]:
+        """The role line, the Ask button's (label, disabled) or None, the Hand over label or None."""
+        me, operator = seat.client.client_id, self.operator
+        viewers = len(self._seats) - (operator is not None)
+        if me == operator:
+            line = f"<b class='hd-operator'>You operate</b> this session · {viewers} viewer{'s' * (viewers != 1)}"
+            asking = [self._seats[c].name for c in self._askers if c in self._seats]
+            if asking:
+                line += f"<br>{html.escape(', '.join(asking))} {'asks' if len(asking) == 1 else 'ask'} for control"
+            successor = self._successor()
+            hand = None if successor is None else f"Hand over to {self._seats[successor].name}"
+            return _div(line), None, hand
+        who = html.escape(self._seats[operator].name) if operator in self._seats else "nobody"
+        if not seat.may_operate:
+            return _div(f"<b>Viewing</b> (no access token) · {who} operates"), None, None
+        line = f"<b>Viewing</b> · {who} operates; your controls are read-only"
+        if me in self._askers:
+            return _div(line), ("Asked: waiting for the operator", True), None
+        return _div(line), ("Ask for control", False), None
+
+    def _grey(self, seat: Seat, read_only: bool) -> None:
+        """Disable (or restore) every shared input but the viewer-safe ones, for this client alone."""
+        if seat.read_only == read_only or (seat.read_only is None and not read_only):
+            seat.read_only = read_only
+            return
+        seat.read_only = read_only
+        for uuid, handle in list(self.server.gui._gui_input_handle_from_uuid.items()):
+            if uuid in self.viewer_safe:
+                continue
+            disabled = read_only or bool(getattr(handle._impl.props, "disabled", False))
+            _send(seat.client, messages.GuiUpdateMessage(uuid, {"disabled": disabled}))
+
+    def _build_view(self, seat: Seat) -> ControlView:
+        gui, client_id = seat.client.gui, seat.client.client_id
+        with self.folder:  # the client's own widgets, inside the shared folder
+            view = ControlView(
+                line=gui.add_html(""),
+                ask=gui.add_button("Ask for control", icon=viser.Icon.HAND_STOP, visible=False),
+                hand=gui.add_button("Hand over", icon=viser.Icon.ARROWS_EXCHANGE, color="gray", visible=False),
+            )
+        view.ask.on_click(guarded(lambda _: self.ask(client_id)))
+        view.hand.on_click(guarded(lambda _: self.hand_over(client_id)))
+        return view
+
+
+def _div(content: str) -> str:
+    return f"<div class='hd-role'>{content}</div>"
+
+
+def _gone(client: viser.ClientHandle) -> bool:
+    """Whether the client's connection has closed (viser warns about messages queued after that)."""
+    return client._websock_connection.get_message_buffer().done
+
+
+def _send(client: viser.ClientHandle, message: Any) -> None:
+    """Queue a message for one client only (viser has no public per-client update of a shared widget)."""
+    if _gone(client):
+        return
+    try:
+        client._websock_connection.queue_message(message)
+    except Exception:
+        log.debug("sending to client %s failed", client.client_id, exc_info=True)

@@ -1,0 +1,186 @@
+"""Roles: one operator, read-only viewers checked on the server, asking, handing over, leaving, idling.
+
+Browsers are stood in for by `ProbeClient`, which speaks viser's real websocket protocol: what it
+sends is exactly what a page (or a hand-crafted script) could send.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pytest
+import viser._messages as messages
+from hopper.app.dashboard.config import DashboardConfig
+from hopper.app.dashboard.server import Dashboard
+from net import free_port, wait_until
+
+from benchmarks.probe import ProbeClient
+from hopper.events import EventKind, OperatorChanged
+
+Start = Callable[..., Dashboard]
+
+
+@pytest.fixture
+def start(tmp_path: Path) -> Iterator[Start]:
+    dashboards: list[Dashboard] = []
+
+    def make(**settings: object) -> Dashboard:
+        config = DashboardConfig(port=free_port(), sessions_dir=tmp_path / "sessions", **settings)  # type: ignore[arg-type]
+        dashboards.append(Dashboard(config, verbose=False).start())
+        return dashboards[-1]
+
+    yield make
+    for d in dashboards:
+        d.stop()
+
+
+@pytest.fixture
+def probes() -> Iterator[list[ProbeClient]]:
+    opened: list[ProbeClient] = []
+    yield opened
+    for p in opened:
+        p.close()
+
+
+def labelled(label: str) -> Callable[[ProbeClient], bool]:
+    return lambda p: any(m.get("props", {}).get("label") == label for m in p.gui.values())
+
+
+def join(d: Dashboard, probes: list[ProbeClient]) -> ProbeClient:
+    """A new client, seated (in order of arrival) and with its own Control widgets."""
+    seated = len(d.roles.seated)
+    probe = ProbeClient(d.url)
+    probes.append(probe)
+    assert probe.wait_for(lambda p: len(p.gui) > 20), "the probe never saw the page"
+    assert wait_until(lambda: len(d.roles.seated) == seated + 1), "the client was never seated"
+    assert probe.wait_for(labelled("Hand over"), timeout=30), "its Control widgets never came"
+    return probe
+
+
+def titles(probe: ProbeClient) -> list[str]:
+    return [n.get("title", "") for n in probe.notifications]
+
+
+def operator_events(d: Dashboard) -> list[OperatorChanged]:
+    return [e.payload for e in d.sim.events if e.kind == EventKind.OPERATOR]  # type: ignore[misc]
+
+
+def test_the_first_client_operates_and_a_viewers_inputs_change_nothing(start: Start, probes) -> None:
+    d = start()
+    a = join(d, probes)
+    b = join(d, probes)
+    first, second = d.roles.seated
+    assert d.roles.operator == first
+    assert wait_until(lambda: [e.reason for e in operator_events(d)] == ["first"])
+    assert operator_events(d)[0].operator == f"client {first} (127.0.0.1)"
+
+    # The viewer sends what an enabled widget (or a script) would: a gain, a typed gain, a kick, a reset.
+    refused = d.roles.refused
+    b.set_gui_value("Kp", 600.0)
+    b.set_gui_value("N m/rad", "700")
+    b.set_gui_value("Apply", "Pitch kick")
+    b.set_gui_value("Reset robot", True)
+    assert wait_until(lambda: d.roles.refused == refused + 4), "the viewer's messages were not all refused"
+    assert b.wait_for(lambda p: "Read-only" in titles(p))
+    assert d.layout.gains.kp.value == 450.0 and d.layout.gains.entries["kp"].handle.value == "450"
+
+    # The operator's change goes through; the viewer's never reached the controller (a refused
+    # message reaches no callback, so the typed box has no timer running either).
+    a.set_gui_value("Kp", 610.0)
+    assert wait_until(lambda: d.sim.gains.kp == 610.0)
+    gains = [e.payload.gains.kp for e in d.sim.events if e.kind == EventKind.GAINS]  # type: ignore[union-attr]
+    assert gains == [610.0] and d.sim.gains.kp == 610.0
+    kinds = {e.kind for e in d.sim.events}
+    assert EventKind.DISTURBANCE not in kinds and EventKind.DISTURBANCE_ARMED not in kinds
+    assert not any(e.kind == EventKind.RESET and e.payload.reason == "user" for e in d.sim.events)  # type: ignore[union-attr]
+    assert d.roles.operator == first and second in d.roles.seated
+
+
+def test_a_viewer_may_open_help_and_nothing_can_open_a_share_tunnel(start: Start, probes) -> None:
+    d = start()
+    join(d, probes)
+    b = join(d, probes)
+    modals = b.counts["GuiModalMessage"]
+    b.set_gui_value("Help", True)
+    assert b.wait_for(lambda p: p.counts["GuiModalMessage"] == modals + 1), "a viewer could not open Help"
+    # A share tunnel would publish the session beyond --host and the token: refused even from the
+    # operator (checked here, not sent: the tunnel's server is outside the loopback range).
+    assert not d.roles.allows(d.roles.operator, messages.ShareUrlRequest())
+    assert not d.roles.allows(d.roles.seated[1], messages.ShareUrlRequest())
+
+
+def test_asking_and_handing_over(start: Start, probes) -> None:
+    d = start()
+    a = join(d, probes)
+    b = join(d, probes)
+    first, second = d.roles.seated
+
+    # A viewer's crafted press of its own (hidden) Hand over button does nothing: it does not operate.
+    b.set_gui_value("Hand over", True)
+    b.set_gui_value("Ask for control", True)
+    assert wait_until(lambda: d.roles.askers == [second])
+    assert d.roles.operator == first
+    assert a.wait_for(lambda p: f"Client {second} (127.0.0.1) asks for control" in titles(p))
+
+    a.set_gui_value("Hand over", True)
+    assert wait_until(lambda: d.roles.operator == second)
+    assert b.wait_for(lambda p: "You have control" in titles(p))
+    assert a.wait_for(lambda p: f"Control passed to client {second} (127.0.0.1)" in titles(p))
+    assert wait_until(lambda: [e.reason for e in operator_events(d)] == ["first", "handed over"])
+    handed = operator_events(d)[-1]
+    assert handed.describe() == f"operator client {second} (127.0.0.1): handed over by client {first}"
+
+    # Now the first client is the viewer: its gain is dropped, the second's applies.
+    refused = d.roles.refused
+    a.set_gui_value("Kp", 600.0)
+    assert wait_until(lambda: d.roles.refused == refused + 1)
+    b.set_gui_value("Kp", 620.0)
+    assert wait_until(lambda: d.sim.gains.kp == 620.0)
+    assert [e.payload.gains.kp for e in d.sim.events if e.kind == EventKind.GAINS] == [620.0]  # type: ignore[union-attr]
+
+
+def test_leaving_passes_control_to_the_asker_first_then_the_longest_connected(start: Start, probes) -> None:
+    d = start()
+    a, b, c = join(d, probes), join(d, probes), join(d, probes)
+    first, second, third = d.roles.seated
+    c.set_gui_value("Ask for control", True)
+    assert wait_until(lambda: d.roles.askers == [third])
+
+    a.close()
+    assert wait_until(lambda: d.roles.operator == third), "the asker did not get control"
+    c.close()
+    assert wait_until(lambda: d.roles.operator == second), "the remaining viewer did not get control"
+    b.set_gui_value("Kp", 630.0)
+    assert wait_until(lambda: d.sim.gains.kp == 630.0)
+    b.close()
+    assert wait_until(lambda: d.roles.operator is None and not d.roles.seated)
+    assert wait_until(lambda: len(operator_events(d)) == 4)
+    events = operator_events(d)
+    assert [e.reason for e in events] == ["first", "disconnected", "disconnected", "disconnected"]
+    assert events[-1].operator is None and events[-1].describe() == f"no operator: client {second} left"
+
+    # The next to come operates.
+    join(d, probes)
+    assert wait_until(lambda: d.roles.operator == d.roles.seated[0])
+
+
+def test_an_idle_operator_passes_control_and_an_active_one_keeps_it(start: Start, probes) -> None:
+    idle_s = 1.0
+    d = start(idle_timeout=idle_s)
+    a = join(d, probes)
+    join(d, probes)
+    first, second = d.roles.seated
+
+    # Input more often than the timeout keeps control: "Side view" changes nothing shared.
+    until = time.monotonic() + 3 * idle_s
+    while time.monotonic() < until:
+        a.set_gui_value("Side view", True)
+        time.sleep(idle_s / 4)
+        assert d.roles.operator == first, "an active operator lost control"
+
+    assert wait_until(lambda: d.roles.operator == second, timeout=idle_s + 5), "an idle operator kept control"
+    assert wait_until(lambda: operator_events(d)[-1].reason == "idle")
+    assert operator_events(d)[-1].describe() == f"operator client {second} (127.0.0.1): client {first} was idle"
+    assert a.wait_for(lambda p: any("after a time without input" in t for t in titles(p)))
