@@ -13,7 +13,11 @@ from hopper.metrics import RAD_S_TO_RPM
 
 PLOT_WINDOW_S = 10.0  # s of simulation shown
 PLOT_SAMPLE_S = 0.025  # s of simulation between samples: 8 a period of the wn = 30 rad/s pitch loop
-PLOT_PUBLISH_S = 0.1  # s of wall time between chart updates; each re-sends the window (~22 KB, float64)
+PLOT_PUBLISH_S = 0.2  # s of wall time between chart refreshes (5 a second); each re-sends the window
+# Above this many samples a chart gets each bucket's lowest and highest sample only (about half the
+# window): the 10 s window spans about 320 px at the default layout, so the line keeps its peaks.
+DECIMATE_ABOVE = 200
+BUCKET = 4  # samples per min/max bucket, counted from the first sample, so buckets stay put as the window slides
 CHART_HEIGHT = 135  # px
 Y_SOFT = 2.0  # deg, the pitch chart shows at least +-Y_SOFT
 LIMIT_COLOR = "#e5484d"  # red, dashed: the wheel's torque and speed limits
@@ -29,14 +33,16 @@ class RollingWindow:
         self._data = np.zeros((rows, columns), dtype=np.float32)
         self._next = 0
         self._full = False
+        self.appended = 0  # rows appended since the last clear: the oldest row held is number appended - len
 
     def append(self, row: tuple[float, ...]) -> None:
         self._data[self._next] = row
         self._next = (self._next + 1) % len(self._data)
         self._full = self._full or self._next == 0
+        self.appended += 1
 
     def clear(self) -> None:
-        self._next, self._full = 0, False
+        self._next, self._full, self.appended = 0, False, 0
 
     def columns(self) -> np.ndarray:
         """Shape (columns, n), oldest sample first (contiguous rows, ready to send)."""
@@ -88,12 +94,39 @@ def _limit_series() -> tuple[uplot.Series, uplot.Series]:
     return _series("+limit", LIMIT_COLOR, 1.0, (6, 4)), _series("-limit", LIMIT_COLOR, 1.0, (6, 4))
 
 
+def extremes(y: np.ndarray, first: int, bucket: int = BUCKET) -> np.ndarray:
+    """Indices (ascending) of each bucket's lowest and highest sample of y, shape (n,) float.
+
+    Sample i of y is sample number first + i since the window was cleared; bucket k holds numbers
+    k * bucket .. (k + 1) * bucket - 1, so a sample stays in its bucket as the window slides and
+    only the partial buckets at the two ends can change their pick between refreshes.
+    """
+    lead = first % bucket
+    padded = np.full(lead + len(y) + (-(lead + len(y))) % bucket, np.nan)
+    padded[lead : lead + len(y)] = y
+    rows = padded.reshape(-1, bucket)
+    base = np.arange(len(rows)) * bucket - lead
+    return np.unique(np.concatenate([base + np.nanargmin(rows, axis=1), base + np.nanargmax(rows, axis=1)]))
+
+
+def _send(chart: viser.GuiUplotHandle, data: tuple[np.ndarray, ...]) -> None:
+    """Set a chart's data (float32 columns), sent as plain number lists rather than float64 arrays.
+
+    viser's setter casts uPlot data to float64 and ships it as raw, uncompressed binary. Lists of the
+    same float32 values (exact in float64) go inside the zstd-compressed msgpack instead, where the
+    time column repeated in the three charts and the constant limit lines cost almost nothing. The
+    browser hands either form to uPlot unchanged.
+    """
+    chart._impl.props.data = data  # what the handle reports
+    chart._queue_update("data", tuple(column.tolist() for column in data))
+
+
 class LivePlots:
     """Pitch, wheel RPM and wheel torque (applied and asked) over the last PLOT_WINDOW_S, with the wheel's limits."""
 
     def __init__(self, gui: viser.GuiApi) -> None:
         self.window = RollingWindow(_N, 5)
-        self._last_publish = -math.inf
+        self._next_publish = -math.inf
         self._dirty = False
         self.rpm_limit = WHEEL_NO_LOAD_SPEED * RAD_S_TO_RPM  # 400 rpm
         time = _series("t (s)", "")
@@ -117,17 +150,28 @@ class LivePlots:
         self._dirty = True
 
     def publish(self, now: float) -> None:
-        """Send the window to the charts if it changed, at most every PLOT_PUBLISH_S of wall time `now`."""
-        if not self._dirty or len(self.window) < 2 or now - self._last_publish < PLOT_PUBLISH_S:
+        """Send the window to the charts if it changed, every PLOT_PUBLISH_S of wall time `now` at most.
+
+        Refreshes keep to a fixed grid of PLOT_PUBLISH_S (a refresh due between two frames goes out at
+        the next one), so they average one per PLOT_PUBLISH_S rather than one per whole number of frames.
+        """
+        if not self._dirty or len(self.window) < 2 or now < self._next_publish:
             return
-        self._dirty, self._last_publish = False, now
+        late = now - self._next_publish
+        self._next_publish = now + PLOT_PUBLISH_S if late >= PLOT_PUBLISH_S else self._next_publish + PLOT_PUBLISH_S
+        self._dirty = False
         c = self.window.columns()
-        t = c[_T]
-        self.pitch.data = (t, c[_PITCH])
-        self.rpm.data = (t, c[_RPM], *_constant(t, self.rpm_limit))
-        self.torque.data = (t, c[_TORQUE], c[_COMMAND], *_constant(t, WHEEL_TORQUE_LIMIT))
+        first = self.window.appended - len(self.window)
+
+        def pick(y: np.ndarray) -> np.ndarray | slice:
+            return extremes(y, first) if len(y) > DECIMATE_ABOVE else slice(None)
+
+        p, r, q = pick(c[_PITCH]), pick(c[_RPM]), pick(c[_TORQUE])
+        _send(self.pitch, (c[_T][p], c[_PITCH][p]))
+        _send(self.rpm, (c[_T][r], c[_RPM][r], *_constant(c[_T][r], self.rpm_limit)))
+        _send(self.torque, (c[_T][q], c[_TORQUE][q], c[_COMMAND][q], *_constant(c[_T][q], WHEEL_TORQUE_LIMIT)))
 
 
 def _constant(t: np.ndarray, value: float) -> tuple[np.ndarray, np.ndarray]:
-    """+-value at every sample time (uPlot needs one y per x); compresses to nearly nothing on the wire."""
+    """+-value at every sample time (uPlot needs one y per x); compresses to nearly nothing as lists."""
     return np.full_like(t, value), np.full_like(t, -value)
