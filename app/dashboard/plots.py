@@ -14,10 +14,11 @@ from hopper.metrics import RAD_S_TO_RPM
 PLOT_WINDOW_S = 10.0  # s of simulation shown
 PLOT_SAMPLE_S = 0.025  # s of simulation between samples: 8 a period of the wn = 30 rad/s pitch loop
 PLOT_PUBLISH_S = 0.2  # s of wall time between chart refreshes (5 a second); each re-sends the window
-# Above this many samples a chart gets each bucket's lowest and highest sample only (about half the
-# window): the 10 s window spans about 320 px at the default layout, so the line keeps its peaks.
-DECIMATE_ABOVE = 200
-BUCKET = 4  # samples per min/max bucket, counted from the first sample, so buckets stay put as the window slides
+# Above this many samples a chart gets only the samples its line needs to stay within TOLERANCE_PX of
+# every sample (see simplify): about a third of the window. Fewer cost little to send whole.
+SIMPLIFY_ABOVE = 100
+TOLERANCE_PX = 0.5  # px of the plot's height; the line is 1.5 px wide
+PLOT_HEIGHT_PX = 105  # px: CHART_HEIGHT less the time axis (26) and the top padding (4)
 CHART_HEIGHT = 135  # px
 Y_SOFT = 2.0  # deg, the pitch chart shows at least +-Y_SOFT
 LIMIT_COLOR = "#e5484d"  # red, dashed: the wheel's torque and speed limits
@@ -33,16 +34,14 @@ class RollingWindow:
         self._data = np.zeros((rows, columns), dtype=np.float32)
         self._next = 0
         self._full = False
-        self.appended = 0  # rows appended since the last clear: the oldest row held is number appended - len
 
     def append(self, row: tuple[float, ...]) -> None:
         self._data[self._next] = row
         self._next = (self._next + 1) % len(self._data)
         self._full = self._full or self._next == 0
-        self.appended += 1
 
     def clear(self) -> None:
-        self._next, self._full, self.appended = 0, False, 0
+        self._next, self._full = 0, False
 
     def columns(self) -> np.ndarray:
         """Shape (columns, n), oldest sample first (contiguous rows, ready to send)."""
@@ -94,19 +93,34 @@ def _limit_series() -> tuple[uplot.Series, uplot.Series]:
     return _series("+limit", LIMIT_COLOR, 1.0, (6, 4)), _series("-limit", LIMIT_COLOR, 1.0, (6, 4))
 
 
-def extremes(y: np.ndarray, first: int, bucket: int = BUCKET) -> np.ndarray:
-    """Indices (ascending) of each bucket's lowest and highest sample of y, shape (n,) float.
+def simplify(t: np.ndarray, y: np.ndarray, units_per_px: float, tolerance_px: float = TOLERANCE_PX) -> np.ndarray:
+    """Which samples (t, y), shape (n,) each, t increasing, a line through them needs: a mask (n,).
 
-    Sample i of y is sample number first + i since the window was cleared; bucket k holds numbers
-    k * bucket .. (k + 1) * bucket - 1, so a sample stays in its bucket as the window slides and
-    only the partial buckets at the two ends can change their pick between refreshes.
+    Douglas-Peucker on the vertical distance: a sample is dropped only if the line through the kept
+    ones passes within `tolerance_px` of it, measured at its own time (so the chart's width does not
+    matter and a steep edge keeps its samples). The ends and every local extreme that stands out by
+    more than the tolerance are kept, so peaks keep their height; the highest and lowest are always
+    kept, so auto-ranged axes do not move. Runs one pass per level of the recursion, over all segments
+    at once.
     """
-    lead = first % bucket
-    padded = np.full(lead + len(y) + (-(lead + len(y))) % bucket, np.nan)
-    padded[lead : lead + len(y)] = y
-    rows = padded.reshape(-1, bucket)
-    base = np.arange(len(rows)) * bucket - lead
-    return np.unique(np.concatenate([base + np.nanargmin(rows, axis=1), base + np.nanargmax(rows, axis=1)]))
+    n = len(y)
+    if n < 3:
+        return np.ones(n, dtype=bool)
+    keep = np.zeros(n, dtype=bool)
+    keep[[0, -1, int(np.argmin(y)), int(np.argmax(y))]] = True  # the ends and the extremes: same axes' ranges
+    pos, index = t.astype(np.float64), np.arange(n)
+    tolerance = tolerance_px * units_per_px
+    while True:
+        kept = np.flatnonzero(keep)
+        segment = np.minimum(np.searchsorted(kept, index, side="right") - 1, len(kept) - 2)
+        left, right = kept[segment], kept[segment + 1]
+        line = y[left] + (y[right] - y[left]) * (pos - pos[left]) / np.maximum(pos[right] - pos[left], 1e-12)
+        distance = np.where(keep, 0.0, np.abs(y - line))
+        farthest = np.maximum.reduceat(distance, kept[:-1])[segment]  # of each sample's segment
+        far = (distance == farthest) & (distance > tolerance)
+        if not far.any():
+            return keep
+        keep[far] = True
 
 
 def _send(chart: viser.GuiUplotHandle, data: tuple[np.ndarray, ...]) -> None:
@@ -131,12 +145,14 @@ class LivePlots:
         self.rpm_limit = WHEEL_NO_LOAD_SPEED * RAD_S_TO_RPM  # 400 rpm
         time = _series("t (s)", "")
         self.pitch = _chart(gui, (time, _series("pitch (°)", "#ffb03b")), None)
+        self.rpm_range = 2 * self.rpm_limit * 1.05  # rpm, fixed
         self.rpm = _chart(
             gui,
             (time, _series("wheel speed (rpm)", "#5aa9ff"), *_limit_series()),
-            (-self.rpm_limit * 1.05, self.rpm_limit * 1.05),
+            (-self.rpm_range / 2, self.rpm_range / 2),
         )
         limit = WHEEL_TORQUE_LIMIT * 1.08
+        self.torque_range = 2 * limit  # N m, fixed
         torque = (_series("torque (N m)", "#f25f5c"), _series("asked", "#cfd6dd", 1.0, (4, 3)))
         self.torque = _chart(gui, (time, *torque, *_limit_series()), (-limit, limit))
 
@@ -161,15 +177,25 @@ class LivePlots:
         self._next_publish = now + PLOT_PUBLISH_S if late >= PLOT_PUBLISH_S else self._next_publish + PLOT_PUBLISH_S
         self._dirty = False
         c = self.window.columns()
-        first = self.window.appended - len(self.window)
-
-        def pick(y: np.ndarray) -> np.ndarray | slice:
-            return extremes(y, first) if len(y) > DECIMATE_ABOVE else slice(None)
-
-        p, r, q = pick(c[_PITCH]), pick(c[_RPM]), pick(c[_TORQUE])
+        t = c[_T]
+        p = self._needed(t, c[_PITCH], self._pitch_range(c[_PITCH]))
+        r = self._needed(t, c[_RPM], self.rpm_range)
+        q = self._needed(t, c[_TORQUE], self.torque_range) | self._needed(t, c[_COMMAND], self.torque_range)
         _send(self.pitch, (c[_T][p], c[_PITCH][p]))
         _send(self.rpm, (c[_T][r], c[_RPM][r], *_constant(c[_T][r], self.rpm_limit)))
         _send(self.torque, (c[_T][q], c[_TORQUE][q], c[_COMMAND][q], *_constant(c[_T][q], WHEEL_TORQUE_LIMIT)))
+
+    @staticmethod
+    def _needed(t: np.ndarray, y: np.ndarray, y_range: float) -> np.ndarray:
+        """Mask of the samples (t, y) to send, for a chart showing y_range (units) over PLOT_HEIGHT_PX."""
+        if len(y) <= SIMPLIFY_ABOVE:
+            return np.ones(len(y), dtype=bool)
+        return simplify(t, y, y_range / PLOT_HEIGHT_PX)
+
+    @staticmethod
+    def _pitch_range(pitch: np.ndarray) -> float:
+        """The least range (deg) the auto-ranged pitch chart shows these samples over: uPlot only widens it."""
+        return max(float(pitch.max()), Y_SOFT) - min(float(pitch.min()), -Y_SOFT)
 
 
 def _constant(t: np.ndarray, value: float) -> tuple[np.ndarray, np.ndarray]:

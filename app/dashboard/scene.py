@@ -26,6 +26,7 @@ TRAIL_CHUNKS = 30  # nodes kept: 15 s of trail
 TRAIL_PUBLISH_S = 0.1  # s of wall time between re-sends of the newest chunk (each re-creates its node)
 TRAIL_COLOR = (255, 176, 59)
 SATURATION_COLORS = ((70, 200, 120), (245, 190, 40), (235, 60, 50))  # free, half, saturated
+RING_STEP = 0.05  # of saturation: the ring's colour steps
 CAMERA_OFFSET = np.array([0.0, -4.4, 1.9])  # m from the look-at point: side view from 23 deg above
 LOOK_OFFSET = np.array([0.3, 0.0, -0.3])  # m from the followed torso: a little ahead (it hops toward +x), down
 CAMERA_FOV = math.radians(45.0)  # vertical; about 4 m of height in view at the default distance
@@ -177,10 +178,11 @@ class RobotView:
         for handle, p, q in zip(self._handles, local_p, local_q, strict=True):
             handle.position = p  # constant for hinged bodies: viser sends it only when it changes
             handle.wxyz = q
-        quantized = round(level * 20) / 20  # re-send the colour only when it visibly changes
-        if quantized != self._level:
-            self._level = quantized
-            self.ring.color = saturation_color(quantized)
+        # Re-send the colour only when it visibly changes: in steps of 0.05, and only once the level has
+        # moved a whole step from the one shown (a level at a rounding edge would flip it every frame).
+        if abs(level - self._level) >= RING_STEP:
+            self._level = round(level / RING_STEP) * RING_STEP
+            self.ring.color = saturation_color(self._level)
         self.torso_position = positions[root]  # in the world frame, as sent
         if self.label.text != phase:
             self.label.text = phase
