@@ -13,7 +13,7 @@ from hopper.metrics import RAD_S_TO_RPM
 
 PLOT_WINDOW_S = 10.0  # s of simulation shown
 PLOT_SAMPLE_S = 0.025  # s of simulation between samples: 8 a period of the wn = 30 rad/s pitch loop
-PLOT_PUBLISH_S = 0.2  # s of wall time between chart refreshes (5 a second); each re-sends the window
+PLOT_PUBLISH_S = 0.2  # s of wall time between chart refreshes (5 a second); each re-sends the whole window
 # Above this many samples a chart gets only the samples its line needs to stay within TOLERANCE_PX of
 # every sample (see simplify): about a third of the window. Fewer cost little to send whole.
 SIMPLIFY_ABOVE = 100
@@ -126,10 +126,10 @@ def simplify(t: np.ndarray, y: np.ndarray, units_per_px: float, tolerance_px: fl
 def _send(chart: viser.GuiUplotHandle, data: tuple[np.ndarray, ...]) -> None:
     """Set a chart's data (float32 columns), sent as plain number lists rather than float64 arrays.
 
-    viser's setter casts uPlot data to float64 and ships it as raw, uncompressed binary. Lists of the
-    same float32 values (exact in float64) go inside the zstd-compressed msgpack instead, where the
-    time column repeated in the three charts and the constant limit lines cost almost nothing. The
-    browser hands either form to uPlot unchanged.
+    viser's setter casts uPlot data to float64 and ships it as raw, uncompressed binary (8 bytes a
+    value). Lists of the same float32 values (exact in float64) go inside the zstd-compressed msgpack
+    instead: about 4 bytes a value, and the constant limit lines next to nothing. The browser hands
+    either form to uPlot unchanged. (Private viser API: tests/test_dashboard_wire.py reads the wire.)
     """
     chart._impl.props.data = data  # what the handle reports
     chart._queue_update("data", tuple(column.tolist() for column in data))
