@@ -1,11 +1,16 @@
-"""Dashboard load: real-time factor, scene updates and bandwidth with 0, 1 and 4 connected clients.
+"""Dashboard load: real-time factor, scene updates, chart refreshes and bandwidth with 0 to 16 clients.
 
-Run: python -m benchmarks.bench_dashboard [--seconds 10] [--speed 1]
+Run: python -m benchmarks.bench_dashboard [--seconds 10] [--speed 1] [--clients 0,1,4,16]
 
 The server runs in this process at the asked speed; the clients run in a child process (browsers
 are separate processes too) and speak viser's real protocol: subprotocol handshake, a camera
 report, then they receive and decode the full stream (zstd + msgpack + binary buffers) as a
 browser would, without rendering it. Everything is measured in this one run.
+
+Per client it reports the bytes received per second split into charts (uPlot data), poses (the
+scene nodes' transforms) and other (status, trail, tables, ...), as benchmarks/probe.py attributes
+them, the scene updates per second (frames that moved the robot) and the chart refreshes per
+second (data updates of the least refreshed chart).
 """
 
 from __future__ import annotations
@@ -37,21 +42,26 @@ def probe_main(url: str, clients: int, settle: float, seconds: float) -> None:
         if not p.wait_for(lambda c: c.pose_frames > 0, timeout=30):
             raise SystemExit("a client never received a pose")
     time.sleep(settle)
-    initial = [p.snapshot() for p in probes]
+    initial = [(p.snapshot(), p.traffic_snapshot()) for p in probes]
     print(json.dumps({"event": "measuring"}), flush=True)
     start = time.perf_counter()
     time.sleep(seconds)
     wall = time.perf_counter() - start
-    final = [p.snapshot() for p in probes]
-    stats = [
-        {
-            "initial_bytes": b0,
-            "bytes_per_s": (b1 - b0) / wall,
-            "frames_per_s": (f1 - f0) / wall,
-            "pose_updates_per_s": (q1 - q0) / wall,
-        }
-        for (b0, f0, q0), (b1, f1, q1) in zip(initial, final, strict=True)
-    ]
+    final = [(p.snapshot(), p.traffic_snapshot()) for p in probes]
+    stats = []
+    for ((b0, f0, _), t0), ((b1, f1, _), t1) in zip(initial, final, strict=True):
+        d = t1.minus(t0)
+        stats.append(
+            {
+                "initial_bytes": b0,
+                "bytes_per_s": (b1 - b0) / wall,
+                "frames_per_s": (f1 - f0) / wall,
+                "pose_updates_per_s": d.scene_updates / wall,
+                "chart_refreshes_per_s": min(d.chart_refreshes.values(), default=0) / wall,
+                "breakdown_bytes_per_s": {k: v / wall for k, v in d.bytes.items()},
+                "messages_per_s": {k: v / wall for k, v in d.messages.items()},
+            }
+        )
     print(json.dumps({"event": "done", "clients": stats}), flush=True)
     for p in probes:
         p.close()
@@ -92,38 +102,54 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=10.0, help="measuring window per case (s)")
     parser.add_argument("--settle", type=float, default=3.0, help="wait after connecting, before measuring (s)")
     parser.add_argument("--speed", type=float, default=1.0, help="simulation speed (x real time)")
+    parser.add_argument("--clients", default="0,1,4,16", help="comma-separated client counts, one case each")
     parser.add_argument("--probe", help=argparse.SUPPRESS)
-    parser.add_argument("--clients", type=int, default=0, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.probe:
-        probe_main(args.probe, args.clients, args.settle, args.seconds)
+        probe_main(args.probe, int(args.clients), args.settle, args.seconds)
         return
+    cases = [int(c) for c in args.clients.split(",")]
 
     from hopper.app.dashboard.config import DashboardConfig
     from hopper.app.dashboard.server import Dashboard
 
     dashboard = Dashboard(DashboardConfig(port=free_port(), speed=args.speed), verbose=False).start()
     try:
-        results = [measure(dashboard, n, args.settle, args.seconds) for n in (0, 1, 4)]
+        results = [measure(dashboard, n, args.settle, args.seconds) for n in cases]
     finally:
         dashboard.stop()
 
-    print(f"\nhopper-dashboard load, {args.seconds:g} s windows at {args.speed:g}x real time (target RTF >= 0.98)")
-    print("RTF = simulated s per wall s, divided by the asked speed")
-    print(f"{'clients':>7}  {'RTF':>6}  {'server frames/s':>15}  {'updates/s/client':>16}  {'kB/s/client':>11}  "
-          f"{'initial scene kB':>16}")  # fmt: skip
+    report(results, args.seconds, args.speed)
+
+
+def _mean(per: list[dict], key: str, sub: str | None = None) -> float:
+    return sum(c[key][sub] if sub else c[key] for c in per) / len(per)
+
+
+def report(results: list[dict], seconds: float, speed: float) -> None:
+    print(f"\nhopper-dashboard load, {seconds:g} s windows at {speed:g}x real time (target RTF >= 0.98)")
+    print("RTF = simulated s per wall s, divided by the asked speed; per-client figures are means over the clients")
+    print(f"{'clients':>7}  {'RTF':>6}  {'server frames/s':>15}  {'updates/s':>9}  {'charts/s':>8}  {'kB/s':>6}  "
+          f"{'charts':>6}  {'poses':>6}  {'other':>6}  {'initial kB':>10}")  # fmt: skip
     for r in results:
         per = r["per_client"]
         if per:
-            updates = sum(c["pose_updates_per_s"] for c in per) / len(per)
-            kbps = sum(c["bytes_per_s"] for c in per) / len(per) / 1e3
-            initial = sum(c["initial_bytes"] for c in per) / len(per) / 1e3
-            cells = f"{updates:16.1f}  {kbps:11.1f}  {initial:16.0f}"
+            kb = {k: _mean(per, "breakdown_bytes_per_s", k) / 1e3 for k in ("charts", "poses", "other")}
+            cells = (
+                f"{_mean(per, 'pose_updates_per_s'):9.1f}  {_mean(per, 'chart_refreshes_per_s'):8.1f}  "
+                f"{_mean(per, 'bytes_per_s') / 1e3:6.1f}  {kb['charts']:6.1f}  {kb['poses']:6.1f}  {kb['other']:6.1f}  "
+                f"{_mean(per, 'initial_bytes') / 1e3:10.0f}"
+            )
         else:
-            cells = f"{'-':>16}  {'-':>11}  {'-':>16}"
+            cells = "  ".join(f"{'-':>{w}}" for w in (9, 8, 6, 6, 6, 6, 10))
         print(f"{r['clients']:7d}  {r['rtf']:6.3f}  {r['server_frames_per_s']:15.1f}  {cells}")
+    for r in results:
+        if r["per_client"]:
+            rates = {k: round(_mean(r["per_client"], "messages_per_s", k)) for k in ("charts", "poses", "other")}
+            print(f"messages/s per client with {r['clients']} clients: {rates}")
     base = results[0]["rtf"]
-    print("RTF ratio vs 0 clients: " + ", ".join(f"{r['clients']} clients {r['rtf'] / base:.3f}" for r in results[1:]))
+    ratios = ", ".join(f"{r['clients']} clients {r['rtf'] / base:.3f}" for r in results[1:])
+    print(f"RTF ratio vs {results[0]['clients']} clients: {ratios}")
 
 
 if __name__ == "__main__":

@@ -2,12 +2,14 @@
 
 It connects with the `viser-v<version>` subprotocol, reports a camera (the server only registers a
 client after its first camera message), and decodes every frame the server sends: 16-byte header,
-zstd-compressed msgpack, then raw binary buffers.
+zstd-compressed msgpack, then raw binary buffers. It also splits the bytes it receives into charts,
+poses and other (see `Traffic`), and counts scene updates and chart refreshes.
 """
 
 from __future__ import annotations
 
 import collections
+import dataclasses
 import threading
 import time
 from typing import Any
@@ -17,7 +19,64 @@ import viser
 import websockets.sync.client as ws_client
 import zstandard
 
-TORSO = "/world/robot/torso"  # the scene node whose pose updates count as a frame
+ROBOT = "/world/robot"  # scene nodes under this prefix are the robot: a frame that moves one is a scene update
+TRAIL = "/world/trail"  # the torso's trail: line segments, counted as "other" with their creation messages
+POSE_MESSAGES = frozenset(
+    {"SetPositionMessage", "SetOrientationMessage", "SetBonePositionMessage", "SetBoneOrientationMessage"}
+)
+POSE_PROPS = frozenset({"batched_positions", "batched_wxyzs"})  # batched nodes' transforms (SceneNodeUpdateMessage)
+CATEGORIES = ("charts", "poses", "other")
+
+
+def is_pose(message: dict[str, Any]) -> bool:
+    """A message that only moves scene nodes (not the trail's, which come with its re-sent segments)."""
+    kind, name = message.get("type"), str(message.get("name", ""))
+    if name.startswith(TRAIL):
+        return False
+    if kind in POSE_MESSAGES:
+        return True
+    return kind == "SceneNodeUpdateMessage" and bool(message["updates"]) and set(message["updates"]) <= POSE_PROPS
+
+
+def _binary_indices(value: Any, out: list[int]) -> list[int]:
+    """Indices of the binary buffers a decoded message refers to (viser's tagged placeholders)."""
+    if isinstance(value, dict):
+        if "__binary_index" in value and "dtype" in value:
+            out.append(value["__binary_index"])
+        else:
+            for v in value.values():
+                _binary_indices(v, out)
+    elif isinstance(value, list):
+        for v in value:
+            _binary_indices(v, out)
+    return out
+
+
+@dataclasses.dataclass
+class Traffic:
+    """What one client received: bytes on the wire by category, scene updates and chart refreshes.
+
+    Bytes are the websocket payloads' sizes. A frame's binary buffers go to the message that holds
+    them; its header and compressed msgpack are shared between the categories present in proportion
+    to what each category's messages compress to alone (zstd level 1, as the server uses).
+    """
+
+    bytes: dict[str, float] = dataclasses.field(default_factory=lambda: dict.fromkeys(CATEGORIES, 0.0))
+    messages: dict[str, int] = dataclasses.field(default_factory=lambda: dict.fromkeys(CATEGORIES, 0))
+    scene_updates: int = 0  # frames that moved the robot
+    chart_refreshes: dict[str, int] = dataclasses.field(default_factory=dict)  # uPlot uuid -> data updates
+
+    def copy(self) -> Traffic:
+        return Traffic(dict(self.bytes), dict(self.messages), self.scene_updates, dict(self.chart_refreshes))
+
+    def minus(self, earlier: Traffic) -> Traffic:
+        """The traffic since `earlier` (a copy taken before)."""
+        return Traffic(
+            {k: v - earlier.bytes[k] for k, v in self.bytes.items()},
+            {k: v - earlier.messages[k] for k, v in self.messages.items()},
+            self.scene_updates - earlier.scene_updates,
+            {k: v - earlier.chart_refreshes.get(k, 0) for k, v in self.chart_refreshes.items()},
+        )
 
 
 class ProbeClient:
@@ -33,11 +92,16 @@ class ProbeClient:
             compression=None,
         )
         self._decompressor = zstandard.ZstdDecompressor()
+        self._compressor = zstandard.ZstdCompressor(level=1)
         self._lock = threading.Lock()
         self.bytes = 0
         self.frames = 0  # websocket messages (windows of viser messages)
         self.counts: collections.Counter[str] = collections.Counter()
         self.pose_frames = 0  # windows that moved the robot
+        self.traffic = Traffic()
+        self.uplots: set[str] = set()  # uuids of the uPlot charts
+        self.last_pose_frame: list[dict[str, Any]] = []  # the pose messages of the latest frame that moved the robot
+        self.chart_data: dict[str, list[Any]] = {}  # uPlot uuid -> its latest data, decoded (binary as raw bytes)
         self.notifications: list[dict[str, Any]] = []
         self.gui: dict[str, dict[str, Any]] = {}  # uuid -> creation message
         self.closed = False
@@ -92,6 +156,11 @@ class ProbeClient:
         with self._lock:
             return self.bytes, self.frames, self.pose_frames
 
+    def traffic_snapshot(self) -> Traffic:
+        """A copy of the traffic so far (subtract two with `Traffic.minus`)."""
+        with self._lock:
+            return self.traffic.copy()
+
     def close(self) -> None:
         self.closed = True
         self._socket.close()
@@ -112,18 +181,73 @@ class ProbeClient:
         size = int.from_bytes(raw[0:8], "little")
         compressed = int.from_bytes(raw[8:16], "little")
         payload = self._decompressor.decompress(raw[16 : 16 + compressed], max_output_size=size)
-        messages = msgspec.msgpack.decode(payload)["messages"]
+        envelope = msgspec.msgpack.decode(payload)
+        messages, lengths = envelope["messages"], envelope.get("binaryBufferLengths", [])
         with self._lock:
             self.bytes += len(raw)
             self.frames += 1
             moved = False
+            poses = []
             for message in messages:
                 kind = message.get("type", "?")
                 self.counts[kind] += 1
-                if kind == "SetPositionMessage" and message.get("name") == TORSO:
-                    moved = True
+                if is_pose(message):
+                    poses.append(message)
+                    moved = moved or str(message.get("name", "")).startswith(ROBOT)
                 elif kind == "NotificationShowMessage":
                     self.notifications.append(message.get("props", {}))
-                elif "uuid" in message and "props" in message and kind.startswith("Gui"):
+                elif kind == "GuiUplotMessage":
+                    self.uplots.add(message["uuid"])
+                elif kind == "GuiUpdateMessage" and message["uuid"] in self.uplots and "data" in message["updates"]:
+                    uuid, refreshes = message["uuid"], self.traffic.chart_refreshes
+                    refreshes[uuid] = refreshes.get(uuid, 0) + 1
+                    self.chart_data[uuid] = self._resolve(message["updates"]["data"], raw, compressed, lengths)
+                if "uuid" in message and "props" in message and kind.startswith("Gui"):
                     self.gui[message["uuid"]] = message
             self.pose_frames += moved
+            if moved:
+                self.last_pose_frame = poses
+                self.traffic.scene_updates += 1
+            self._account(raw, compressed, messages, lengths)
+
+    def _category(self, message: dict[str, Any]) -> str:
+        if message.get("type") == "GuiUpdateMessage" and message.get("uuid") in self.uplots:
+            return "charts"
+        return "poses" if is_pose(message) else "other"
+
+    def _account(self, raw: bytes, compressed: int, messages: list[dict[str, Any]], lengths: list[int]) -> None:
+        """Split this frame's bytes between the categories (see `Traffic`)."""
+        groups: dict[str, list[dict[str, Any]]] = collections.defaultdict(list)
+        binary: dict[str, int] = collections.Counter()
+        for message in messages:
+            category = self._category(message)
+            groups[category].append(message)
+            binary[category] += sum(lengths[i] for i in _binary_indices(message, []))
+            self.traffic.messages[category] += 1
+        shared = len(raw) - sum(binary.values())  # header, compressed msgpack, alignment padding
+        if len(groups) == 1:
+            weights = {next(iter(groups)): 1.0}
+        else:
+            weights = {c: len(self._compressor.compress(msgspec.msgpack.encode(g))) for c, g in groups.items()}
+        total = sum(weights.values())
+        for category, weight in weights.items():
+            self.traffic.bytes[category] += binary[category] + shared * weight / total
+
+    @staticmethod
+    def _resolve(value: Any, raw: bytes, compressed: int, lengths: list[int]) -> Any:
+        """Replace binary placeholders by (dtype, bytes), as the browser makes typed arrays of them."""
+        offsets, offset = [], 16 + compressed
+        for length in lengths:
+            offset += (8 - offset % 8) % 8
+            offsets.append(offset)
+            offset += length
+
+        def walk(v: Any) -> Any:
+            if isinstance(v, dict) and "__binary_index" in v:
+                i = v["__binary_index"]
+                return (v["dtype"], raw[offsets[i] : offsets[i] + lengths[i]])
+            if isinstance(v, list):
+                return [walk(x) for x in v]
+            return v
+
+        return walk(value)

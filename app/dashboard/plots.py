@@ -13,7 +13,12 @@ from hopper.metrics import RAD_S_TO_RPM
 
 PLOT_WINDOW_S = 10.0  # s of simulation shown
 PLOT_SAMPLE_S = 0.025  # s of simulation between samples: 8 a period of the wn = 30 rad/s pitch loop
-PLOT_PUBLISH_S = 0.1  # s of wall time between chart updates; each re-sends the window (~22 KB, float64)
+PLOT_PUBLISH_S = 0.2  # s of wall time between chart refreshes (5 a second); each re-sends the whole window
+# Above this many samples a chart gets only the samples its line needs to stay within TOLERANCE_PX of
+# every sample (see simplify): about a third of the window. Fewer cost little to send whole.
+SIMPLIFY_ABOVE = 100
+TOLERANCE_PX = 0.5  # px of the plot's height; the line is 1.5 px wide
+PLOT_HEIGHT_PX = 105  # px: CHART_HEIGHT less the time axis (26) and the top padding (4)
 CHART_HEIGHT = 135  # px
 Y_SOFT = 2.0  # deg, the pitch chart shows at least +-Y_SOFT
 LIMIT_COLOR = "#e5484d"  # red, dashed: the wheel's torque and speed limits
@@ -88,22 +93,66 @@ def _limit_series() -> tuple[uplot.Series, uplot.Series]:
     return _series("+limit", LIMIT_COLOR, 1.0, (6, 4)), _series("-limit", LIMIT_COLOR, 1.0, (6, 4))
 
 
+def simplify(t: np.ndarray, y: np.ndarray, units_per_px: float, tolerance_px: float = TOLERANCE_PX) -> np.ndarray:
+    """Which samples (t, y), shape (n,) each, t increasing, a line through them needs: a mask (n,).
+
+    Douglas-Peucker on the vertical distance: a sample is dropped only if the line through the kept
+    ones passes within `tolerance_px` of it, measured at its own time (so the chart's width does not
+    matter and a steep edge keeps its samples). The ends and every local extreme that stands out by
+    more than the tolerance are kept, so peaks keep their height; the highest and lowest are always
+    kept, so auto-ranged axes do not move. Runs one pass per level of the recursion, over all segments
+    at once.
+    """
+    n = len(y)
+    if n < 3:
+        return np.ones(n, dtype=bool)
+    keep = np.zeros(n, dtype=bool)
+    keep[[0, -1, int(np.argmin(y)), int(np.argmax(y))]] = True  # the ends and the extremes: same axes' ranges
+    pos, index = t.astype(np.float64), np.arange(n)
+    tolerance = tolerance_px * units_per_px
+    while True:
+        kept = np.flatnonzero(keep)
+        segment = np.minimum(np.searchsorted(kept, index, side="right") - 1, len(kept) - 2)
+        left, right = kept[segment], kept[segment + 1]
+        line = y[left] + (y[right] - y[left]) * (pos - pos[left]) / np.maximum(pos[right] - pos[left], 1e-12)
+        distance = np.where(keep, 0.0, np.abs(y - line))
+        farthest = np.maximum.reduceat(distance, kept[:-1])[segment]  # of each sample's segment
+        far = (distance == farthest) & (distance > tolerance)
+        if not far.any():
+            return keep
+        keep[far] = True
+
+
+def _send(chart: viser.GuiUplotHandle, data: tuple[np.ndarray, ...]) -> None:
+    """Set a chart's data (float32 columns), sent as plain number lists rather than float64 arrays.
+
+    viser's setter casts uPlot data to float64 and ships it as raw, uncompressed binary (8 bytes a
+    value). Lists of the same float32 values (exact in float64) go inside the zstd-compressed msgpack
+    instead: about 4 bytes a value, and the constant limit lines next to nothing. The browser hands
+    either form to uPlot unchanged. (Private viser API: tests/test_dashboard_wire.py reads the wire.)
+    """
+    chart._impl.props.data = data  # what the handle reports
+    chart._queue_update("data", tuple(column.tolist() for column in data))
+
+
 class LivePlots:
     """Pitch, wheel RPM and wheel torque (applied and asked) over the last PLOT_WINDOW_S, with the wheel's limits."""
 
     def __init__(self, gui: viser.GuiApi) -> None:
         self.window = RollingWindow(_N, 5)
-        self._last_publish = -math.inf
+        self._next_publish = -math.inf
         self._dirty = False
         self.rpm_limit = WHEEL_NO_LOAD_SPEED * RAD_S_TO_RPM  # 400 rpm
         time = _series("t (s)", "")
         self.pitch = _chart(gui, (time, _series("pitch (°)", "#ffb03b")), None)
+        self.rpm_range = 2 * self.rpm_limit * 1.05  # rpm, fixed
         self.rpm = _chart(
             gui,
             (time, _series("wheel speed (rpm)", "#5aa9ff"), *_limit_series()),
-            (-self.rpm_limit * 1.05, self.rpm_limit * 1.05),
+            (-self.rpm_range / 2, self.rpm_range / 2),
         )
         limit = WHEEL_TORQUE_LIMIT * 1.08
+        self.torque_range = 2 * limit  # N m, fixed
         torque = (_series("torque (N m)", "#f25f5c"), _series("asked", "#cfd6dd", 1.0, (4, 3)))
         self.torque = _chart(gui, (time, *torque, *_limit_series()), (-limit, limit))
 
@@ -117,17 +166,38 @@ class LivePlots:
         self._dirty = True
 
     def publish(self, now: float) -> None:
-        """Send the window to the charts if it changed, at most every PLOT_PUBLISH_S of wall time `now`."""
-        if not self._dirty or len(self.window) < 2 or now - self._last_publish < PLOT_PUBLISH_S:
+        """Send the window to the charts if it changed, every PLOT_PUBLISH_S of wall time `now` at most.
+
+        Refreshes keep to a fixed grid of PLOT_PUBLISH_S (a refresh due between two frames goes out at
+        the next one), so they average one per PLOT_PUBLISH_S rather than one per whole number of frames.
+        """
+        if not self._dirty or len(self.window) < 2 or now < self._next_publish:
             return
-        self._dirty, self._last_publish = False, now
+        late = now - self._next_publish
+        self._next_publish = now + PLOT_PUBLISH_S if late >= PLOT_PUBLISH_S else self._next_publish + PLOT_PUBLISH_S
+        self._dirty = False
         c = self.window.columns()
         t = c[_T]
-        self.pitch.data = (t, c[_PITCH])
-        self.rpm.data = (t, c[_RPM], *_constant(t, self.rpm_limit))
-        self.torque.data = (t, c[_TORQUE], c[_COMMAND], *_constant(t, WHEEL_TORQUE_LIMIT))
+        p = self._needed(t, c[_PITCH], self._pitch_range(c[_PITCH]))
+        r = self._needed(t, c[_RPM], self.rpm_range)
+        q = self._needed(t, c[_TORQUE], self.torque_range) | self._needed(t, c[_COMMAND], self.torque_range)
+        _send(self.pitch, (c[_T][p], c[_PITCH][p]))
+        _send(self.rpm, (c[_T][r], c[_RPM][r], *_constant(c[_T][r], self.rpm_limit)))
+        _send(self.torque, (c[_T][q], c[_TORQUE][q], c[_COMMAND][q], *_constant(c[_T][q], WHEEL_TORQUE_LIMIT)))
+
+    @staticmethod
+    def _needed(t: np.ndarray, y: np.ndarray, y_range: float) -> np.ndarray:
+        """Mask of the samples (t, y) to send, for a chart showing y_range (units) over PLOT_HEIGHT_PX."""
+        if len(y) <= SIMPLIFY_ABOVE:
+            return np.ones(len(y), dtype=bool)
+        return simplify(t, y, y_range / PLOT_HEIGHT_PX)
+
+    @staticmethod
+    def _pitch_range(pitch: np.ndarray) -> float:
+        """The least range (deg) the auto-ranged pitch chart shows these samples over: uPlot only widens it."""
+        return max(float(pitch.max()), Y_SOFT) - min(float(pitch.min()), -Y_SOFT)
 
 
 def _constant(t: np.ndarray, value: float) -> tuple[np.ndarray, np.ndarray]:
-    """+-value at every sample time (uPlot needs one y per x); compresses to nearly nothing on the wire."""
+    """+-value at every sample time (uPlot needs one y per x); compresses to nearly nothing as lists."""
     return np.full_like(t, value), np.full_like(t, -value)

@@ -19,11 +19,14 @@ from hopper.meshes import BodyMesh, body_meshes, body_poses, terrain_mesh
 warnings.filterwarnings("ignore", message=r"Queued a SetCamera\w+ on a closed connection")
 
 WORLD = "/world"  # parent of every scene node; following the robot moves this frame only
+ROBOT = f"{WORLD}/robot"  # the robot's scene tree: a frame at the torso's position
 TRAIL_SAMPLE_S = 0.05  # s of simulation between trail points
-TRAIL_CHUNK = 20  # points per line-segment node; only the newest chunk is re-sent
-TRAIL_CHUNKS = 15  # nodes kept: 15 s of trail
+TRAIL_CHUNK = 10  # points per line-segment node; only the newest chunk is re-sent
+TRAIL_CHUNKS = 30  # nodes kept: 15 s of trail
+TRAIL_PUBLISH_S = 0.1  # s of wall time between re-sends of the newest chunk (each re-creates its node)
 TRAIL_COLOR = (255, 176, 59)
 SATURATION_COLORS = ((70, 200, 120), (245, 190, 40), (235, 60, 50))  # free, half, saturated
+RING_STEP = 0.05  # of saturation: the ring's colour steps
 CAMERA_OFFSET = np.array([0.0, -4.4, 1.9])  # m from the look-at point: side view from 23 deg above
 LOOK_OFFSET = np.array([0.3, 0.0, -0.3])  # m from the followed torso: a little ahead (it hops toward +x), down
 CAMERA_FOV = math.radians(45.0)  # vertical; about 4 m of height in view at the default distance
@@ -78,13 +81,13 @@ def saturation_color(level: float) -> tuple[int, int, int]:
     return tuple(int(round(v)) for v in rgb)  # type: ignore[return-value]
 
 
-def _add_body(scene: viser.SceneApi, body: BodyMesh) -> viser.SceneNodeHandle:
+def _add_body(scene: viser.SceneApi, name: str, body: BodyMesh) -> viser.SceneNodeHandle:
     """Single-colour bodies go as plain meshes (with their alpha); multi-colour ones as GLB vertex colours."""
     colors = body.colors
     if (colors == colors[0]).all():
         r, g, b, a = (int(c) for c in colors[0])
         return scene.add_mesh_simple(
-            f"{WORLD}/robot/{body.name}",
+            name,
             body.vertices,
             body.faces,
             color=(r, g, b),
@@ -93,30 +96,75 @@ def _add_body(scene: viser.SceneApi, body: BodyMesh) -> viser.SceneNodeHandle:
             side="double" if a < 255 else "front",
             cast_shadow=a == 255,
         )
-    return scene.add_mesh_trimesh(f"{WORLD}/robot/{body.name}", body.mesh)
+    return scene.add_mesh_trimesh(name, body.mesh)
+
+
+def kinematic_parents(model: mujoco.MjModel, meshes: list[BodyMesh]) -> list[int]:
+    """For each mesh, the index of the mesh of its nearest ancestor body among `meshes`, or -1 (the root).
+
+    Parents come before their children in the list (checked), so poses can be composed in order.
+    """
+    index = {m.body_id: i for i, m in enumerate(meshes)}
+    parents = []
+    for i, mesh in enumerate(meshes):
+        body = int(model.body_parentid[mesh.body_id])
+        while body != 0 and body not in index:
+            body = int(model.body_parentid[body])
+        parent = index.get(body, -1)
+        if parent >= i:
+            raise ValueError(f"body {mesh.name} is listed before its parent {meshes[parent].name}")
+        parents.append(parent)
+    if parents.count(-1) != 1:
+        raise ValueError("the robot's meshes must hang from exactly one root body")
+    return parents
+
+
+def local_poses(positions: np.ndarray, quats: np.ndarray, parents: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """World poses (n, 3) and wxyz (n, 4) to poses in each parent's frame; the root's becomes its rotation alone."""
+    local_p, local_q = np.zeros_like(positions), quats.copy()
+    inverse = np.zeros(4)
+    for i, parent in enumerate(parents):
+        if parent < 0:
+            continue
+        mujoco.mju_negQuat(inverse, quats[parent])
+        mujoco.mju_rotVecQuat(local_p[i], positions[i] - positions[parent], inverse)
+        mujoco.mju_mulQuat(local_q[i], inverse, quats[i])
+    return local_p, local_q
 
 
 class RobotView:
-    """The robot's bodies, a wheel-saturation ring on the torso and a phase label above it."""
+    """The robot's bodies as a scene tree that mirrors the model's, a wheel-saturation ring and a phase label.
+
+    A frame at the torso's position carries the label; under it the torso takes its rotation and every
+    other body its pose relative to its parent body. A hinge only turns its body, so a frame moves the
+    frame (one position) and sends one rotation per body: viser skips the constant offsets.
+    """
 
     def __init__(self, scene: viser.SceneApi, model: mujoco.MjModel) -> None:
         self._meshes = body_meshes(model)
-        self._handles = [_add_body(scene, body) for body in self._meshes]
+        self._parents = kinematic_parents(model, self._meshes)
+        self.root = scene.add_frame(ROBOT, show_axes=False)
+        paths: list[str] = []
+        for mesh, parent in zip(self._meshes, self._parents, strict=True):
+            paths.append(f"{paths[parent] if parent >= 0 else ROBOT}/{mesh.name}")
+        self.paths = paths
+        self._handles = [_add_body(scene, path, body) for path, body in zip(paths, self._meshes, strict=True)]
         # The ring sits around the wheel rim on the camera side of the torso and takes the torso's
         # pose, so it shows the limit without spinning; only its colour is ever re-sent.
         ring = trimesh.creation.annulus(r_min=0.158, r_max=0.178, height=0.02, sections=48)
         ring.apply_transform(trimesh.transformations.rotation_matrix(math.pi / 2, [1, 0, 0]))
         self._level = -1.0
         self.ring = scene.add_mesh_simple(
-            f"{WORLD}/robot/torso/saturation",
+            f"{paths[self._parents.index(-1)]}/saturation",
             np.asarray(ring.vertices, np.float32),
             np.asarray(ring.faces, np.uint32),
             color=SATURATION_COLORS[0],
             position=(0.0, -0.07, 0.0),
             cast_shadow=False,
         )
+        # Above the torso, unrotated: a child of the frame that only follows the torso's position.
         self.label = scene.add_label(
-            f"{WORLD}/robot_label", "stance", position=(0.0, 0.0, 1.6), anchor="bottom-center", font_screen_scale=0.9
+            f"{ROBOT}/label", "stance", position=(0.0, 0.0, 0.42), anchor="bottom-center", font_screen_scale=0.9
         )
         self.show_label = True
         self.torso_position = np.zeros(3)  # m, in the world frame, as last sent
@@ -124,16 +172,18 @@ class RobotView:
     def update(self, model: mujoco.MjModel, data: mujoco.MjData, level: float, phase: str) -> None:
         """Send this frame's poses (call inside server.atomic(), from the simulation loop)."""
         positions, quats = body_poses(model, data, self._meshes)
-        for handle, p, q in zip(self._handles, positions, quats, strict=True):
-            handle.position = p
+        root = self._parents.index(-1)
+        local_p, local_q = local_poses(positions, quats, self._parents)
+        self.root.position = positions[root]
+        for handle, p, q in zip(self._handles, local_p, local_q, strict=True):
+            handle.position = p  # constant for hinged bodies: viser sends it only when it changes
             handle.wxyz = q
-        quantized = round(level * 20) / 20  # re-send the colour only when it visibly changes
-        if quantized != self._level:
-            self._level = quantized
-            self.ring.color = saturation_color(quantized)
-        torso = positions[0]
-        self.torso_position = torso  # in the world frame, as sent
-        self.label.position = (torso[0], 0.0, torso[2] + 0.42)
+        # Re-send the colour only when it visibly changes: in steps of 0.05, and only once the level has
+        # moved a whole step from the one shown (a level at a rounding edge would flip it every frame).
+        if abs(level - self._level) >= RING_STEP:
+            self._level = round(level / RING_STEP) * RING_STEP
+            self.ring.color = saturation_color(self._level)
+        self.torso_position = positions[root]  # in the world frame, as sent
         if self.label.text != phase:
             self.label.text = phase
         self.label.visible = self.show_label
@@ -150,6 +200,7 @@ class Trail:
         self._next_time = 0.0
         self._dirty = False
         self._shown = True
+        self._next_publish = -math.inf
         self.visible = True  # asked from any thread; applied by publish() on the loop thread
 
     def sample(self, time: float, x: float, z: float) -> None:
@@ -160,15 +211,18 @@ class Trail:
         self._points.append((x, 0.0, z))
         self._dirty = True
 
-    def publish(self) -> None:
-        """Re-send the open chunk if it grew; start a new chunk when it is full."""
+    def publish(self, now: float | None = None) -> None:
+        """Re-send the open chunk if it grew (at most every TRAIL_PUBLISH_S of wall time `now`, if given);
+        start a new chunk when it is full."""
         if self.visible != self._shown:
             self._shown = self.visible
             for handle in self._handles.values():
                 handle.visible = self._shown
-        if not self._dirty or len(self._points) < 2:
+        if not self._dirty or len(self._points) < 2 or (now is not None and now < self._next_publish):
             return
         self._dirty = False
+        if now is not None:
+            self._next_publish = now + TRAIL_PUBLISH_S
         points = np.asarray(self._points, dtype=np.float32)
         slot = self._chunk % TRAIL_CHUNKS
         self._handles[slot] = self._scene.add_line_segments(
@@ -188,6 +242,7 @@ class Trail:
             handle.remove()
         self._handles.clear()
         self._points, self._chunk, self._next_time, self._dirty = [], 0, 0.0, False
+        self._next_publish = -math.inf
 
 
 class CameraFollow:

@@ -272,7 +272,7 @@ class Dashboard:
         with self.server.atomic():
             self.robot.update(sim.model, sim.data, level, sim.phase.label)
             self.camera.update(s.x, s.z, dt)
-        self.trail.publish()
+        self.trail.publish(now)
         self.layout.plots.publish(now)
         self.frames += 1
         if with_status:
