@@ -93,6 +93,25 @@ def parser() -> Parser:
         metavar="DIR",
         help="folder for recordings started with the Record button",
     )
+    p.add_argument(
+        "--rrd-max-mb",
+        type=float,
+        metavar="MB",
+        help="roll recordings over into numbered parts (name-001.rrd, ...) of about this many MB",
+    )
+    p.add_argument(
+        "--rrd-max-min",
+        type=float,
+        metavar="MIN",
+        help="roll recordings over into numbered parts of this many minutes of simulation",
+    )
+    p.add_argument(
+        "--rrd-flush-s",
+        type=float,
+        default=DEFAULTS.rrd_flush_s,
+        metavar="S",
+        help="wall seconds between recording flushes: the most a killed server loses",
+    )
     return p
 
 

@@ -22,7 +22,7 @@ from hopper.app.dashboard.pacing import Pacer
 from hopper.app.dashboard.panels import PanelContext
 from hopper.app.dashboard.panels.status import Status
 from hopper.app.dashboard.plots import PLOT_SAMPLE_S
-from hopper.app.dashboard.recording import Recorder
+from hopper.app.dashboard.recording import FileLimits, Recorder
 from hopper.app.dashboard.scene import (
     CameraFollow,
     RobotView,
@@ -82,7 +82,8 @@ class Dashboard:
         self._next_sample = 0.0
         self.frames = 0  # pose frames published, for tests and the benchmark
 
-        self.recorder = Recorder(self.sim.submit, config.sessions_dir)
+        limits = FileLimits(max_mb=config.rrd_max_mb, max_min=config.rrd_max_min, flush_s=config.rrd_flush_s)
+        self.recorder = Recorder(self.sim.submit, config.sessions_dir, limits)
         if config.rrd is not None or config.rerun_viewer != "off":  # fails here, before any server starts
             self.recorder.start_now(self.sim, config.rrd, config.rerun_viewer, name="hopper-dashboard")
         try:
@@ -273,6 +274,7 @@ class Dashboard:
                     recording=self.recorder.active,
                 )
             )
+            self.layout.record.refresh()  # the recording's current file and size
 
     def _handle(self, event: Event) -> None:
         """React to one simulation event (on the loop thread)."""

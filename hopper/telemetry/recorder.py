@@ -219,6 +219,7 @@ class Telemetry:
         self._xpos_view, self._xquat_view = memoryview(data.xpos).cast("B"), memoryview(data.xquat).cast("B")
         self._dt_ns = round(sim.model.opt.timestep * 1e9)
         self._meshes = body_meshes(sim.model)
+        self._terrain: dict[str, Any] = {}  # the terrain's mesh, logged again in each part
         self._layout(sim)
         # Raw float64 bytes, one row a tick: sensordata | actuator_force | qpos | phase code; numpy
         # reads them back without conversion (lists of floats cost ~3x more to fill, ~4x to convert).
@@ -272,7 +273,7 @@ class Telemetry:
         if self._rolls:
             self.rec.send_property("part", rr.AnyValues(index=len(self.parts), start_s=self._next_ns / 1e9))
         log_robot(self.rec, sim, self._meshes)
-        log_terrain(self.rec, sim)
+        log_terrain(self.rec, sim, self._terrain)
         self.rec.log("limits/wheel_torque", rr.SeriesLines(names=["+limit", "-limit"], colors=[RED, RED]), static=True)
         self._chunks = 2 * len(self._meshes) + 8  # chunks in this part, for the footer's reserve
         self._send_config(sim)
@@ -395,7 +396,7 @@ class Telemetry:
         if self._closed:
             return
         if event.kind == EventKind.TERRAIN:
-            log_terrain(self.rec, sim)
+            log_terrain(self.rec, sim, self._terrain)
         if event.kind in SETTING_EVENTS:
             self._send_config(sim)
         if event.kind == EventKind.RESET:
@@ -607,6 +608,11 @@ class Telemetry:
     @property
     def closed(self) -> bool:
         return self._closed
+
+    @property
+    def written(self) -> int:
+        """Bytes of the current part on disk so far (0 without a file)."""
+        return self._file.written if self._file is not None else 0
 
     def __enter__(self) -> Telemetry:
         return self
