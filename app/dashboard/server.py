@@ -32,6 +32,7 @@ from hopper.app.dashboard.scene import (
     configure_lighting,
     saturation,
 )
+from hopper.app.dashboard.wire import guard_gui_updates
 
 from hopper.config import WHEEL_NO_LOAD_SPEED
 from hopper.events import Event, EventKind, Fall
@@ -126,6 +127,7 @@ class Dashboard:
             robot=self.robot,
         )
         self.recorder.listeners.append(self._recording_changed)
+        guard_gui_updates(self.server)  # malformed browser updates never reach a setting
         sim.listeners.append(self)
 
     @property
