@@ -5,7 +5,8 @@ never completes a flush: `RecordingStream.flush()` times out and `disconnect()` 
 which would freeze the simulation loop and leave a file without its footer. So the FileSink writes
 into a pipe (`/dev/fd/N`), and a Python thread copies what it encodes to the file with plain
 `os.write` calls, where a full disk is an OSError we handle. Bytes leave the process as soon as
-rerun encodes them (no buffering here): a `kill -9` loses only what rerun had not yet encoded.
+rerun encodes them, whole messages at a time: a `kill -9` loses only what rerun had not yet
+encoded, and leaves a file that ends on a whole message.
 
 A full disk leaves room for the footer thanks to a Reserve: space held back in a hidden file next
 to the recording, released at the first ENOSPC so the rest of the batch in flight and the footer
@@ -18,6 +19,7 @@ import contextlib
 import errno
 import logging
 import os
+import struct
 import threading
 from pathlib import Path
 
@@ -26,6 +28,8 @@ import rerun as rr
 log = logging.getLogger(__name__)
 
 CHUNK_READ = 1 << 16  # bytes per read from the pipe
+STREAM_MAGIC, STREAM_HEADER, MESSAGE_HEADER = b"RRF2", 12, 16  # rrd stream layout (rerun 0.41), see _complete
+END_KIND, MAX_KIND, MAX_MESSAGE = 0, 16, 1 << 30  # beyond these the bytes are not framed as expected
 # Errors that mean "no more room" rather than a broken file: a full disk, a quota, a file-size limit.
 NO_ROOM = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 MIN_RESERVE = 512 * 1024  # bytes: a batch in flight (~70 kB a second of simulation) and a small footer
@@ -123,10 +127,25 @@ class PipedFile:
         return not self._thread.is_alive()
 
     def _pump(self) -> None:
+        """Copy the pipe to the file, whole rrd messages at a time (framing below) until the sink closes it."""
+        pending, framed, header_done = bytearray(), True, False
         try:
             while data := os.read(self._read, CHUNK_READ):
-                if self.error is None:
+                if self.error is not None:
+                    continue  # drain: rerun must never block on a file we can no longer write
+                if not framed:
                     self._store(memoryview(data))
+                    continue
+                pending += data
+                end, header_done, framed = _complete(pending, header_done)
+                if end:
+                    self._store(memoryview(bytes(pending[:end])))
+                    del pending[:end]
+                if not framed and pending:
+                    self._store(memoryview(bytes(pending)))
+                    pending.clear()
+            if pending and self.error is None:
+                self._store(memoryview(bytes(pending)))  # a torn end: only if the sink stopped mid-message
         finally:
             os.close(self._read)
             with contextlib.suppress(OSError):
@@ -147,3 +166,31 @@ class PipedFile:
                 return
             self.written += n
             data = data[n:]
+
+
+def _complete(buffer: bytearray, header_done: bool) -> tuple[int, bool, bool]:
+    """How many leading bytes of `buffer` are whole rrd units; (end, header_done, still_framed).
+
+    An .rrd stream is a 12-byte header (b"RRF2", version, options), then messages of a 16-byte
+    header (kind, length: little-endian u64) and `length` bytes; kind 0 ends the stream and its
+    payload, the footer, runs to the end. Writing whole messages in one write() each means a
+    process killed between writes leaves a file that ends on a message: rerun's reader reads it
+    as it is (it refuses a torn last message; `rerun rrd migrate` repairs such a file). Anything
+    unexpected (another format) turns framing off: the bytes are then copied as they come.
+    """
+    end = 0
+    if not header_done:
+        if len(buffer) < STREAM_HEADER:
+            return 0, False, True
+        if buffer[:4] != STREAM_MAGIC:
+            log.warning("recording: not the rrd stream layout this writer knows; copying it unframed")
+            return 0, False, False
+        end, header_done = STREAM_HEADER, True
+    while len(buffer) - end >= MESSAGE_HEADER:
+        kind, length = struct.unpack_from("<QQ", buffer, end)
+        if kind == END_KIND or kind > MAX_KIND or length > MAX_MESSAGE:
+            return end, header_done, False  # the footer (or something unknown): copy the rest as it comes
+        if len(buffer) - end < MESSAGE_HEADER + length:
+            break
+        end += MESSAGE_HEADER + length
+    return end, header_done, True
