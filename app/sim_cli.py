@@ -105,6 +105,18 @@ def rrd_file(text: str) -> Path:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+def part_limit(low: float, unit: str) -> Callable[[str], float]:
+    """A finite rollover limit of at least `low` (a part must hold the ~1.1 MB scene)."""
+
+    def check(text: str) -> float:
+        value = finite(text)
+        if value < low:
+            raise argparse.ArgumentTypeError(f"must be at least {low:g} {unit}, got {text}")
+        return value
+
+    return check
+
+
 def finite(text: str) -> float:
     value = float(text)
     if not math.isfinite(value):
@@ -163,6 +175,15 @@ def parser() -> Parser:
         choices=("spawn", "serve", "off"),
         default="off",
         help="also watch live in a rerun viewer (default off)",
+    )
+    run.add_argument(
+        "--rrd-max-mb", type=part_limit(2.0, "MB"), metavar="MB", help="roll --rrd over into parts of about MB each"
+    )
+    run.add_argument(
+        "--rrd-max-min",
+        type=part_limit(0.05, "min"),
+        metavar="MIN",
+        help="roll --rrd over into parts of MIN minutes of simulation each",
     )
 
     compare = commands.add_parser("compare", help="wheel on vs off over seeds 0..K-1", epilog=EXIT_STATUSES)
@@ -250,12 +271,14 @@ def simulate(
     viewer: str = "off",
     report: Callable[[dict[str, Any]], None] | None = None,
     trace: bool = True,
+    rrd_options: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Run one episode (optionally recorded), `report` its JSON-ready result and return it.
 
     With a served viewer the recording stays open, served, after the report until Ctrl-C.
     `trace` adds the 100 Hz time series `hopper-sim report` draws (hopper.trace): a Python call
     every tick, ~10 % of a run's wall time here; leave it out where only the metrics count.
+    `rrd_options` go to Telemetry (max_bytes, max_seconds: rollover into numbered parts).
     """
     from hopper.sim import Simulation  # keeps `--help` and argument errors fast
     from hopper.trace import TraceRecorder
@@ -274,7 +297,9 @@ def simulate(
             live = open_viewer(viewer)
         except ViewerError as exc:
             fail(str(exc))
-        telemetry = Telemetry(sim, path=rrd, sinks=live.sinks, on_close=live.close)  # attaches itself to sim
+        telemetry = Telemetry(  # attaches itself to sim
+            sim, path=rrd, sinks=live.sinks, on_close=live.close, on_stop=_recording_stopped, **(rrd_options or {})
+        )
         url = live.url
         if url:
             print(f"rerun web viewer: {url}", file=sys.stderr)
@@ -294,6 +319,8 @@ def simulate(
         }
         if recorder is not None:
             result["trace"] = recorder.as_dict()
+        if telemetry is not None and rrd_options and any(v is not None for v in rrd_options.values()):
+            result["rrd_parts"] = [str(p) for p in telemetry.parts]  # only with rollover: the numbered files
         if report is not None:
             report(result)
         if telemetry is not None and url:  # the server lives in this process
@@ -304,6 +331,11 @@ def simulate(
         if telemetry is not None:
             telemetry.close()
     return result
+
+
+def _recording_stopped(message: str) -> None:
+    """A recording that stopped by itself (a full disk): the run goes on."""
+    print(f"hopper-sim: warning: {message}", file=sys.stderr)
 
 
 def hop_table(hops: list[dict[str, Any]]) -> str:
@@ -352,12 +384,19 @@ def command_run(args: argparse.Namespace) -> int:
         print(hop_table(result["hops"]))
         print(summary(result))
         if args.rrd:
-            print(f"recording: {args.rrd}")
+            print(f"recording: {', '.join(result.get('rrd_parts', [str(args.rrd)]))}")
         if args.json:
             args.json.write_text(json.dumps(result, indent=2))
 
+    rolls = args.rrd_max_mb is not None or args.rrd_max_min is not None
+    if rolls and (args.rrd is None or args.rerun_viewer != "off"):
+        fail("--rrd-max-mb and --rrd-max-min need --rrd and cannot be combined with --rerun-viewer")
+    options = {
+        "max_bytes": round(args.rrd_max_mb * 1e6) if args.rrd_max_mb is not None else None,
+        "max_seconds": args.rrd_max_min * 60.0 if args.rrd_max_min is not None else None,
+    }
     config = make_config(args, args.seed, wheel=not args.no_wheel)
-    result = simulate(config, args.hops, args.rrd, args.rerun_viewer, report)
+    result = simulate(config, args.hops, args.rrd, args.rerun_viewer, report, options)
     return EXIT_FELL if result["fell"] else EXIT_OK
 
 

@@ -109,6 +109,25 @@ def parser() -> Parser:
         metavar="S",
         help="s without input after which the operator's control passes to the next viewer",
     )
+    p.add_argument(
+        "--rrd-max-mb",
+        type=float,
+        metavar="MB",
+        help="roll recordings over into numbered parts (name-001.rrd, ...) of about this many MB",
+    )
+    p.add_argument(
+        "--rrd-max-min",
+        type=float,
+        metavar="MIN",
+        help="roll recordings over into numbered parts of this many minutes of simulation",
+    )
+    p.add_argument(
+        "--rrd-flush-s",
+        type=float,
+        default=DEFAULTS.rrd_flush_s,
+        metavar="S",
+        help="wall seconds between recording flushes: the most a killed server loses",
+    )
     return p
 
 

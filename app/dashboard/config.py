@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import ipaddress
+import math
 import os
 import tempfile
 from pathlib import Path
@@ -15,6 +16,8 @@ from hopper.app.dashboard.pacing import MAX_SPEED, MIN_SPEED
 from hopper.config import Gains, InvalidConfig, SimConfig
 
 _DEFAULT_GAINS = Gains()
+MIN_PART_MB = 2.0  # MB: a part starts with ~1.1 MB of terrain and robot meshes
+MIN_PART_MIN = 0.05  # min (3 s of simulation)
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
@@ -51,6 +54,12 @@ class DashboardConfig:
     """Clients without the token may watch (read-only) instead of being refused."""
     idle_timeout: float = 300.0
     """s without input after which the operator's control passes to a viewer."""
+    rrd_max_mb: float | None = None
+    """Roll recordings over into numbered parts of about this many MB (1e6 bytes) each."""
+    rrd_max_min: float | None = None
+    """Roll recordings over into numbered parts of this many minutes of simulation each."""
+    rrd_flush_s: float = 1.0
+    """Wall seconds between recording flushes: at most this much is lost if the process is killed."""
 
     def __post_init__(self) -> None:
         try:
@@ -78,8 +87,20 @@ class DashboardConfig:
         self.sim_config()  # validates seed, terrain and gains with the core's own messages
         if self.rrd is not None and self.rrd.suffix != ".rrd":
             raise InvalidConfig(f"--rrd must name a .rrd file, got {str(self.rrd)!r}")
+        if self.rrd_max_mb is not None and not MIN_PART_MB <= self.rrd_max_mb < math.inf:
+            raise InvalidConfig(f"--rrd-max-mb must be at least {MIN_PART_MB:g} MB, got {self.rrd_max_mb!r}")
+        if self.rrd_max_min is not None and not MIN_PART_MIN <= self.rrd_max_min < math.inf:
+            raise InvalidConfig(f"--rrd-max-min must be at least {MIN_PART_MIN:g} min, got {self.rrd_max_min!r}")
+        if not 0.05 <= self.rrd_flush_s <= 60:
+            raise InvalidConfig(f"--rrd-flush-s must be in [0.05, 60] s, got {self.rrd_flush_s!r}")
+        if self.rolls_over and self.rerun_viewer != "off":
+            raise InvalidConfig("--rrd-max-mb and --rrd-max-min cannot be combined with --rerun-viewer")
         if self.sessions_dir.exists() and not self.sessions_dir.is_dir():
             raise InvalidConfig(f"sessions-dir {str(self.sessions_dir)!r} exists and is not a folder")
+
+    @property
+    def rolls_over(self) -> bool:
+        return self.rrd_max_mb is not None or self.rrd_max_min is not None
 
     @property
     def gains(self) -> Gains:

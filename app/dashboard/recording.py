@@ -27,6 +27,22 @@ def telemetry_module() -> Any:
     return telemetry
 
 
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class FileLimits:
+    """How recordings are cut into files and how often they are flushed (hopper.telemetry.Telemetry)."""
+
+    max_mb: float | None = None  # MB (1e6 bytes) per part; None: no size limit
+    max_min: float | None = None  # minutes of simulation per part; None: no duration limit
+    flush_s: float = 1.0  # s of wall time between flushes
+
+    def telemetry_options(self) -> dict[str, Any]:
+        return {
+            "max_bytes": round(self.max_mb * 1e6) if self.max_mb is not None else None,
+            "max_seconds": self.max_min * 60.0 if self.max_min is not None else None,
+            "flush_s": self.flush_s,
+        }
+
+
 @dataclasses.dataclass(frozen=True)
 class AttachRecording:
     """Command: start recording the simulation (on the loop thread, between steps)."""
@@ -57,9 +73,10 @@ class Recorder:
     "failed"; every change is also a Recording event in the simulation's log (and recordings).
     """
 
-    def __init__(self, submit: Callable[[Command], None], sessions_dir: Path) -> None:
+    def __init__(self, submit: Callable[[Command], None], sessions_dir: Path, limits: FileLimits | None = None) -> None:
         self._submit = submit
         self.sessions_dir = sessions_dir
+        self.limits = limits or FileLimits()
         self._lock = threading.Lock()
         self._telemetry: Any = None
         self._pending = False
@@ -70,6 +87,13 @@ class Recorder:
     @property
     def active(self) -> bool:
         return self._telemetry is not None or self._pending
+
+    def progress(self) -> tuple[Path | None, int, int]:
+        """(file being written, its bytes on disk, parts so far); read on the simulation's thread."""
+        telemetry = self._telemetry
+        if telemetry is None:
+            return self.path, 0, 0
+        return telemetry.path, telemetry.written, len(telemetry.parts)
 
     def _changed(self, sim: Simulation, state: str, message: str = "") -> None:
         where = str(self.path) if self.path is not None else None
@@ -100,8 +124,16 @@ class Recorder:
 
         try:
             live = open_viewer(viewer)
+            options = self.limits.telemetry_options() if path is not None else {}
             recording = telemetry_module().Telemetry(
-                sim, path=path, sinks=live.sinks, on_close=live.close, recording_name=name
+                sim,
+                path=path,
+                sinks=live.sinks,
+                on_close=live.close,
+                recording_name=name,
+                on_part=lambda finished, started: self._next_part(sim, finished, started),
+                on_stop=lambda message: self._stopped(sim, message),
+                **options,
             )
         except Exception as exc:
             self._changed(sim, "failed", f"{type(exc).__name__}: {exc}")
@@ -110,7 +142,19 @@ class Recorder:
             self._pending = False
         self._telemetry = recording
         self.viewer_url = live.url
+        self.path = recording.path
         self._changed(sim, "recording")
+
+    def _next_part(self, sim: Simulation, finished: Path, started: Path) -> None:
+        """A rollover (on the loop thread): the finished part is saved, the next one recording."""
+        sim.emit(RecordingEvent("stopped", str(finished)))
+        self.path = started
+        self._changed(sim, "recording")
+
+    def _stopped(self, sim: Simulation, message: str) -> None:
+        """The recording stopped by itself (a full disk; on the loop thread): say so, keep the path."""
+        self._telemetry = None
+        self._changed(sim, "failed", message)
 
     def start_now(self, sim: Simulation, path: Path | None, viewer: Viewer = "off", name: str | None = None) -> None:
         """Attach at once, raising on failure; only while the simulation loop is not running (startup)."""

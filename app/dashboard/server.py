@@ -23,7 +23,7 @@ from hopper.app.dashboard.pacing import Pacer
 from hopper.app.dashboard.panels import PanelContext
 from hopper.app.dashboard.panels.status import Status
 from hopper.app.dashboard.plots import PLOT_SAMPLE_S
-from hopper.app.dashboard.recording import Recorder
+from hopper.app.dashboard.recording import FileLimits, Recorder
 from hopper.app.dashboard.roles import Roles
 from hopper.app.dashboard.scene import (
     CameraFollow,
@@ -34,6 +34,7 @@ from hopper.app.dashboard.scene import (
     configure_lighting,
     saturation,
 )
+from hopper.app.dashboard.wire import guard_gui_updates
 
 from hopper.config import WHEEL_NO_LOAD_SPEED
 from hopper.events import Event, EventKind, Fall
@@ -85,7 +86,8 @@ class Dashboard:
         self._next_sample = 0.0
         self.frames = 0  # pose frames published, for tests and the benchmark
 
-        self.recorder = Recorder(self.sim.submit, config.sessions_dir)
+        limits = FileLimits(max_mb=config.rrd_max_mb, max_min=config.rrd_max_min, flush_s=config.rrd_flush_s)
+        self.recorder = Recorder(self.sim.submit, config.sessions_dir, limits)
         if config.rrd is not None or config.rerun_viewer != "off":  # fails here, before any server starts
             self.recorder.start_now(self.sim, config.rrd, config.rerun_viewer, name="hopper-dashboard")
         try:
@@ -130,6 +132,7 @@ class Dashboard:
             robot=self.robot,
         )
         self.recorder.listeners.append(self._recording_changed)
+        guard_gui_updates(self.server)  # malformed browser updates never reach a setting
         sim.listeners.append(self)
         self.layout.analysis.update_plant(sim.config)
         self.roles = Roles(  # after every shared input exists: it greys them for viewers
@@ -294,6 +297,7 @@ class Dashboard:
                     recording=self.recorder.active,
                 )
             )
+            self.layout.record.refresh()  # the recording's current file and size
 
     def _handle(self, event: Event) -> None:
         """React to one simulation event (on the loop thread)."""

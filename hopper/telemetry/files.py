@@ -35,3 +35,11 @@ def session_path(folder: str | Path, prefix: str = "hopper") -> Path:
     while path.exists():
         path, n = directory / f"{prefix}-{stamp}-{n}.rrd", n + 1
     return path
+
+
+def part_path(base: str | Path, index: int) -> Path:
+    """The `index`-th part (from 1) of a recording rolled over into numbered files: a.rrd -> a-001.rrd."""
+    if index < 1:
+        raise ValueError(f"part index must be at least 1, got {index}")
+    p = Path(base)
+    return p.with_name(f"{p.stem}-{index:03d}{p.suffix}")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import atexit
 import bisect
 import contextlib
+import dataclasses
 import logging
 import math
 import threading
@@ -39,10 +40,11 @@ from hopper.telemetry.columns import (
     time_columns,
     vectors,
 )
-from hopper.telemetry.files import check_writable
+from hopper.telemetry.files import check_writable, part_path
 from hopper.telemetry.interrupts import deferred_signals
 from hopper.telemetry.scene import log_robot, log_terrain
 from hopper.telemetry.schema import APPLICATION_ID, SIGNALS, SIGNALS_F32, hop_values
+from hopper.telemetry.writer import FOOTER_BYTES_PER_CHUNK, MIN_RESERVE, PipedFile, Reserve, reserve_path
 
 if TYPE_CHECKING:
     from rerun.sinks import LogSinkLike
@@ -54,8 +56,11 @@ log = logging.getLogger(__name__)
 # A batch goes out when it holds BATCH_TICKS ticks or FLUSH_WALL_S after the last one, whichever
 # comes first: faster than real time the ticks decide (a send costs ~1 ms whatever its size, each
 # chunk ~1 kB of schema), at real time the clock does (a live viewer lags by at most a second).
+# FLUSH_WALL_S is also the flush policy: each batch is encoded and handed to the file at once
+# (hopper.telemetry.writer), so a process killed outright loses at most that much wall time of data.
 BATCH_TICKS = 4000
 FLUSH_WALL_S = 1.0
+SINK_TIMEOUT_S = 60.0  # s a flush may wait for the sinks before it is reported as failed
 LIMIT_EVERY_BATCHES = 5  # the torque limit lines only need a point now and then
 POSE_EVERY_TICKS = 20  # 50 Hz body poses
 EVENT_LEVELS = {
@@ -106,9 +111,22 @@ class Telemetry:
     (e.g. through `sim.submit`). Sends and closing hold Ctrl-C and SIGTERM until they are done: a
     CLI whose SIGTERM handler raises (so `with` unwinds) leaves a file `rerun rrd verify` accepts.
 
-    Sinks: a FileSink to `path` if given, and `sinks` (e.g. a viewer's rr.GrpcSink or
-    rr.GrpcServerSink, from hopper.app.rerun_viewer). `on_close` runs once, when close() has
-    disconnected the sinks or if construction fails: e.g. to stop a viewer serving those sinks.
+    Sinks: the file `path` if given (written by hopper.telemetry.writer), and `sinks` (e.g. a
+    viewer's rr.GrpcSink or rr.GrpcServerSink, from hopper.app.rerun_viewer). `on_close` runs once,
+    when close() has disconnected the sinks or if construction fails: e.g. to stop a viewer.
+
+    Rollover: with `max_bytes` (bytes on disk) or `max_seconds` (simulation seconds) the file is
+    written in numbered parts, `path` stem + `-001.rrd`, `-002.rrd`, ... (files.part_path), a new
+    one when the current one reaches a limit (checked at each batch: a part ends up to one batch
+    and its footer past the limit). Each part carries its own blueprint, recording name, config,
+    robot and terrain, so it opens and verifies alone; all share one recording id, so parts
+    opened together join up. `on_part(finished, started)` runs after each switch. A viewer's
+    sinks cannot follow a switch (re-attaching a gRPC server sink shuts it down): no rollover then.
+
+    Full disk: the file keeps a Reserve beside it; at the first "no room" error the reserve is
+    released, the batch in flight and the footer go into its space, and the recording stops by
+    itself (queued on the simulation, which goes on): `on_stop(message)` then says why. A write
+    that fails for good also stops it, with the file cut short (`failure` is set in both cases).
     """
 
     def __init__(
@@ -120,15 +138,51 @@ class Telemetry:
         on_close: Callable[[], None] | None = None,
         recording_name: str | None = None,
         batch_ticks: int = BATCH_TICKS,
+        max_bytes: int | None = None,
+        max_seconds: float | None = None,
+        flush_s: float = FLUSH_WALL_S,
+        on_part: Callable[[Path, Path], None] | None = None,
+        on_stop: Callable[[str], None] | None = None,
     ) -> None:
         self._on_close = on_close
+        self._on_part, self._on_stop = on_part, on_stop
+        self._file: PipedFile | None = None
+        self._reserve: Reserve | None = None
         try:
+            self._limits(path, sinks, max_bytes, max_seconds, flush_s)
             self._setup(sim, path, sinks, recording_name, batch_ticks)
         except BaseException:
+            if self._file is not None:
+                self._file.join(timeout=1.0)
+            if self._reserve is not None:
+                self._reserve.discard()
             self._closed_callback()
             raise
 
     # -- setup -----------------------------------------------------------------------------
+    def _limits(
+        self,
+        path: str | Path | None,
+        sinks: Sequence[LogSinkLike],
+        max_bytes: int | None,
+        max_seconds: float | None,
+        flush_s: float,
+    ) -> None:
+        if max_bytes is not None and max_bytes <= 0:
+            raise ValueError(f"max_bytes must be positive, got {max_bytes}")
+        if max_seconds is not None and not max_seconds > 0:
+            raise ValueError(f"max_seconds must be positive, got {max_seconds}")
+        if not 0 < flush_s <= 60:
+            raise ValueError(f"flush_s must be in (0, 60] s, got {flush_s}")
+        self._rolls = max_bytes is not None or max_seconds is not None
+        if self._rolls and path is None:
+            raise ValueError("a size or duration limit needs a file to roll over")
+        if self._rolls and sinks:
+            raise ValueError("a size or duration limit (rollover) cannot be combined with a live rerun viewer")
+        self._max_bytes = max_bytes if max_bytes is not None else math.inf
+        self._max_ns = round(max_seconds * 1e9) if max_seconds is not None else math.inf
+        self._flush_s = flush_s
+
     def _setup(
         self,
         sim: Simulation,
@@ -142,7 +196,13 @@ class Telemetry:
         if batch_ticks < POSE_EVERY_TICKS or batch_ticks % POSE_EVERY_TICKS:
             raise ValueError(f"batch_ticks must be a positive multiple of {POSE_EVERY_TICKS}, got {batch_ticks}")
         self.sim = sim
-        self.path = check_writable(path) if path is not None else None
+        self.base = check_writable(path) if path is not None else None
+        self.path: Path | None = None  # the part being written
+        self.parts: list[Path] = []  # every part so far, the current one last
+        self.failure: str | None = None  # why the recording stopped by itself
+        self._stopping = False
+        self._sinks = tuple(sinks)
+        self._name = recording_name or f"hopper {sim.config.terrain} seed {sim.config.seed}"
         self._batch = batch_ticks
         self._lock = threading.Lock()
         self._closed = False
@@ -159,6 +219,7 @@ class Telemetry:
         self._xpos_view, self._xquat_view = memoryview(data.xpos).cast("B"), memoryview(data.xquat).cast("B")
         self._dt_ns = round(sim.model.opt.timestep * 1e9)
         self._meshes = body_meshes(sim.model)
+        self._terrain: dict[str, Any] = {}  # the terrain's mesh, logged again in each part
         self._layout(sim)
         # Raw float64 bytes, one row a tick: sensordata | actuator_force | qpos | phase code; numpy
         # reads them back without conversion (lists of floats cost ~3x more to fill, ~4x to convert).
@@ -174,7 +235,7 @@ class Telemetry:
         self._next_ns = self._start_ns = self._data_ns()  # sim_time of the next row, of the first
         self._last_torso: list[float] | None = None
         self._batches = 0
-        self._flush_due = time.monotonic() + FLUSH_WALL_S
+        self._flush_due = time.monotonic() + self._flush_s
         self._frames: dict[int, pa.Array] = {}  # child_frame columns by pose count
         self._hops = 0
         # The kernel's phase slot, appended to every row: phases exact to the tick at no cost.
@@ -186,17 +247,87 @@ class Telemetry:
         self.rec = rr.RecordingStream(APPLICATION_ID)
         self.rec.set_log_tick_enabled(False)  # only our two timelines
         self.rec.set_log_time_enabled(False)
-        files = [rr.FileSink(str(self.path))] if self.path is not None else []
-        rr.set_sinks(*files, *sinks, default_blueprint=default_blueprint(), recording=self.rec)
-        self.rec.send_recording_name(recording_name or f"hopper {sim.config.terrain} seed {sim.config.seed}")
-        log_robot(self.rec, sim, self._meshes)
-        log_terrain(self.rec, sim)
-        self.rec.log("limits/wheel_torque", rr.SeriesLines(names=["+limit", "-limit"], colors=[RED, RED]), static=True)
-        self._send_config(sim)
-        self._send_limits([self._next_ns])
-        self._phases.append((self._next_ns, 0, sim.phase.label))
+        if self.base is not None:
+            first = part_path(self.base, 1) if self._rolls else self.base
+            self._reserve = Reserve(reserve_path(first), MIN_RESERVE)
+        self._open_part()
         sim.listeners.append(self)
         _open.add(self)
+
+    def _open_part(self) -> None:
+        """Attach the next file (replacing the previous one, which gets its footer) and send what
+        a part needs to stand alone: blueprint, name, config, robot, terrain, limits, the phase."""
+        files = []
+        if self.base is not None:
+            assert self._reserve is not None
+            path = part_path(self.base, len(self.parts) + 1) if self._rolls else self.base
+            self._file = PipedFile(path, self._reserve)
+            self.path = path
+            self.parts.append(path)
+            files = [self._file.sink]
+        rr.set_sinks(*files, *self._sinks, default_blueprint=default_blueprint(), recording=self.rec)
+        if self._file is not None:
+            self._file.attached()
+        sim = self.sim
+        self.rec.send_recording_name(self._name)
+        if self._rolls:
+            self.rec.send_property("part", rr.AnyValues(index=len(self.parts), start_s=self._next_ns / 1e9))
+        log_robot(self.rec, sim, self._meshes)
+        log_terrain(self.rec, sim, self._terrain)
+        self.rec.log("limits/wheel_torque", rr.SeriesLines(names=["+limit", "-limit"], colors=[RED, RED]), static=True)
+        self._chunks = 2 * len(self._meshes) + 8  # chunks in this part, for the footer's reserve
+        self._send_config(sim)
+        self._send_limits([self._next_ns])
+        self._phases.append((self._next_ns, self._hops, Phase(self._phase).label))
+        self._part_start_ns = self._next_ns
+
+    def _rollover(self) -> None:
+        """Finish the current part and start the next (on the thread that flushes)."""
+        old = self._file
+        assert old is not None
+        self._open_part()  # set_sinks drops the old FileSink: it writes its footer into its pipe
+        if not old.join():
+            log.error("recording: %s was not finished in time", old.path.name)
+        if old.error is not None:
+            self._request_stop(old.error)
+        elif self._on_part is not None:
+            try:
+                self._on_part(old.path, self._file.path if self._file else old.path)
+            except Exception:
+                log.exception("recording: on_part failed")
+
+    def _check_file(self) -> None:
+        """After a send: stop on a full disk, keep the footer's reserve ahead, roll over at a limit."""
+        f = self._file
+        if f is None or self._stopping:
+            return
+        problem = f.error or f.full
+        reserve = MIN_RESERVE + FOOTER_BYTES_PER_CHUNK * self._chunks
+        if problem is None and self._reserve is not None and not self._reserve.grow(reserve):
+            problem = "the disk is full (no room to keep the footer's reserve)"
+        if problem is not None:
+            self._request_stop(problem)
+        elif self._rolls and (f.written >= self._max_bytes or self._next_ns - self._part_start_ns >= self._max_ns):
+            self._rollover()
+
+    def _request_stop(self, problem: str) -> None:
+        """Stop recording soon: queued on the simulation, so that no listener list changes mid-step."""
+        if self._stopping:
+            return
+        self._stopping = True
+        where = f" in {self.path.parent}" if self.path is not None else ""
+        self.failure = f"{problem}{where}; recording stopped"
+        log.warning("recording: %s", self.failure)
+        self.sim.submit(_StopRecording(self))
+
+    def _stop(self) -> None:
+        """Close now (the simulation applies _StopRecording), then tell on_stop why."""
+        self.close()
+        if self.failure is not None and self._file is not None and self._file.error is None:
+            size = self._file.path.stat().st_size / 1e6
+            self.failure += f"; {self._file.path.name} is complete ({size:.1f} MB)"
+        if self._on_stop is not None and self.failure is not None:
+            self._on_stop(self.failure)
 
     def _layout(self, sim: Simulation) -> None:
         """Columns of each signal in a buffered row, from the simulation's model layout."""
@@ -265,7 +396,7 @@ class Telemetry:
         if self._closed:
             return
         if event.kind == EventKind.TERRAIN:
-            log_terrain(self.rec, sim)
+            log_terrain(self.rec, sim, self._terrain)
         if event.kind in SETTING_EVENTS:
             self._send_config(sim)
         if event.kind == EventKind.RESET:
@@ -293,16 +424,28 @@ class Telemetry:
             self._send(check_clock)
             if wait:
                 self._wait_for_sinks()
+            else:
+                self._start_flush()
+            self._check_file()
+
+    def _start_flush(self) -> None:
+        """Have rerun encode what was sent and hand it to the file now, without waiting for it."""
+        try:
+            self.rec.flush(timeout_sec=0.0)
+        except RuntimeError as exc:
+            log.warning("rerun: starting a flush failed (%s)", exc)
 
     def _send(self, check_clock: bool) -> None:
-        self._flush_due = time.monotonic() + FLUSH_WALL_S
+        self._flush_due = time.monotonic() + self._flush_s
+        if self._stopping and self._file is not None and self._file.full:
+            self._drop_buffers()  # the reserve holds the footer, not more data
+            return
         # Take the buffers before sending (an exception mid-send must not make the next flush send
         # them twice) and copy them out: a numpy view would pin a bytearray that tick() may still
         # append to if close() runs on another thread.
         ticks, rows, poses = bytes(self._ticks), self._pose_rows, bytes(self._poses)
         count, events, phases, hop_rows = self._n, self._events, self._phases, self._hop_rows
-        self._ticks, self._poses, self._n, self._pose_rows = bytearray(), bytearray(), 0, []
-        self._events, self._phases, self._hop_rows = [], [], []
+        self._drop_buffers()
         width = self._nsens + self._nu + self._nq + 3  # ... | pitch_est | rate_est | phase
         ticks, poses = np.frombuffer(ticks, dtype=np.float64), np.frombuffer(poses, dtype=np.float64)
         n = min(count, len(ticks) // width)  # an interrupt may cut a tick's appends short
@@ -327,9 +470,11 @@ class Telemetry:
                 Column(LEVEL, pa.array(levels)),
                 Column("kind", pa.array(kinds)),
             ]
+            self._chunks += 1
             rr.send_columns("events", time_columns(t, h), columns, recording=self.rec)
         if phases:
             t, h, labels = zip(*phases, strict=True)
+            self._chunks += 1
             rr.send_columns("phase", time_columns(t, h), [Column(STATE, pa.array(labels))], recording=self.rec)
         if hop_rows:
             t, h, metrics = zip(*hop_rows, strict=True)
@@ -337,6 +482,7 @@ class Telemetry:
                 Column(rr.ComponentDescriptor(name, archetype=HOP_ARCHETYPE), pa.array([m[name] for m in metrics]))
                 for name in metrics[0]
             ]
+            self._chunks += 1
             rr.send_columns("hops", time_columns(t, h), columns, recording=self.rec)
         expected = self._data_ns() + self._offset_ns
         if check_clock and n and expected != self._next_ns:
@@ -347,6 +493,10 @@ class Telemetry:
                 )
                 self._warned = True
             self._next_ns = expected
+
+    def _drop_buffers(self) -> None:
+        self._ticks, self._poses, self._n, self._pose_rows = bytearray(), bytearray(), 0, []
+        self._events, self._phases, self._hop_rows = [], [], []
 
     def _phase_changes(
         self, times: np.ndarray, codes: np.ndarray, hop_rows: list[tuple[int, int, dict[str, Any]]]
@@ -375,6 +525,7 @@ class Telemetry:
         rows32 = np.ascontiguousarray(values[:, :n32].T, dtype=np.float32)  # one contiguous row per field
         rows16 = np.ascontiguousarray(values[:, n32:].T, dtype=np.float16)
         struct = pa.StructArray.from_arrays([pa.array(r) for r in (*rows32, *rows16)], names=list(SIGNALS))
+        self._chunks += 1
         rr.send_columns("signals", time_columns(times), [Column("signals", struct)], recording=self.rec)
 
     def _send_poses(self, times: np.ndarray, rows: np.ndarray) -> None:
@@ -384,6 +535,7 @@ class Telemetry:
         q = rows[:, 3 * self._nbody :].reshape(k, self._nbody, 4)[:, ids][..., [1, 2, 3, 0]]  # wxyz -> xyzw
         nb = len(ids)
         frames = self._frames.get(k) or self._frames.setdefault(k, pa.array([m.name for m in self._meshes] * k))
+        self._chunks += 1
         rr.send_columns(  # one row per body and sample: one chunk for all bodies
             "world/tf",
             time_columns(np.repeat(times, nb)),
@@ -401,16 +553,18 @@ class Telemetry:
         strip = pa.ListArray.from_arrays(
             pa.array([0, len(trail)], pa.int32()), points, type=pa.list_(pa.field("item", points.type, False))
         )
+        self._chunks += 1
         rr.send_columns("world/trail", time_columns(times[-1:]), [Column(STRIPS, strip)], recording=self.rec)
 
     def _send_limits(self, times: np.ndarray | list[int]) -> None:
         limits = pa.array(np.tile([WHEEL_TORQUE_LIMIT, -WHEEL_TORQUE_LIMIT], len(times)))
+        self._chunks += 1
         rr.send_columns("limits/wheel_torque", time_columns(times), [Column(SCALARS, limits, 2)], recording=self.rec)
 
     def _wait_for_sinks(self) -> None:
         """rec.flush(), but a viewer that went away (its window closed) must not fail the file."""
         try:
-            self.rec.flush()
+            self.rec.flush(timeout_sec=SINK_TIMEOUT_S)
         except RuntimeError as exc:
             log.warning("rerun: a sink failed (%s); the file is still written", exc)
 
@@ -428,12 +582,23 @@ class Telemetry:
             self._closed = True
             try:
                 self._send(check_clock=False)  # an interrupt may have cut a step short of its tick()
-                self._send_limits([max(self._start_ns, self._next_ns - self._dt_ns)])
+                if not (self._file is not None and self._file.full):
+                    self._send_limits([max(self._start_ns, self._next_ns - self._dt_ns)])
                 self._wait_for_sinks()
             finally:
                 self.rec.disconnect()  # writes the .rrd footer, stops a gRPC server sink
+                self._finish_file()
                 _open.discard(self)
                 self._closed_callback()
+
+    def _finish_file(self) -> None:
+        """Wait for the writer to store the footer, then give back the reserve."""
+        if self._file is not None and not self._file.join():
+            log.error("recording: %s was not finished in time", self._file.path.name)
+        if self._reserve is not None:
+            self._reserve.discard()
+        if self._file is not None and self._file.error is not None and self.failure is None:
+            self.failure = self._file.error
 
     def _closed_callback(self) -> None:
         on_close, self._on_close = self._on_close, None
@@ -444,6 +609,11 @@ class Telemetry:
     def closed(self) -> bool:
         return self._closed
 
+    @property
+    def written(self) -> int:
+        """Bytes of the current part on disk so far (0 without a file)."""
+        return self._file.written if self._file is not None else 0
+
     def __enter__(self) -> Telemetry:
         return self
 
@@ -451,3 +621,13 @@ class Telemetry:
         self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
     ) -> None:
         self.close()
+
+
+@dataclasses.dataclass(frozen=True)
+class _StopRecording:
+    """Command: close a recording that cannot go on (a full disk), between two steps."""
+
+    telemetry: Telemetry
+
+    def apply(self, sim: Simulation) -> None:
+        self.telemetry._stop()

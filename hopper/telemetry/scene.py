@@ -24,11 +24,19 @@ def log_robot(rec: rr.RecordingStream, sim: Simulation, meshes: Sequence[BodyMes
         rec.log(f"world/robot/{mesh.name}", shape, rr.CoordinateFrame(mesh.name), static=True)
 
 
-def log_terrain(rec: rr.RecordingStream, sim: Simulation) -> None:
+def log_terrain(rec: rr.RecordingStream, sim: Simulation, cache: dict[str, Any] | None = None) -> None:
     """Static, so a terrain change mid-recording shows its new terrain for the whole replay (the
-    3D view's time range would otherwise draw every terrain at once); the event log has the change."""
-    mesh = terrain_mesh(sim.heights, sim.config.craters)
-    rec.log("world/terrain", _mesh3d(mesh.vertices, mesh.faces, mesh.visual.vertex_colors), static=True)
+    3D view's time range would otherwise draw every terrain at once); the event log has the change.
+
+    `cache` keeps the mesh of the current heights (each rolled-over part logs it again)."""
+    if cache is not None and cache.get("heights") is sim.heights:  # a reference: no id reuse
+        archetype = cache["mesh"]
+    else:
+        mesh = terrain_mesh(sim.heights, sim.config.craters)
+        archetype = _mesh3d(mesh.vertices, mesh.faces, mesh.visual.vertex_colors)
+        if cache is not None:
+            cache.update(heights=sim.heights, mesh=archetype)
+    rec.log("world/terrain", archetype, static=True)
 
 
 def _mesh3d(vertices: Any, faces: Any, colors: Any) -> rr.Mesh3D:
