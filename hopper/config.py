@@ -96,9 +96,10 @@ class GaitParams:
     stance_time: float = 0.25  # s, minimum stabilisation time before the crouch
     friction: float = 0.7  # friction coefficient the stance forces assume (model: 0.8)
     # The paper's flight (hopper.scenarios "paper"): right after liftoff both legs swing back from
-    # their liftoff angle by sweep_angle along a minimum-jerk path of sweep_time, then forward to
-    # the landing pose in sweep_return_time, their swing servo sweep_stiffness times as fast; the
-    # torso takes the reaction. 0 deg: no sweep, the legs tuck while rising (the default).
+    # their liftoff angle by sweep_angle in sweep_time (constant speed between short ramps), then
+    # forward to the landing pose along a minimum-jerk path in sweep_return_time, their swing servo
+    # sweep_stiffness times as fast; the torso takes the reaction. 0 deg: no sweep, the legs tuck
+    # while rising (the default).
     sweep_angle: float = 0.0  # deg, world angle of the hip-to-foot line, backward
     sweep_time: float = 0.0  # s
     sweep_return_time: float = 0.0  # s
