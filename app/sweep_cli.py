@@ -186,14 +186,14 @@ def command_sweep(args: argparse.Namespace) -> int:
         fail(str(exc))
     check_out(args.out)
 
-    from hopper.experiments.executor import choose
+    from hopper.experiments.executor import ExecutorError, choose
     from hopper.experiments.runner import run_sweep
     from hopper.experiments.store import SweepStore
     from hopper.experiments.summary import axis_lines, overall_line
 
     try:
         run = run_sweep(spec, args.out, lambda todo: choose(args.executor, todo, args.workers, args.address))
-    except SpecMismatch as exc:
+    except (SpecMismatch, ExecutorError) as exc:
         fail(str(exc))
     episodes = SweepStore(args.out, spec).read_episodes()
     print(f"{args.out}: {overall_line(episodes)}")
@@ -235,9 +235,12 @@ def command_tune(args: argparse.Namespace) -> int:
     except (SpecError, ValueError) as exc:
         fail(str(exc))
 
-    from hopper.experiments.executor import choose
+    from hopper.experiments.executor import ExecutorError, choose
 
-    result = tune(setup, lambda episodes: choose(args.executor, episodes, args.workers, args.address))
+    try:
+        result = tune(setup, lambda episodes: choose(args.executor, episodes, args.workers, args.address))
+    except ExecutorError as exc:
+        fail(str(exc))
     for line in report_lines(setup, result):
         print(line)
     if args.json:

@@ -63,6 +63,10 @@ class Executor(Protocol):
     def close(self) -> None: ...
 
 
+class ExecutorError(RuntimeError):
+    """An executor that cannot start (e.g. no Ray cluster at the address), in one line."""
+
+
 class InProcess:
     """One worker in this process: no start-up at all, one core."""
 
@@ -87,6 +91,7 @@ def _start_process_worker() -> None:
     global _process_worker
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     _process_worker = Worker()
+    _process_worker.warm()
 
 
 def _run_in_process_worker(chunk: Chunk) -> list[EpisodeResult]:
@@ -129,10 +134,15 @@ class RayExecutor:
         sigterm = signal.getsignal(signal.SIGTERM) if threading.current_thread() is threading.main_thread() else None
         connect = address or os.environ.get("RAY_ADDRESS")
         options = {"include_dashboard": False, "log_to_driver": False, "logging_level": logging.ERROR}
-        if connect:
-            ray.init(address=connect, **options)
-        else:  # "local": a new instance of our own, never one that `ray start` left running here
-            ray.init(address="local", num_cpus=workers or os.cpu_count() or 1, **options)
+        try:
+            if connect:
+                ray.init(address=connect, **options)
+            else:  # "local": a new instance of our own, never one that `ray start` left running here
+                ray.init(address="local", num_cpus=workers or os.cpu_count() or 1, **options)
+        except (ConnectionError, RuntimeError, ValueError) as exc:
+            where = f"the Ray cluster at {connect}" if connect else "a local Ray"
+            auth = " (token authentication? see the README)" if "uthentica" in str(exc) else ""
+            raise ExecutorError(f"cannot start or reach {where}{auth}: {str(exc).splitlines()[0]}") from None
         if sigterm is not None:
             signal.signal(signal.SIGTERM, sigterm)
         self.ray = ray
@@ -141,7 +151,7 @@ class RayExecutor:
         self.workers = max(1, min(workers or cpus, cpus))
         remote = ray.remote(num_cpus=1)(Worker)
         self.actors = [remote.remote() for _ in range(self.workers)]
-        ray.get([a.run_chunk.remote([]) for a in self.actors])  # every actor is up
+        ray.get([a.warm.remote() for a in self.actors])  # every actor is up, its model built
         self.startup_s = time.perf_counter() - start
 
     def map(self, chunks: Iterable[Chunk]) -> Iterator[list[EpisodeResult]]:
