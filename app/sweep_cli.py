@@ -200,6 +200,9 @@ def command_sweep(args: argparse.Namespace) -> int:
     for line in axis_lines(episodes, spec.axes()):
         print(line)
     startup = f" (start-up {run.startup_s:.1f} s, episodes {run.work_s:.1f} s)" if run.startup_s else ""
+    if run.ran == 0 and run.skipped == run.total:
+        print(f"this run: nothing left to run, all {run.total} episodes were already done")
+        return EXIT_OK
     print(
         f"this run: {run.ran} episodes on {run.executor} ({run.workers} workers) in {run.wall_s:.1f} s{startup}; "
         f"{run.skipped} were already done"

@@ -2,7 +2,7 @@
 
 Every executor runs chunks of episodes on `Worker`s (one per process, model built once) and yields
 each chunk's results as it completes. Ray is the engine for large sweeps and clusters; for small
-jobs its start-up (about 14 s here: ray.init 10 s, actors 3.5 s) would dominate, so `choose`
+jobs its start-up (13-14 s here: ray.init 10 s, actors 3.5 s) would dominate, so `choose`
 keeps them on the plain local path (benchmarks/bench_sweep.py measures where the line is).
 """
 
@@ -28,8 +28,9 @@ Chunk = list[Episode]
 # Sizing jobs (measured here with benchmarks/bench_sweep.py; the machine's speed only shifts them).
 HOP_SIM_S = 3.1  # s of simulated time per hop on the Moon (ground + flight), ~ 1/sqrt(g) elsewhere
 STEP_CPU_S = 15e-6  # s of one core per 1 kHz control tick (closed loop, ideal sensing)
-# Ray's start-up is ~14 s here against ~2 s for a process pool: below this much work per core the
-# local pool finishes first by more than 10 %; above it, the start-up is under a tenth of the run.
+# Ray's start-up is 13-14 s here (ray.init ~10 s, the actors 3.5 s), a process pool's a few seconds
+# (spawn, imports, model): below this much work per core the local pool finishes first by more than
+# 10 %; above it, Ray's start-up is under a tenth of the run (bench_sweep.py --line measures both).
 RAY_MIN_WORK_PER_CORE_S = 120.0
 CHUNK_CPU_S = 1.0  # s of work per chunk: Ray's per-call cost (~1 ms) is noise, and Ctrl-C loses little
 IN_FLIGHT_PER_WORKER = 2  # chunks queued per Ray actor, so it never waits for the driver
