@@ -28,9 +28,10 @@ Chunk = list[Episode]
 # Sizing jobs (measured here with benchmarks/bench_sweep.py; the machine's speed only shifts them).
 HOP_SIM_S = 3.1  # s of simulated time per hop on the Moon (ground + flight), ~ 1/sqrt(g) elsewhere
 STEP_CPU_S = 15e-6  # s of one core per 1 kHz control tick (closed loop, ideal sensing)
-# Ray's start-up is 13-14 s here (ray.init ~10 s, the actors 3.5 s), a process pool's a few seconds
-# (spawn, imports, model): below this much work per core the local pool finishes first by more than
-# 10 %; above it, Ray's start-up is under a tenth of the run (bench_sweep.py --line measures both).
+# Ray's start-up is 13-14 s here (ray.init ~10 s, the actors 3.5 s). Below this much work per core
+# a local pool, which needs no ray.init, finishes first; above it, Ray's start-up is a tenth of the
+# run or less. Conservative: under load bench_sweep.py --line measured the pool at 11.5 s against
+# Ray's 13 s (a line at 17 s of work per core), 24 s against 28 s at the heaviest (44 s).
 RAY_MIN_WORK_PER_CORE_S = 120.0
 CHUNK_CPU_S = 1.0  # s of work per chunk: Ray's per-call cost (~1 ms) is noise, and Ctrl-C loses little
 IN_FLIGHT_PER_WORKER = 2  # chunks queued per Ray actor, so it never waits for the driver
