@@ -408,7 +408,7 @@ def _worker_ignores_interrupts() -> None:
 def command_compare(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from hopper.experiments.executor import choose, chunks
+    from hopper.experiments.executor import ExecutorError, choose, chunks
     from hopper.experiments.spec import Episode
 
     episodes = [
@@ -417,7 +417,10 @@ def command_compare(args: argparse.Namespace) -> int:
         for seed in range(args.seeds)
         for wheel in (True, False)
     ]  # fmt: skip
-    executor = choose(args.executor, episodes, args.workers, args.address)
+    try:
+        executor = choose(args.executor, episodes, args.workers, args.address)
+    except ExecutorError as exc:
+        fail(str(exc))
     done = {}
     try:
         with tqdm(total=len(episodes), desc="runs", unit="run", file=sys.stderr) as bar:

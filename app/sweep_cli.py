@@ -186,20 +186,23 @@ def command_sweep(args: argparse.Namespace) -> int:
         fail(str(exc))
     check_out(args.out)
 
-    from hopper.experiments.executor import choose
+    from hopper.experiments.executor import ExecutorError, choose
     from hopper.experiments.runner import run_sweep
     from hopper.experiments.store import SweepStore
     from hopper.experiments.summary import axis_lines, overall_line
 
     try:
         run = run_sweep(spec, args.out, lambda todo: choose(args.executor, todo, args.workers, args.address))
-    except SpecMismatch as exc:
+    except (SpecMismatch, ExecutorError) as exc:
         fail(str(exc))
     episodes = SweepStore(args.out, spec).read_episodes()
     print(f"{args.out}: {overall_line(episodes)}")
     for line in axis_lines(episodes, spec.axes()):
         print(line)
     startup = f" (start-up {run.startup_s:.1f} s, episodes {run.work_s:.1f} s)" if run.startup_s else ""
+    if run.ran == 0 and run.skipped == run.total:
+        print(f"this run: nothing left to run, all {run.total} episodes were already done")
+        return EXIT_OK
     print(
         f"this run: {run.ran} episodes on {run.executor} ({run.workers} workers) in {run.wall_s:.1f} s{startup}; "
         f"{run.skipped} were already done"
@@ -235,9 +238,12 @@ def command_tune(args: argparse.Namespace) -> int:
     except (SpecError, ValueError) as exc:
         fail(str(exc))
 
-    from hopper.experiments.executor import choose
+    from hopper.experiments.executor import ExecutorError, choose
 
-    result = tune(setup, lambda episodes: choose(args.executor, episodes, args.workers, args.address))
+    try:
+        result = tune(setup, lambda episodes: choose(args.executor, episodes, args.workers, args.address))
+    except ExecutorError as exc:
+        fail(str(exc))
     for line in report_lines(setup, result):
         print(line)
     if args.json:

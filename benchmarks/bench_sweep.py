@@ -4,12 +4,11 @@ Run: python -m benchmarks.bench_sweep [--seeds 50] [--workers 2] [--out DIR] [--
 
 1. A sweep of seeds x 5 kp x 4 kd x 2 gravities (2,000 episodes of 2 hops by default) starts as
    `hopper-sim sweep --executor ray` and is interrupted (SIGINT) once half its episodes are written.
-2. The bare mj_step rate: a sample of the same episodes is simulated once to record its controls,
-   then replayed with bare mj_step (as benchmarks/bench_sim.py does), on `workers` processes at once,
-   as nice as Ray's workers.
-3. The sweep is resumed in this process on Ray (run_sweep + RayExecutor): episodes per second
-   without Ray's start-up, against the limit = cores x bare steps/s / mean steps per episode.
-4. The bare rate again (the machine's load moves: the higher of the two is the limit).
+2. It is resumed in this process on Ray (the store skips what is done), in segments; after each, a
+   sample of that segment's episodes is simulated once to record its controls and replayed with
+   bare mj_step (as benchmarks/bench_sim.py does) on `workers` processes at once, as nice as Ray's
+   workers: the limit. Ratio = the segment's simulated steps per second / the bare steps per second
+   (= episodes/s against bare rate x cores / steps per episode). Ray's start-up is reported apart.
 With --line: Ray's and the local pool's start-up, and the work per core where Ray's extra start-up
 falls under a tenth of the run (hopper.experiments.executor.RAY_MIN_WORK_PER_CORE_S).
 These machines are noisy: only ratios measured in the same run mean anything.
@@ -18,6 +17,7 @@ These machines are noisy: only ratios measured in the same run mean anything.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import multiprocessing
 import os
 import signal
@@ -28,13 +28,15 @@ import time
 from pathlib import Path
 
 import numpy as np
+import psutil
 import pyarrow.dataset as ds
 
 from benchmarks.bench_sim import ControlRecorder, closed_loop, raw_replay
 from hopper.config import TIMESTEP
-from hopper.experiments.executor import LocalPool, RayExecutor
-from hopper.experiments.runner import run_sweep
+from hopper.experiments.executor import LocalPool, RayExecutor, chunks
+from hopper.experiments.runner import pending
 from hopper.experiments.spec import Episode, SweepSpec, parse_spec
+from hopper.experiments.store import SweepStore
 
 
 def bench_spec(seeds: int, hops: int) -> SweepSpec:
@@ -61,18 +63,31 @@ def interrupted_run(spec_flags: list[str], out: Path, total: int) -> tuple[int, 
     return rows(out), time.perf_counter() - start
 
 
-def _replay(episodes: list[Episode]) -> tuple[int, float, float]:
-    """(steps, bare mj_step seconds, closed-loop seconds) of `episodes` in this process."""
-    steps, bare, closed = 0, 0.0, 0.0
+def _replay(episodes: list[Episode]) -> tuple[int, float, float, float]:
+    """(steps, bare mj_step seconds, closed-loop seconds, bare mj_step CPU seconds) of `episodes` here."""
+    steps, bare, closed, cpu = 0, 0.0, 0.0, 0.0
     for episode in episodes:
         recorder = ControlRecorder()
         config = episode.config()
         rate, ticks, _ = closed_loop(config, episode.hops_target, (recorder,))
         closed += ticks / rate
+        start = time.process_time()
         rate, _ = raw_replay(config, np.array(recorder.ctrl))
+        cpu += time.process_time() - start
         bare += ticks / rate
         steps += ticks
-    return steps, bare, closed
+    return steps, bare, closed, cpu
+
+
+def sweep_cpu_s(exclude: set[int]) -> float:
+    """CPU seconds so far of this process and its descendants (Ray's daemons and actors), but `exclude`."""
+    me = psutil.Process()
+    total = sum(me.cpu_times()[:2])
+    for child in me.children(recursive=True):
+        if child.pid not in exclude:
+            with contextlib.suppress(psutil.NoSuchProcess):
+                total += sum(child.cpu_times()[:2])
+    return total
 
 
 # Ray runs its workers at this niceness (its worker_niceness, default 15) so that its own daemons
@@ -84,13 +99,45 @@ def _as_nice_as_ray() -> None:
     os.nice(RAY_WORKER_NICENESS - os.nice(0))
 
 
-def bare_rate(sample: list[Episode], workers: int) -> tuple[float, float]:
-    """(bare mj_step steps/s, closed-loop steps/s), summed over `workers` processes running at once."""
-    parts = [sample[i::workers] for i in range(workers)]
+def resumed_in_segments(
+    spec: SweepSpec, out: Path, workers: int, count: int, sample: int
+) -> list[tuple[int, float, float, float, float, float]]:
+    """Resume the sweep on Ray (the store skips what is done) in `count` segments, each followed by the
+    bare and closed-loop rates of a sample of its own episodes: the machine's load moves, so each
+    segment is compared with a limit measured right after it. Rows: (episodes, wall s, sweep steps/s,
+    bare steps/s, closed-loop steps/s, CPU ratio: steps per CPU second of the sweep's every process,
+    driver and Ray's daemons included, over bare mj_step's)."""
+    store = SweepStore(out, spec)
+    todo = pending(spec, store.open())
+    start = time.perf_counter()
+    executor = RayExecutor(workers=workers)
+    size = -(-len(todo) // count)
+    rows = []
     with multiprocessing.get_context("spawn").Pool(workers, initializer=_as_nice_as_ray) as pool:
-        pool.map(_replay, [p[:1] for p in parts])  # warm: imports and the compiled kernel
-        results = pool.map(_replay, parts)
-    return sum(s / b for s, b, _ in results), sum(s / c for s, _, c in results)
+        pool.map(_replay, [[e] for e in todo[:workers]])  # warm: imports and the compiled kernel
+        replayers = {p.pid for p in multiprocessing.active_children()}
+        for part in (todo[i : i + size] for i in range(0, len(todo), size)):
+            t, cpu = time.perf_counter(), sweep_cpu_s(replayers)
+            results = []
+            for chunk in executor.map(chunks(part, executor.workers)):
+                store.add(chunk)
+                results += chunk
+            store.flush()
+            wall, cpu = time.perf_counter() - t, sweep_cpu_s(replayers) - cpu
+            steps = sum(r.sim_time_s for r in results) / TIMESTEP
+            picked = part[:: max(1, len(part) // sample)][:sample]
+            replays = pool.map(_replay, [picked[i::workers] for i in range(workers)])
+            bare = sum(n / b for n, b, _, _ in replays)
+            closed = sum(n / c for n, _, c, _ in replays)
+            bare_per_cpu_s = sum(n for n, *_ in replays) / sum(c for *_, c in replays)
+            rows.append((len(part), wall, steps / wall, bare, closed, (steps / cpu) / bare_per_cpu_s))
+    executor.close()
+    ids = store.read_episodes(columns=["episode_id"]).column("episode_id").to_pylist()
+    print(f"2. resumed in-process on Ray: {len(todo)} run in {time.perf_counter() - start:.1f} s (Ray start-up "
+          f"{executor.startup_s:.1f} s, bare-rate samples included); the datasets hold {len(ids)} episodes, "
+          f"{len(set(ids))} distinct")  # fmt: skip
+    assert len(ids) == len(set(ids)) == spec.size, "an episode is missing or ran twice"
+    return rows
 
 
 def startup_line(spec: SweepSpec, workers: int) -> None:
@@ -113,7 +160,8 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=50, help="seeds (x 40 episodes each; default 50: 2,000)")
     parser.add_argument("--hops", type=int, default=2)
     parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--sample", type=int, default=24, help="episodes replayed for the bare rate")
+    parser.add_argument("--sample", type=int, default=8, help="episodes replayed per segment for the bare rate")
+    parser.add_argument("--segments", type=int, default=5, help="the resumed half in this many measured segments")
     parser.add_argument("--out", type=Path, help="sweep folder (default: a temporary one)")
     parser.add_argument("--line", action="store_true", help="also measure the local-vs-Ray start-up line")
     args = parser.parse_args()
@@ -121,38 +169,24 @@ def main() -> None:
     spec = bench_spec(args.seeds, args.hops)
     flags = ["--seeds", str(args.seeds), "--hops", str(args.hops), "--kp", "300,400,500,600,700", "--kd",
              "20,25,30,35", "--gravity", "moon,mars", "--workers", str(args.workers)]  # fmt: skip
-    episodes = list(spec.episodes())
-    sample = episodes[:: max(1, len(episodes) // args.sample)][: args.sample]
     print(f"sweep: {spec.size} episodes ({args.seeds} seeds x 5 kp x 4 kd x Moon, Mars; {args.hops} hops), "
           f"{args.workers} workers, out {out}")  # fmt: skip
 
     kept, first_wall = interrupted_run(flags, out, spec.size)
     print(f"1. on Ray via the CLI, SIGINT at half way: {kept} episodes kept, {first_wall:.1f} s wall (start-up incl.)")
-    kept_ids = set(ds.dataset(out / "episodes", format="parquet").to_table().column("episode_id").to_pylist())
-    bare_before, closed_before = bare_rate(sample, args.workers)
-    run = run_sweep(spec, out, lambda todo: RayExecutor(workers=args.workers), progress=False, announce=print)
-    table = ds.dataset(out / "episodes", format="parquet").to_table()
-    ids = table.column("episode_id").to_pylist()
-    bare_after, closed_after = bare_rate(sample, args.workers)
-    print(
-        f"2. resumed in-process on Ray: {run.ran} run, {run.skipped} skipped, {run.wall_s:.1f} s wall, "
-        f"Ray start-up {run.startup_s:.1f} s, work {run.work_s:.1f} s; the datasets hold {len(ids)} episodes, "
-        f"{len(set(ids))} distinct"
-    )
-    assert len(ids) == len(set(ids)) == spec.size, "an episode is missing or ran twice"
-
-    sim_s = np.array([r["sim_time_s"] for r in table.to_pylist() if r["episode_id"] not in kept_ids])  # resumed
-    steps_per_episode = float(sim_s.mean()) / TIMESTEP
-    throughput = run.ran / run.work_s  # executor ready to last result written
-    bare = max(bare_before, bare_after)
-    limit = bare / steps_per_episode
-    print(f"bare mj_step, {args.workers} processes at once: {bare_before:,.0f} and {bare_after:,.0f} steps/s "
-          f"(before, after); closed loop {closed_before:,.0f} and {closed_after:,.0f}")  # fmt: skip
-    print(f"mean episode: {steps_per_episode:,.0f} steps; limit = {limit:.2f} episodes/s")
-    print(f"sweep throughput (Ray start-up excluded): {throughput:.2f} episodes/s")
-    print(f"ratio sweep / limit: {throughput / limit:.3f}   (target >= 0.85; closed loop / bare: "
-          f"{max(closed_before, closed_after) / bare:.3f})")  # fmt: skip
-    print(f"with start-up: {run.ran / run.wall_s:.2f} episodes/s ({run.startup_s:.1f} s of {run.wall_s:.1f} s)")
+    segments = resumed_in_segments(spec, out, args.workers, args.segments, args.sample)
+    print(f"{'segment':>8} {'episodes':>9} {'wall s':>7} {'sweep steps/s':>14} {'bare steps/s':>13} {'closed':>8} "
+          f"{'sweep/bare':>11} {'closed/bare':>12} {'CPU ratio':>10}")  # fmt: skip
+    for i, (n, wall, sweep, bare, closed, cpu) in enumerate(segments, 1):
+        print(f"{i:>8} {n:>9} {wall:>7.1f} {sweep:>14,.0f} {bare:>13,.0f} {closed:>8,.0f} {sweep / bare:>11.3f} "
+              f"{closed / bare:>12.3f} {cpu:>10.3f}")  # fmt: skip
+    ratios = sorted(sweep / bare for _, _, sweep, bare, _, _ in segments)
+    cpu_ratios = sorted(cpu for *_, cpu in segments)
+    best = max(sweep for _, _, sweep, *_ in segments) / max(bare for _, _, _, bare, *_ in segments)
+    print(f"ratio sweep / limit (limit = bare mj_step of the same episodes x {args.workers} processes): median "
+          f"{ratios[len(ratios) // 2]:.3f}, best sweep / best bare {best:.3f}   (target >= 0.85)")  # fmt: skip
+    print(f"CPU ratio (steps per CPU second, the sweep's every process / bare mj_step; blind to the machine's "
+          f"other load): median {cpu_ratios[len(cpu_ratios) // 2]:.3f}")  # fmt: skip
     if args.line:
         startup_line(spec, args.workers)
 

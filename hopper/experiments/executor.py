@@ -2,7 +2,7 @@
 
 Every executor runs chunks of episodes on `Worker`s (one per process, model built once) and yields
 each chunk's results as it completes. Ray is the engine for large sweeps and clusters; for small
-jobs its start-up (about 14 s here: ray.init 10 s, actors 3.5 s) would dominate, so `choose`
+jobs its start-up (13-14 s here: ray.init 10 s, actors 3.5 s) would dominate, so `choose`
 keeps them on the plain local path (benchmarks/bench_sweep.py measures where the line is).
 """
 
@@ -28,8 +28,10 @@ Chunk = list[Episode]
 # Sizing jobs (measured here with benchmarks/bench_sweep.py; the machine's speed only shifts them).
 HOP_SIM_S = 3.1  # s of simulated time per hop on the Moon (ground + flight), ~ 1/sqrt(g) elsewhere
 STEP_CPU_S = 15e-6  # s of one core per 1 kHz control tick (closed loop, ideal sensing)
-# Ray's start-up is ~14 s here against ~2 s for a process pool: below this much work per core the
-# local pool finishes first by more than 10 %; above it, the start-up is under a tenth of the run.
+# Ray's start-up is 13-14 s here (ray.init ~10 s, the actors 3.5 s). Below this much work per core
+# a local pool, which needs no ray.init, finishes first; above it, Ray's start-up is a tenth of the
+# run or less. Conservative: under load bench_sweep.py --line measured the pool at 11.5 s against
+# Ray's 13 s (a line at 17 s of work per core), 24 s against 28 s at the heaviest (44 s).
 RAY_MIN_WORK_PER_CORE_S = 120.0
 CHUNK_CPU_S = 1.0  # s of work per chunk: Ray's per-call cost (~1 ms) is noise, and Ctrl-C loses little
 IN_FLIGHT_PER_WORKER = 2  # chunks queued per Ray actor, so it never waits for the driver
@@ -63,6 +65,10 @@ class Executor(Protocol):
     def close(self) -> None: ...
 
 
+class ExecutorError(RuntimeError):
+    """An executor that cannot start (e.g. no Ray cluster at the address), in one line."""
+
+
 class InProcess:
     """One worker in this process: no start-up at all, one core."""
 
@@ -87,6 +93,7 @@ def _start_process_worker() -> None:
     global _process_worker
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     _process_worker = Worker()
+    _process_worker.warm()
 
 
 def _run_in_process_worker(chunk: Chunk) -> list[EpisodeResult]:
@@ -129,10 +136,15 @@ class RayExecutor:
         sigterm = signal.getsignal(signal.SIGTERM) if threading.current_thread() is threading.main_thread() else None
         connect = address or os.environ.get("RAY_ADDRESS")
         options = {"include_dashboard": False, "log_to_driver": False, "logging_level": logging.ERROR}
-        if connect:
-            ray.init(address=connect, **options)
-        else:  # "local": a new instance of our own, never one that `ray start` left running here
-            ray.init(address="local", num_cpus=workers or os.cpu_count() or 1, **options)
+        try:
+            if connect:
+                ray.init(address=connect, **options)
+            else:  # "local": a new instance of our own, never one that `ray start` left running here
+                ray.init(address="local", num_cpus=workers or os.cpu_count() or 1, **options)
+        except (ConnectionError, RuntimeError, ValueError) as exc:
+            where = f"the Ray cluster at {connect}" if connect else "a local Ray"
+            auth = " (token authentication? see the README)" if "uthentica" in str(exc) else ""
+            raise ExecutorError(f"cannot start or reach {where}{auth}: {str(exc).splitlines()[0]}") from None
         if sigterm is not None:
             signal.signal(signal.SIGTERM, sigterm)
         self.ray = ray
@@ -141,7 +153,7 @@ class RayExecutor:
         self.workers = max(1, min(workers or cpus, cpus))
         remote = ray.remote(num_cpus=1)(Worker)
         self.actors = [remote.remote() for _ in range(self.workers)]
-        ray.get([a.run_chunk.remote([]) for a in self.actors])  # every actor is up
+        ray.get([a.warm.remote() for a in self.actors])  # every actor is up, its model built
         self.startup_s = time.perf_counter() - start
 
     def map(self, chunks: Iterable[Chunk]) -> Iterator[list[EpisodeResult]]:

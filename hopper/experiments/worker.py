@@ -68,6 +68,11 @@ class Worker:
         self._terrain: tuple[str, int] | None = None
         self.built = 0  # models compiled (1 after the first episode, whatever follows)
 
+    def warm(self) -> None:
+        """Build the model and load the compiled controller now (start-up), not in the first episode."""
+        if self.sim is None:
+            self._prepare(SimConfig())
+
     def run_chunk(self, episodes: list[Episode]) -> list[EpisodeResult]:
         return [self.run(e) for e in episodes]
 
