@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from importlib import resources
 
 import mujoco
@@ -43,7 +44,14 @@ def build_model(config: SimConfig, heights: np.ndarray | None = None) -> mujoco.
 
 
 def set_terrain(model: mujoco.MjModel, heights: np.ndarray) -> None:
-    """Hot-swap the heightfield in a compiled model (same grid shape)."""
+    """Hot-swap the heightfield in a compiled model (same grid shape), with the bounds the compiler
+    derives from it.
+
+    The terrain geom's size, bounding sphere and boxes follow its elevation; left at the old
+    terrain's, a higher new terrain could be missed by the broad phase. These are MuJoCo's compile
+    rules for an hfield geom (size z = size[2]/4 + base/2; box from -base to size[2]); the tests
+    check the swapped model against a freshly compiled one, array by array.
+    """
     hid = model.hfield("terrain").id
     nrow, ncol = model.hfield_nrow[hid], model.hfield_ncol[hid]
     if heights.shape != (nrow, ncol):
@@ -52,7 +60,17 @@ def set_terrain(model: mujoco.MjModel, heights: np.ndarray) -> None:
     adr = model.hfield_adr[hid]
     model.hfield_data[adr : adr + nrow * ncol] = data.ravel()
     model.hfield_size[hid, 2] = elevation
-    model.geom_pos[model.geom("terrain").id, 2] = offset
+    geom = model.geom("terrain").id
+    model.geom_pos[geom, 2] = offset
+    sx, sy, top, base = model.hfield_size[hid]
+    model.geom_size[geom] = (sx, sy, 0.25 * top + 0.5 * base)
+    model.geom_aabb[geom] = (0.0, 0.0, 0.5 * (top - base), sx, sy, 0.5 * (top + base))
+    model.geom_rbound[geom] = math.sqrt(sx * sx + sy * sy + max(top, base) ** 2)
+    body = model.geom_bodyid[geom]
+    if model.body_bvhnum[body] != 1:  # the world body holds more than the terrain: not this model
+        raise ValueError("set_terrain expects the terrain to be the world body's only geom")
+    aabb = model.geom_aabb[geom]
+    model.bvh_aabb[model.body_bvhadr[body]] = (*(model.geom_pos[geom] + aabb[:3]), *aabb[3:])
 
 
 def set_wheel_enabled(model: mujoco.MjModel, enabled: bool) -> None:

@@ -23,9 +23,9 @@ from hopper.experiments.executor import InProcess, chunks
 from hopper.experiments.runner import run_sweep
 from hopper.experiments.spec import SpecError, parse_spec
 from hopper.experiments.store import RESULT_COLUMNS, SETTING_COLUMNS, SweepStore
-from hopper.experiments.worker import Worker, swap_terrain
+from hopper.experiments.worker import Worker
 from hopper.metrics import HopMetrics
-from hopper.model import build_model, terrain_heights
+from hopper.model import build_model, set_terrain, terrain_heights
 from hopper.stress import Case, Schedule, run_case
 
 
@@ -100,7 +100,7 @@ def test_the_cli_refuses_a_bad_spec_in_one_line_before_any_work(tmp_path: Path, 
 def test_swapping_the_terrain_gives_the_model_a_fresh_compile_gives() -> None:
     for before, after in ((SimConfig(seed=0), SimConfig(seed=5)), (SimConfig(seed=3), SimConfig(terrain="flat"))):
         model = build_model(before)
-        swap_terrain(model, terrain_heights(after))
+        set_terrain(model, terrain_heights(after))
         fresh = build_model(after)
         differ = [
             name for name in dir(fresh)

@@ -11,7 +11,6 @@ import math
 import time
 from typing import Any
 
-import mujoco
 import numpy as np
 
 from hopper.config import WHEEL_NO_LOAD_SPEED, SimConfig
@@ -115,7 +114,7 @@ class Worker:
             raise ValueError("a worker's episodes share the timestep and crater parameters")
         if (config.terrain, config.seed) != self._terrain:
             sim.heights = terrain_heights(config)
-            swap_terrain(sim.model, sim.heights)
+            set_terrain(sim.model, sim.heights)
             self._terrain = (config.terrain, config.seed)
         sim.model.opt.gravity[2] = -config.gravity
         set_wheel_enabled(sim.model, config.wheel)
@@ -146,24 +145,3 @@ def _disturb_when_due(sim: Simulation, d: Schedule, hops: int, max_time: float) 
             return False  # its hop is over: the phase never came
         sim.step()
     return False
-
-
-def swap_terrain(model: mujoco.MjModel, heights: np.ndarray) -> None:
-    """hopper.model.set_terrain, plus the bounds the compiler derives from the heightfield's size.
-
-    The terrain geom's size, bounding sphere and boxes follow its elevation; left at the old
-    terrain's, a higher new terrain could be missed by the broad phase. These are MuJoCo's compile
-    rules for an hfield geom (size z = size[2]/4 + base/2; box from -base to size[2]); the tests
-    check the swapped model against a freshly compiled one, array by array.
-    """
-    set_terrain(model, heights)
-    hfield, geom = model.hfield("terrain").id, model.geom("terrain").id
-    sx, sy, top, base = model.hfield_size[hfield]
-    model.geom_size[geom] = (sx, sy, 0.25 * top + 0.5 * base)
-    model.geom_aabb[geom] = (0.0, 0.0, 0.5 * (top - base), sx, sy, 0.5 * (top + base))
-    model.geom_rbound[geom] = math.sqrt(sx * sx + sy * sy + max(top, base) ** 2)
-    body = model.geom_bodyid[geom]
-    if model.body_bvhnum[body] != 1:  # the world body holds more than the terrain: not this model
-        raise ValueError("swap_terrain expects the terrain to be the world body's only geom")
-    aabb = model.geom_aabb[geom]
-    model.bvh_aabb[model.body_bvhadr[body]] = (*(model.geom_pos[geom] + aabb[:3]), *aabb[3:])
