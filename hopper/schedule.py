@@ -38,9 +38,7 @@ class KickSchedule:
         require_finite(f"{self.kind} magnitude", self.magnitude, -limit, limit, unit)
         require_finite("schedule delay", self.delay_s, 0.0, MAX_DELAY_S, "s")
         if isinstance(self.every, bool) or not isinstance(self.every, int) or not 1 <= self.every <= MAX_EVERY:
-            raise ValueError(
-                f"schedule 'every' must be a whole number of hops in [1, {MAX_EVERY}], got {self.every!r}"
-            )
+            raise ValueError(f"schedule 'every' must be a whole number of hops in [1, {MAX_EVERY}], got {self.every!r}")
 
     def due(self, hop_index: int) -> bool:
         """Whether the flight of hop `hop_index` (from 1) is kicked."""
@@ -50,7 +48,8 @@ class KickSchedule:
         from hopper.events import DISTURBANCE_NAMES
         from hopper.sim import DISTURBANCE_LIMITS
 
-        which = "every liftoff" if self.every == 1 else f"the liftoff of every hop {self.every}"
+        n = self.every
+        which = "every liftoff" if n == 1 else f"the liftoff of hops {n}, {2 * n}, {3 * n}, …"
         unit = DISTURBANCE_LIMITS[self.kind][1]
         return f"{DISTURBANCE_NAMES[self.kind]} {self.magnitude:+g} {unit}, {self.delay_s * 1000:g} ms after {which}"
 

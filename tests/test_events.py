@@ -9,6 +9,7 @@ import pytest
 from hopper import events as ev
 from hopper.config import Gains, SimConfig
 from hopper.control import FallCause
+from hopper.schedule import KickSchedule
 from hopper.sim import Simulation
 
 SAMPLES = [
@@ -27,6 +28,9 @@ SAMPLES = [
     ev.Diverged("non-finite state"),
     ev.CommandFailed("Disturb", "ValueError: bad"),
     ev.Recording("started", "/tmp/a.rrd"),
+    ev.ScheduleChanged(KickSchedule("pitch_kick", 0.3, 0.15, every=2)),
+    ev.ScheduleChanged(None),
+    ev.Disturbance("pitch_kick", 0.3, "N m s", after_liftoff_s=0.15),
 ]
 
 

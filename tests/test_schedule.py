@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 from numba import njit
+from test_sim_cli import hopper_sim
+from test_telemetry import cells, read
 
 from hopper.commands import SetSchedule
 from hopper.config import Gains, InvalidConfig, SimConfig
@@ -17,6 +21,7 @@ from hopper.events import Disturbance, EventKind, Liftoff, ScheduleChanged
 from hopper.metrics import MetricsTracker
 from hopper.schedule import KickSchedule, parse
 from hopper.sim import Simulation
+from hopper.telemetry import HOP_DECIMALS
 
 DT = 0.001
 
@@ -188,3 +193,44 @@ def test_every_third_hop_is_kicked_and_clearing_stops_it() -> None:
     assert any(isinstance(e.payload, ScheduleChanged) and e.payload.schedule is None for e in sim.events)
     assert len([e for e in sim.events if isinstance(e.payload, Disturbance)]) == 2  # hop 9 unkicked
     assert not sim.hops[8].kicked and sim.schedule is None
+
+
+# -- hopper-sim and its recording ------------------------------------------------------------------
+def test_hopper_sim_runs_the_schedule_prints_the_response_and_records_it(tmp_path: Path) -> None:
+    out, rrd = tmp_path / "run.json", tmp_path / "run.rrd"
+    flags = ["--hops", "3", "--terrain", "flat", "--schedule", "pitch_kick:1@150ms,every:2"]
+    result = hopper_sim("run", *flags, "--json", str(out), "--rrd", str(rrd))
+    assert result.returncode == 0, result.stderr
+    assert "over deg" in result.stdout and "settle s" in result.stdout
+    assert "response from the kick (pitch_kick:1@150ms,every:2)" in result.stdout
+    data = json.loads(out.read_text())
+    assert data["settings"]["schedule"] == "pitch_kick:1@150ms,every:2"
+    hops = data["hops"]
+    assert [h["kicked"] for h in hops] == [False, True, False]
+    kicked = hops[1]
+    assert kicked["response_start_s"] == pytest.approx(0.15) and kicked["response_peak_deg"] > 3.0
+    assert 0.05 < kicked["settling_time_s"] < 0.5 and kicked["settled"] and kicked["peak_momentum_pct"] > 50.0
+    assert hops[0]["response_start_s"] == 0.0 and hops[0]["peak_momentum_pct"] < kicked["peak_momentum_pct"]
+
+    tables = read(rrd)  # rerun's own reader
+    columns = ("kicked", "response_start_s", "overshoot_deg", "settling_time_s", "settled")
+    columns += ("peak_wheel_torque_nm", "peak_momentum_pct", "landing_error_deg", "response_peak_deg")
+    for name in columns:
+        recorded = cells(tables["hops"], name)
+        assert len(recorded) == 3
+        expected = [h[name] for h in hops]
+        if isinstance(expected[0], bool):
+            assert recorded == expected, name
+        else:
+            assert recorded == pytest.approx(expected, abs=0.5 * 10.0 ** -HOP_DECIMALS[name]), name
+    texts = [t for t in cells(tables["events"], "TextLog:text")]
+    assert any("schedule: pitch kick +1 N m s, 150 ms after the liftoff of hops 2, 4, 6" in t for t in texts)
+    assert any("scheduled, 150 ms after liftoff" in t for t in texts)
+
+
+def test_hopper_sim_refuses_a_bad_schedule_on_one_line() -> None:
+    result = hopper_sim("run", "--schedule", "pitch_kick:0.3@every:0")
+    assert result.returncode == 2 and result.stdout == ""
+    assert result.stderr.strip().splitlines() == [
+        "hopper-sim: error: argument --schedule: schedule 'every' must be a whole number of hops in [1, 1000], got 0"
+    ]
