@@ -37,7 +37,7 @@ def test_a_schedule_set_in_the_page_kicks_every_flight_and_fills_the_response_ro
     def elapsed() -> str:
         return f"{time.monotonic() - start:.1f} s"
 
-    dashboard.set_speed(8.0)  # the hops come sooner; the schedule itself is set in the page
+    dashboard.set_speed(4.0)  # the hops come sooner; the schedule itself is set in the page
     page = browser.new_page(viewport={"width": 1440, "height": 900})
     page.set_default_timeout(60_000)  # a bound for a loaded machine, not a pace
     try:
@@ -74,7 +74,8 @@ def test_a_schedule_set_in_the_page_kicks_every_flight_and_fills_the_response_ro
         notice = page.locator(".mantine-Notification-root").get_by_role("button")
         if notice.count():  # viser's software-WebGL notice would cover the scene in the screenshot
             notice.first.click()
-        page.locator("table.hd-response").scroll_into_view_if_needed()
+        # A script, not the locator's scroll: that waits for the table to be still, and it is live.
+        page.evaluate("() => document.querySelector('table.hd-response').scrollIntoView({block: 'end'})")
         page.screenshot(path=str(tmp_path / "repeat-hop-table.png"))  # 1440x900, to look at
         print(f"\nresponse row of hop {hop.index}: {cells} ({elapsed()})")
 
