@@ -319,15 +319,25 @@ def hop_table(hops: list[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
-def response_table(hops: list[dict[str, Any]]) -> str:
+def response_table(hops: list[dict[str, Any]], schedule: str | None = None) -> str:
     """Each hop's response: from the kick (k) or the liftoff; a settling time with > did not settle
-    by the touchdown (a lower bound)."""
+    by the touchdown (a lower bound). Then a line of the completed hops' means and worsts."""
     lines = ["resp" + " ".join(f"{h:>9}" for h in RESPONSE_COLUMNS.values())]
     for hop in hops:
         cells = [f"{hop[k]:9.3f}" if abs(hop[k]) < 100 else f"{hop[k]:9.1f}" for k in RESPONSE_COLUMNS]
         if not hop["settled"]:
             cells[3] = f"{'>' + format(hop['settling_time_s'], '.3f'):>9}"
         lines.append(f"{hop['index']:>3}{'k' if hop['kicked'] else ' '}{' '.join(cells)}")
+    done = [h for h in hops if h["completed"]]
+    if done:
+        lines.append(
+            f"response from {'the kick (' + schedule + ')' if schedule else 'liftoff'}: "
+            f"mean overshoot {statistics.fmean(h['overshoot_deg'] for h in done):.2f} deg, "
+            f"worst settling {max(h['settling_time_s'] for h in done):.3f} s, "
+            f"peak torque {max(h['peak_wheel_torque_nm'] for h in done):.1f} N m, "
+            f"peak momentum {max(h['peak_momentum_pct'] for h in done):.0f} % of capacity, "
+            f"worst landing error {max(abs(h['landing_error_deg']) for h in done):.2f} deg"
+        )
     return "\n".join(lines)
 
 
@@ -354,14 +364,6 @@ def summary(result: dict[str, Any]) -> str:
             f"landing pitch {stat('landing_pitch_deg'):.2f} deg, saturation {stat('saturation_time_s'):.3f} s/hop, "
             f"wheel {stat('peak_wheel_rpm'):.0f} rpm"
         )
-        kick = s.get("schedule")
-        lines.append(
-            f"response from {'the kick (' + kick + ')' if kick else 'liftoff'}: "
-            f"mean overshoot {statistics.fmean(h['overshoot_deg'] for h in done):.2f} deg, "
-            f"worst settling {stat('settling_time_s'):.3f} s, peak torque {stat('peak_wheel_torque_nm'):.1f} N m, "
-            f"peak momentum {stat('peak_momentum_pct'):.0f} % of capacity, "
-            f"worst landing error {max(abs(h['landing_error_deg']) for h in done):.2f} deg"
-        )
     if any(not h["completed"] for h in result["hops"]):
         lines.append("* the flight that ended in the fall")
     return "\n".join(lines)
@@ -375,7 +377,7 @@ def peak_deviation(result: dict[str, Any]) -> float:
 def command_run(args: argparse.Namespace) -> int:
     def report(result: dict[str, Any]) -> None:
         print(hop_table(result["hops"]))
-        print(response_table(result["hops"]))
+        print(response_table(result["hops"], result["settings"]["schedule"]))
         print(summary(result))
         if args.rrd:
             print(f"recording: {args.rrd}")
