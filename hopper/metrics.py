@@ -9,6 +9,7 @@ import numpy as np
 
 from hopper.config import WHEEL_ARMATURE, WHEEL_INERTIA
 from hopper.control.gait import momentum_capacity
+from hopper.control.kernel import RESPONSE_THRESHOLD, SETTLE_BAND
 from hopper.control.memory import ACC, FLIGHT_ACC, RESPONSE_ACC
 
 RAD_S_TO_RPM = 60.0 / (2.0 * math.pi)
@@ -69,8 +70,8 @@ class ResponseMetrics:
     - landing_error_deg: signed pitch at the touchdown (upright is 0); landing_pitch_deg is its size.
     """
 
-    THRESHOLD_DEG = 0.25
-    BAND_DEG = 1.0
+    THRESHOLD_DEG = math.degrees(RESPONSE_THRESHOLD)  # the kernel accumulates with these (control/kernel.py)
+    BAND_DEG = math.degrees(SETTLE_BAND)
 
 
 class MetricsTracker:
@@ -129,7 +130,7 @@ class MetricsTracker:
         ticks = max(acc("acc_flight_ticks"), 1.0)
         kicked = self._response_start is not None
         start = self._response_start if self._response_start is not None else self._liftoff_time
-        settled = abs(pitch) <= math.radians(ResponseMetrics.BAND_DEG)
+        settled = abs(pitch) <= SETTLE_BAND
         last_out = acc("acc_last_out")
         settling = (last_out + self.dt - start if last_out > -math.inf else 0.0) if settled else time - start
         hop = HopMetrics(
