@@ -25,6 +25,7 @@ from hopper.app.signals import raise_if_stop_requested, stop_like_ctrl_c
 
 from hopper.config import GRAVITY_PRESETS, Gains, InvalidConfig, SimConfig
 from hopper.scenarios import SCENARIOS, scenario
+from hopper.schedule import KickSchedule, parse
 
 T = TypeVar("T")
 
@@ -38,6 +39,16 @@ HOP_COLUMNS = {
     "landing_pitch_deg": "land deg",
     "saturation_time_s": "sat s",
     "peak_wheel_rpm": "wheel rpm",
+}
+# The response metrics (hopper.metrics.ResponseMetrics): from the scheduled kick, or the liftoff.
+RESPONSE_COLUMNS = {
+    "response_start_s": "from s",
+    "response_peak_deg": "peak deg",
+    "overshoot_deg": "over deg",
+    "settling_time_s": "settle s",
+    "peak_wheel_torque_nm": "torque Nm",
+    "peak_momentum_pct": "moment %",
+    "landing_error_deg": "land deg",
 }
 
 
@@ -134,6 +145,14 @@ def gravity(text: str) -> float:
         raise argparse.ArgumentTypeError(f"{text!r} is neither m/s^2 nor one of {', '.join(GRAVITY_PRESETS)}") from None
 
 
+def schedule(text: str) -> KickSchedule:
+    """A repeatable test's kick, KIND:MAGNITUDE[@DELAYms][,every:N] (hopper.schedule.parse)."""
+    try:
+        return parse(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def parser() -> Parser:
     top = Parser(prog="hopper-sim", description=__doc__, epilog=EXIT_STATUSES)
     commands = top.add_subparsers(dest="command", required=True, parser_class=Parser)
@@ -170,6 +189,13 @@ def parser() -> Parser:
     run.add_argument("--seed", type=seed, default=0, help="terrain seed (default 0)")
     run.add_argument("--no-wheel", action="store_true", help="zero wheel torque, wheel free to spin")
     run.add_argument("--rrd", type=rrd_file, metavar="PATH", help="record a rerun .rrd session")
+    run.add_argument(
+        "--schedule",
+        type=schedule,
+        metavar="KIND:MAG[@MSms][,every:N]",
+        help="kick every (Nth) flight the same way, e.g. pitch_kick:0.3@150ms or torque_pulse:10@every:3 "
+        "(delay after liftoff, default 150 ms); kinds pitch_kick, push_forward, push_backward, torque_pulse",
+    )
     run.add_argument(
         "--rerun-viewer",
         choices=("spawn", "serve", "off"),
@@ -272,6 +298,7 @@ def simulate(
     report: Callable[[dict[str, Any]], None] | None = None,
     trace: bool = True,
     rrd_options: dict[str, Any] | None = None,
+    kicks: KickSchedule | None = None,
 ) -> dict[str, Any]:
     """Run one episode (optionally recorded), `report` its JSON-ready result and return it.
 
@@ -306,10 +333,12 @@ def simulate(
     start = time.perf_counter()
     try:
         raise_if_stop_requested()  # a signal while the recording started may have been swallowed
+        if kicks is not None:
+            sim.set_schedule(kicks)  # after the recorder attached: the recording has the event
         sim.run(hops)
         raise_if_stop_requested()
         result = {
-            "settings": settings(config, hops),
+            "settings": {**settings(config, hops), "schedule": kicks.spec() if kicks else None},
             "seed": config.seed,
             "wheel": config.wheel,
             "fell": sim.fallen,
@@ -343,6 +372,28 @@ def hop_table(hops: list[dict[str, Any]]) -> str:
     for hop in hops:
         row = " ".join(f"{hop[k]:9.3f}" if abs(hop[k]) < 100 else f"{hop[k]:9.1f}" for k in HOP_COLUMNS)
         lines.append(f"{hop['index']:>3}{'*' if not hop['completed'] else ' '}{row}")
+    return "\n".join(lines)
+
+
+def response_table(hops: list[dict[str, Any]], schedule: str | None = None) -> str:
+    """Each hop's response: from the kick (k) or the liftoff; a settling time with > did not settle
+    by the touchdown (a lower bound). Then a line of the completed hops' means and worsts."""
+    lines = ["resp" + " ".join(f"{h:>9}" for h in RESPONSE_COLUMNS.values())]
+    for hop in hops:
+        cells = [f"{hop[k]:9.3f}" if abs(hop[k]) < 100 else f"{hop[k]:9.1f}" for k in RESPONSE_COLUMNS]
+        if not hop["settled"]:
+            cells[3] = f"{'>' + format(hop['settling_time_s'], '.3f'):>9}"
+        lines.append(f"{hop['index']:>3}{'k' if hop['kicked'] else ' '}{' '.join(cells)}")
+    done = [h for h in hops if h["completed"]]
+    if done:
+        lines.append(
+            f"response from {'the kick (' + schedule + ')' if schedule else 'liftoff'}: "
+            f"mean overshoot {statistics.fmean(h['overshoot_deg'] for h in done):.2f} deg, "
+            f"worst settling {max(h['settling_time_s'] for h in done):.3f} s, "
+            f"peak torque {max(h['peak_wheel_torque_nm'] for h in done):.1f} N m, "
+            f"peak momentum {max(h['peak_momentum_pct'] for h in done):.0f} % of capacity, "
+            f"worst landing error {max(abs(h['landing_error_deg']) for h in done):.2f} deg"
+        )
     return "\n".join(lines)
 
 
@@ -382,6 +433,7 @@ def peak_deviation(result: dict[str, Any]) -> float:
 def command_run(args: argparse.Namespace) -> int:
     def report(result: dict[str, Any]) -> None:
         print(hop_table(result["hops"]))
+        print(response_table(result["hops"], result["settings"]["schedule"]))
         print(summary(result))
         if args.rrd:
             print(f"recording: {', '.join(result.get('rrd_parts', [str(args.rrd)]))}")
@@ -396,7 +448,7 @@ def command_run(args: argparse.Namespace) -> int:
         "max_seconds": args.rrd_max_min * 60.0 if args.rrd_max_min is not None else None,
     }
     config = make_config(args, args.seed, wheel=not args.no_wheel)
-    result = simulate(config, args.hops, args.rrd, args.rerun_viewer, report, options)
+    result = simulate(config, args.hops, args.rrd, args.rerun_viewer, report, rrd_options=options, kicks=args.schedule)
     return EXIT_FELL if result["fell"] else EXIT_OK
 
 

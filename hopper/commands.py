@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING, Literal, Protocol
 
 from hopper.config import Gains
 from hopper.events import DisturbanceKind
+from hopper.schedule import KickSchedule
 
 if TYPE_CHECKING:
     from hopper.sim import Simulation
@@ -67,6 +68,14 @@ class Disturb:
 
     def apply(self, sim: Simulation) -> None:
         sim.disturb(self.disturbance, self.magnitude)
+
+
+@dataclasses.dataclass(frozen=True)
+class SetSchedule:
+    schedule: KickSchedule | None  # None clears it
+
+    def apply(self, sim: Simulation) -> None:
+        sim.set_schedule(self.schedule)
 
 
 @dataclasses.dataclass(frozen=True)

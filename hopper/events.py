@@ -10,6 +10,7 @@ from typing import ClassVar, Literal
 from hopper.config import Gains
 from hopper.control.phases import FallCause
 from hopper.metrics import HopMetrics
+from hopper.schedule import KickSchedule
 
 
 class EventKind(enum.StrEnum):
@@ -29,6 +30,7 @@ class EventKind(enum.StrEnum):
     RECORDING = "recording"
     SENSING = "sensing"
     OPERATOR = "operator"
+    SCHEDULE = "schedule"
 
 
 DisturbanceKind = Literal["pitch_kick", "push_forward", "push_backward", "torque_pulse"]
@@ -154,10 +156,22 @@ class Disturbance:
     magnitude: float
     unit: str
     duration_s: float = 0.0  # 0: an impulse
+    after_liftoff_s: float | None = None  # set when a schedule (hopper.schedule) applied it
 
     def describe(self) -> str:
         extra = f" for {self.duration_s:g} s" if self.duration_s else ""
+        if self.after_liftoff_s is not None:
+            extra += f" (scheduled, {self.after_liftoff_s * 1000:.0f} ms after liftoff)"
         return f"{DISTURBANCE_NAMES[self.disturbance]} {self.magnitude:+g} {self.unit}{extra}"
+
+
+@dataclasses.dataclass(frozen=True)
+class ScheduleChanged:
+    kind: ClassVar[EventKind] = EventKind.SCHEDULE
+    schedule: KickSchedule | None  # None: cleared
+
+    def describe(self) -> str:
+        return f"schedule: {self.schedule.describe()}" if self.schedule else "schedule cleared"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -231,7 +245,7 @@ class OperatorChanged:
 Payload = (
     Liftoff | Apex | Touchdown | Fall | Reset | GainsChanged | WheelChanged | SensingChanged | GravityChanged
     | TerrainChanged
-    | Disturbance | DisturbanceArmed | Diverged | CommandFailed | Recording | OperatorChanged
+    | Disturbance | DisturbanceArmed | Diverged | CommandFailed | Recording | OperatorChanged | ScheduleChanged
 )  # fmt: skip
 
 

@@ -7,7 +7,10 @@ import math
 
 import numpy as np
 
-from hopper.control.memory import ACC, FLIGHT_ACC
+from hopper.config import WHEEL_ARMATURE, WHEEL_INERTIA
+from hopper.control.gait import momentum_capacity
+from hopper.control.kernel import RESPONSE_THRESHOLD, SETTLE_BAND
+from hopper.control.memory import ACC, FLIGHT_ACC, RESPONSE_ACC
 
 RAD_S_TO_RPM = 60.0 / (2.0 * math.pi)
 MIN_HOP_FLIGHT_S = 0.05  # s; a shorter flight (a foot skipping after a weak push) is no hop
@@ -32,9 +35,43 @@ class HopMetrics:
     liftoff_momentum: float  # total pitch angular momentum at liftoff, kg m^2/s
     touchdown_time_s: float  # simulation time of the touchdown (or the fall)
     completed: bool = True  # False: the flight ended in a fall, not a touchdown
+    # The flight's pitch response, from the scheduled kick or else from liftoff (see ResponseMetrics).
+    kicked: bool = False  # a scheduled disturbance hit this flight (hopper.schedule)
+    response_start_s: float = 0.0  # s after liftoff the response is measured from: the kick, or 0
+    response_peak_deg: float = 0.0
+    overshoot_deg: float = 0.0
+    settling_time_s: float = 0.0
+    settled: bool = True
+    peak_wheel_torque_nm: float = 0.0
+    peak_momentum_pct: float = 0.0
+    landing_error_deg: float = 0.0
 
     def as_dict(self) -> dict[str, float | int | bool]:
         return dataclasses.asdict(self)
+
+
+class ResponseMetrics:
+    """How the flight PID answered, measured from t0 = the scheduled kick's tick (or the liftoff)
+    to the touchdown, over flight ticks, on the true pitch (HopMetrics fields):
+
+    - response_peak_deg: the first excursion's peak |pitch|. The first excursion starts at the
+      first tick after t0 with |pitch| > 0.25 deg (RESPONSE_THRESHOLD; smaller wobbles start none)
+      and ends at the first zero crossing.
+    - overshoot_deg: the largest pitch beyond zero on the side opposite the first excursion,
+      after that crossing (>= 0; 0 when it never crossed). overshoot / response_peak is the
+      classic overshoot ratio of a regulator's disturbance response.
+    - settling_time_s: from t0 to the end of the last tick with |pitch| > 1 deg (0 if none).
+      settled is False when |pitch| was still beyond 1 deg at the touchdown: the value is then
+      the time to the touchdown, a lower bound.
+    - peak_wheel_torque_nm: largest |wheel torque| (the actuator's, at the motor side, against
+      the 29.5 N m limit).
+    - peak_momentum_pct: largest |wheel momentum| relative to the torso, (I_w + armature) * speed,
+      in % of hopper.control.gait.momentum_capacity().
+    - landing_error_deg: signed pitch at the touchdown (upright is 0); landing_pitch_deg is its size.
+    """
+
+    THRESHOLD_DEG = math.degrees(RESPONSE_THRESHOLD)  # the kernel accumulates with these (control/kernel.py)
+    BAND_DEG = math.degrees(SETTLE_BAND)
 
 
 class MetricsTracker:
@@ -44,6 +81,7 @@ class MetricsTracker:
     def __init__(self, mem: np.ndarray, x0: float = 0.0) -> None:
         self.hops: list[HopMetrics] = []
         self.mem = mem  # the control kernel's MEMORY record, shared
+        self.dt = float(mem["dt"][0])  # s, a control tick
         self.reset(x0)
 
     def reset(self, x0: float, time: float = 0.0) -> None:
@@ -57,14 +95,23 @@ class MetricsTracker:
         self._liftoff_time: float | None = None
         self._liftoff_z = 0.0
         self._liftoff_momentum = 0.0
+        self._response_start: float | None = None  # s, simulation time of the scheduled kick
 
     def _clear(self, fields: tuple[str, ...]) -> None:
         for name in fields:
-            self.mem[name] = -math.inf if name == "acc_apex_z" else 0.0
+            self.mem[name] = -math.inf if name in ("acc_apex_z", "acc_last_out") else 0.0
 
     def liftoff(self, time: float, z: float, momentum: float) -> None:
         self._liftoff_time, self._liftoff_z, self._liftoff_momentum = time, z, momentum
+        self._response_start = None
+        self._clear(RESPONSE_ACC)
         self.mem["acc_apex_z"] = z
+
+    def kicked(self, time: float) -> None:
+        """A scheduled disturbance hit now (s): the flight's response is measured from here."""
+        if self._liftoff_time is not None:
+            self._response_start = time
+            self._clear(RESPONSE_ACC)
 
     def _acc(self, name: str) -> float:
         return float(self.mem[name][0])
@@ -81,6 +128,11 @@ class MetricsTracker:
             return None
         acc = self._acc
         ticks = max(acc("acc_flight_ticks"), 1.0)
+        kicked = self._response_start is not None
+        start = self._response_start if self._response_start is not None else self._liftoff_time
+        settled = abs(pitch) <= SETTLE_BAND
+        last_out = acc("acc_last_out")
+        settling = (last_out + self.dt - start if last_out > -math.inf else 0.0) if settled else time - start
         hop = HopMetrics(
             index=len(self.hops) + 1,
             distance_m=x - self._last_touchdown_x,
@@ -95,6 +147,15 @@ class MetricsTracker:
             liftoff_momentum=self._liftoff_momentum,
             touchdown_time_s=time,
             completed=completed,
+            kicked=kicked,
+            response_start_s=start - self._liftoff_time,
+            response_peak_deg=math.degrees(acc("acc_first_peak")),
+            overshoot_deg=math.degrees(acc("acc_overshoot")),
+            settling_time_s=max(settling, 0.0),
+            settled=settled,
+            peak_wheel_torque_nm=acc("acc_peak_torque"),
+            peak_momentum_pct=100.0 * (WHEEL_INERTIA + WHEEL_ARMATURE) * acc("acc_resp_wheel") / momentum_capacity(),
+            landing_error_deg=math.degrees(pitch),
         )
         self.hops.append(hop)
         self._last_touchdown_x = x

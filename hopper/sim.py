@@ -33,6 +33,7 @@ from hopper.events import (
     Liftoff,
     Payload,
     Reset,
+    ScheduleChanged,
     SensingChanged,
     TerrainChanged,
     Touchdown,
@@ -41,6 +42,7 @@ from hopper.events import (
 from hopper.layout import ModelLayout
 from hopper.metrics import HopMetrics, MetricsTracker
 from hopper.model import build_model, set_terrain, set_wheel_enabled, terrain_heights
+from hopper.schedule import KickSchedule
 from hopper.state import RobotState, angular_momentum, read_state
 
 log = logging.getLogger(__name__)
@@ -88,6 +90,8 @@ class Simulation:
         self._qpos, self._qvel, self._sensors, self._ctrl = d.qpos, d.qvel, d.sensordata, d.ctrl
         self._mem, self._dt = self.controller.mem, self.model.opt.timestep
         self.ticks = 0  # control ticks stepped since construction
+        self.schedule: KickSchedule | None = None  # the repeatable test's kick (hopper.schedule)
+        self._kick_at, self._liftoff_at = math.inf, 0.0  # s: the scheduled kick's time, the last liftoff's
         self.reset(reason="start")
 
     # -- reading ---------------------------------------------------------------------------
@@ -128,6 +132,8 @@ class Simulation:
             self._controller_events(events)
         if self._pulse_at != math.inf and self._pulse_at <= self.data.time:
             self._pulse_event()
+        if self._kick_at != math.inf and self._kick_at <= self.data.time:
+            self._scheduled_kick()
         mujoco.mj_step(self.model, self.data)
         self.ticks += 1
         if self.ticks % HEALTH_CHECK_TICKS == 0:
@@ -189,9 +195,15 @@ class Simulation:
             if self._pulse_armed:
                 self._pulse_at, self._pulse_magnitude = s.time + TORQUE_PULSE_DELAY_S, self._pulse_armed
                 self._pulse_armed = 0.0
+            self._liftoff_at = s.time
+            if self.schedule is not None and self.schedule.due(len(self.hops) + 1):
+                # Half a tick early: the kick lands on the tick delay_s after the liftoff's, not the next.
+                self._kick_at = s.time + self.schedule.delay_s - 0.5 * self._dt
         if events & EV_APEX:
             self.controller.plan_landing(self.data, self.layout, self._ground)
             self._emit(Apex(s.z))
+        if events & (EV_TOUCHDOWN | EV_FALL):
+            self._kick_at = math.inf  # a flight shorter than the delay goes unkicked
         if events & EV_TOUCHDOWN:
             self._emit(Touchdown(self.metrics.touchdown(s.time, s.x, s.pitch)))
         if events & EV_FALL:
@@ -218,6 +230,7 @@ class Simulation:
         self.data.joint("root_z").qpos = FOOT_RADIUS + stand - HIP_OFFSET_Z - torso_z
         mujoco.mj_forward(self.model, self.data)
         self._pulse_armed, self._pulse_magnitude, self._pulse_at = 0.0, 0.0, math.inf
+        self._kick_at = math.inf
         self._warnings = int(self.data.warning.number.sum())
         self.controller.reset(self.time, standing=True)
         self.metrics.reset(self.state().x, self.time)
@@ -256,6 +269,26 @@ class Simulation:
         self._emit(TerrainChanged(kind, seed))
         self.reset(reason="terrain")
 
+    def set_schedule(self, schedule: KickSchedule | None) -> None:
+        """Kick every (Nth) flight the same way from its next liftoff on; None stops it."""
+        if schedule is not None and not isinstance(schedule, KickSchedule):
+            raise TypeError(f"expected a KickSchedule or None, got {type(schedule).__name__}")
+        self.schedule = schedule
+        self._kick_at = math.inf  # a flight under way is not kicked: each kick follows its own liftoff
+        self._emit(ScheduleChanged(schedule))
+
+    def _scheduled_kick(self) -> None:
+        schedule, self._kick_at = self.schedule, math.inf
+        if schedule is None or self.controller.phase is not Phase.FLIGHT:
+            return
+        after = self.time - self._liftoff_at
+        self.metrics.kicked(self.time)
+        if schedule.kind == "torque_pulse":
+            self._pulse_at, self._pulse_magnitude = self.time, schedule.magnitude
+            self._pulse_event(after)
+        else:
+            self._impulse(schedule.kind, schedule.magnitude, after)  # type: ignore[arg-type]
+
     def disturb(self, kind: DisturbanceKind, magnitude: float) -> None:
         """Apply a disturbance; impulses act at once, a torque pulse in (the next) flight."""
         if kind not in DISTURBANCE_LIMITS:
@@ -269,22 +302,26 @@ class Simulation:
                 self._pulse_armed = magnitude
                 self._emit(DisturbanceArmed(kind, magnitude, unit))
             return
+        self._impulse(kind, magnitude)
+
+    def _impulse(self, kind: DisturbanceKind, magnitude: float, after_liftoff_s: float | None = None) -> None:
+        """An angular (pitch_kick) or linear (push_*) impulse on the torso, now."""
         dof = self.layout.v_pitch if kind == "pitch_kick" else self.layout.v_x
         impulse = np.zeros(self.model.nv)
         impulse[dof] = -magnitude if kind == "push_backward" else magnitude
         dv = np.zeros(self.model.nv)
         mujoco.mj_solveM(self.model, self.data, dv.reshape(1, -1), impulse.reshape(1, -1))
         self.data.qvel += dv
-        self._emit(Disturbance(kind, magnitude, unit))
+        self._emit(Disturbance(kind, magnitude, DISTURBANCE_LIMITS[kind][1], after_liftoff_s=after_liftoff_s))
 
-    def _pulse_event(self) -> None:
-        """Start a scheduled torque pulse (in flight only), or end the running one."""
+    def _pulse_event(self, after_liftoff_s: float | None = None) -> None:
+        """Start a pending torque pulse (in flight only), or end the running one."""
         magnitude = self._pulse_magnitude
         torso = self.layout.torso
         if magnitude and self.controller.phase is Phase.FLIGHT:
             self.data.xfrc_applied[torso, 4] = magnitude  # pitch torque about world y
             self._pulse_at, self._pulse_magnitude = self.time + TORQUE_PULSE_S, 0.0
-            self._emit(Disturbance("torque_pulse", magnitude, "N m", TORQUE_PULSE_S))
+            self._emit(Disturbance("torque_pulse", magnitude, "N m", TORQUE_PULSE_S, after_liftoff_s))
         else:
             self.data.xfrc_applied[torso, 4] = 0.0
             self._pulse_at, self._pulse_magnitude = math.inf, 0.0

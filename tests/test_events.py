@@ -9,6 +9,7 @@ import pytest
 from hopper import events as ev
 from hopper.config import Gains, SimConfig
 from hopper.control import FallCause
+from hopper.schedule import KickSchedule
 from hopper.sim import Simulation
 
 SAMPLES = [
@@ -28,6 +29,9 @@ SAMPLES = [
     ev.CommandFailed("Disturb", "ValueError: bad"),
     ev.Recording("started", "/tmp/a.rrd"),
     ev.OperatorChanged("client 2 (127.0.0.1)", "client 1", "handed over"),
+    ev.ScheduleChanged(KickSchedule("pitch_kick", 0.3, 0.15, every=2)),
+    ev.ScheduleChanged(None),
+    ev.Disturbance("pitch_kick", 0.3, "N m s", after_liftoff_s=0.15),
 ]
 
 

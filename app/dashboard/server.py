@@ -316,7 +316,9 @@ class Dashboard:
             notify_all(self.server, "Command failed", payload.describe(), "error")
         elif kind == EventKind.TERRAIN:
             self.terrain = add_terrain(self.server.scene, self.sim.heights, self.sim.config.craters)
-        if kind == EventKind.GAINS:
+        if kind == EventKind.SCHEDULE:
+            layout.disturbances.schedule.show(payload.schedule)
+        elif kind == EventKind.GAINS:
             layout.analysis.show_gains(payload.gains)
         elif kind in PLANT_CHANGES:  # the flight the analysis linearizes is another one now
             layout.analysis.update_plant(self.sim.config)

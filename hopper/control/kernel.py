@@ -33,6 +33,8 @@ LIMP_DAMPING = 0.5  # N m s/rad on each leg joint between the end of the push an
 SWEEP_RAMP = 0.25
 # Event bits returned by the kernel.
 EV_LIFTOFF, EV_TOUCHDOWN, EV_FALL, EV_APEX = 1, 2, 4, 8
+RESPONSE_THRESHOLD = math.radians(0.25)  # rad: a smaller pitch starts no excursion (hopper.metrics)
+SETTLE_BAND = math.radians(1.0)  # rad: settled within 1 deg
 
 
 @njit(cache=True)
@@ -76,6 +78,28 @@ def captured(m, vx: float, hip_x: float, left: Leg, right: Leg) -> bool:  # noqa
         front, back = max(front, hip_x + right.px), min(back, hip_x + right.px)
     capture = vx * m.capture_time
     return back - CAPTURE_SLACK <= capture <= front + CAPTURE_SLACK
+
+
+@njit(cache=True)
+def respond(m, time: float, torque: float, wheel_speed: float) -> None:  # noqa: ANN001 (a MEMORY record)
+    """Accumulate one flight tick of the pitch response (hopper.metrics.ResponseMetrics defines it)."""
+    pitch = m.pitch_true
+    if m.acc_lobe == 0.0:
+        if abs(pitch) > RESPONSE_THRESHOLD:
+            m.acc_lobe = 1.0 if pitch > 0.0 else -1.0
+            m.acc_first_peak = abs(pitch)
+    elif m.acc_crossed == 0.0:
+        along = m.acc_lobe * pitch
+        if along <= 0.0:
+            m.acc_crossed, m.acc_overshoot = 1.0, -along
+        else:
+            m.acc_first_peak = max(m.acc_first_peak, along)
+    else:
+        m.acc_overshoot = max(m.acc_overshoot, -m.acc_lobe * pitch)
+    if abs(pitch) > SETTLE_BAND:
+        m.acc_last_out = time
+    m.acc_peak_torque = max(m.acc_peak_torque, abs(torque))
+    m.acc_resp_wheel = max(m.acc_resp_wheel, abs(wheel_speed))
 
 
 @njit(cache=True)
@@ -235,6 +259,7 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
         m.acc_rate_sq += m.rate_true * m.rate_true
         m.acc_flight_ticks += 1.0
         m.acc_apex_z = max(m.acc_apex_z, qpos[m.q_z] + m.z0)
+        respond(m, time, torque, wheel_speed)
         if m.prev_vz > 0.0 >= com_vz:
             events |= EV_APEX
     m.prev_vz = com_vz

@@ -107,9 +107,18 @@ _ACC = [
     ("acc_rate_sq", "f8"),  # rad^2/s^2, sum of pitch rate squared over flight ticks
     ("acc_flight_ticks", "f8"),
     ("acc_apex_z", "f8"),  # m, highest torso z in flight
+    # The response since liftoff or the scheduled kick (hopper.metrics.ResponseMetrics defines them).
+    ("acc_lobe", "f8"),  # +1 / -1: sign of the first excursion beyond RESPONSE_THRESHOLD, 0: none yet
+    ("acc_crossed", "f8"),  # 1: the pitch has crossed zero after the first excursion
+    ("acc_first_peak", "f8"),  # rad, largest |pitch| of the first excursion
+    ("acc_overshoot", "f8"),  # rad, largest pitch beyond zero, opposite the first excursion, after the crossing
+    ("acc_last_out", "f8"),  # s, time of the last tick with |pitch| beyond SETTLE_BAND (-inf: none)
+    ("acc_peak_torque", "f8"),  # N m, max |wheel torque|
+    ("acc_resp_wheel", "f8"),  # rad/s, max |wheel speed|
 ]
 ACC = tuple(name for name, _ in _ACC)
-FLIGHT_ACC = ("acc_peak_pitch", "acc_rate_sq", "acc_flight_ticks", "acc_apex_z")  # flight ticks only
+RESPONSE_ACC = ACC[ACC.index("acc_lobe") :]  # cleared at liftoff and at a scheduled kick
+FLIGHT_ACC = ("acc_peak_pitch", "acc_rate_sq", "acc_flight_ticks", "acc_apex_z", *RESPONSE_ACC)  # flight ticks only
 MEMORY = np.dtype(_PARAMS + _LAYOUT + _STATE + _ACC, align=True)
 
 

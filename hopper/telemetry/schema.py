@@ -38,6 +38,13 @@ HOP_DECIMALS = {
     "peak_wheel_rpm": 0,  # 1 rpm
     "liftoff_momentum": 4,  # 1e-4 N m s
     "touchdown_time_s": 3,
+    "response_start_s": 3,  # the response (hopper.metrics.ResponseMetrics), from the kick or the liftoff
+    "response_peak_deg": 2,
+    "overshoot_deg": 2,
+    "settling_time_s": 3,
+    "peak_wheel_torque_nm": 2,  # 0.01 N m
+    "peak_momentum_pct": 1,  # 0.1 % of the capacity
+    "landing_error_deg": 2,
 }
 
 
