@@ -103,3 +103,25 @@ def test_bad_rollover_flags_fail_in_one_line(args: list[str], message: str, caps
         cli.parse(args)
     err = capsys.readouterr().err
     assert exit_.value.code == 2 and message in err and err.count("\n") == 1, err
+
+
+def test_hopper_sim_run_rolls_its_recording_over(tmp_path: Path) -> None:
+    """`hopper-sim run --rrd-max-min` writes numbered parts, each verifying, and lists them."""
+    import json
+    import subprocess
+    import sys
+
+    out = tmp_path / "run.rrd"
+    done = subprocess.run(
+        [sys.executable, "-m", "hopper.app.sim_cli", "run", "--terrain", "flat", "--hops", "3"]
+        + ["--rrd", str(out), "--rrd-max-min", "0.05", "--json", str(tmp_path / "run.json")],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 0, done.stderr
+    parts = sorted(tmp_path.glob("run-*.rrd"))
+    # Three hops from standing take about 7 s of simulation: at 3 s a part, three parts.
+    assert len(parts) >= 2, (done.stdout, list(tmp_path.iterdir()))
+    assert json.loads((tmp_path / "run.json").read_text())["rrd_parts"] == [str(p) for p in parts]
+    verify(*parts)
