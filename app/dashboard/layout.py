@@ -14,13 +14,14 @@ from hopper.app.dashboard.panels.gains import GainsPanel, build_gains_panel
 from hopper.app.dashboard.panels.help import build_help_button
 from hopper.app.dashboard.panels.hops import HopTable, build_hop_table
 from hopper.app.dashboard.panels.record import RecordPanel, build_record_panel
+from hopper.app.dashboard.panels.replay import ReplayHost, ReplayPanel, build_replay_panel
 from hopper.app.dashboard.panels.simulation import SimulationPanel, build_simulation_panel
 from hopper.app.dashboard.panels.status import StatusPanel, build_status_panel
 from hopper.app.dashboard.panels.terrain import TerrainPanel, build_terrain_panel
 from hopper.app.dashboard.panels.view import ViewPanel, build_view_panel
-from hopper.app.dashboard.plots import LivePlots
+from hopper.app.dashboard.plots import LivePlots, ReflyPlots
 from hopper.app.dashboard.recording import Recorder
-from hopper.app.dashboard.scene import CameraFollow, RobotView, Trail
+from hopper.app.dashboard.scene import CameraFollow, GhostRobot, RobotView, Trail
 
 from hopper.config import Gains
 
@@ -40,6 +41,7 @@ class Layout:
     plots: LivePlots
     hops: HopTable
     events: EventLog
+    replay: ReplayPanel | None = None  # re-fly, history scrubber, keyframes (issue 9, parts 4-5)
 
 
 def configure_theme(server: viser.ViserServer) -> None:
@@ -69,6 +71,8 @@ def build_layout(
     camera: CameraFollow,
     trail: Trail,
     robot: RobotView,
+    replay_host: ReplayHost | None = None,
+    ghost: GhostRobot | None = None,
 ) -> Layout:
     configure_theme(server)
     gui, theme = server.gui, assets.theme()
@@ -90,6 +94,10 @@ def build_layout(
         view = build_view_panel(gui, server.scene, camera, trail, robot)
     with tabs.add_tab("Record", viser.Icon.PLAYER_RECORD):
         record = build_record_panel(gui, recorder)
+    replay = None
+    if replay_host is not None and ghost is not None:
+        with tabs.add_tab("Replay", viser.Icon.HISTORY):
+            replay = build_replay_panel(gui, ctx, replay_host, None, ghost)
     build_help_button(gui, assets.help_markdown())
     server.gui.main_panel.dock_right()
     server.gui.main_panel.set_width(theme.right_panel_width)
@@ -101,8 +109,12 @@ def build_layout(
             hops = build_hop_table(gui)
         with gui.add_folder("Events"):
             events = build_event_log(gui)
+        if replay is not None:
+            with gui.add_folder("Re-fly: before / after"):
+                replay.plots = ReflyPlots(gui)
     live.dock_left()
     live.set_width(theme.left_panel_width)
     return Layout(
-        status, simulation, gains_panel, analysis, disturbances, terrain_panel, view, record, plots, hops, events
-    )
+        status, simulation, gains_panel, analysis, disturbances, terrain_panel, view, record, plots, hops, events,
+        replay,
+    )  # fmt: skip

@@ -25,6 +25,7 @@ from hopper.app.dashboard.plots import PLOT_SAMPLE_S
 from hopper.app.dashboard.recording import Recorder
 from hopper.app.dashboard.scene import (
     CameraFollow,
+    GhostRobot,
     RobotView,
     Trail,
     add_ground,
@@ -35,6 +36,7 @@ from hopper.app.dashboard.scene import (
 
 from hopper.config import WHEEL_NO_LOAD_SPEED
 from hopper.events import Event, EventKind, Fall
+from hopper.history import History, Snapshot
 from hopper.metrics import RAD_S_TO_RPM
 from hopper.sim import Simulation
 
@@ -111,6 +113,8 @@ class Dashboard:
         self.terrain = add_terrain(self.server.scene, sim.heights, sim.config.craters)
         self.robot = RobotView(self.server.scene, sim.model)
         self.trail = Trail(self.server.scene)
+        self.history = History()  # replay: liftoff states and a ring of recent ones
+        self.ghost = GhostRobot(self.server.scene, sim.model)
         self.layout: Layout = build_layout(
             self.server,
             PanelContext(self.server, sim.submit, self),
@@ -124,9 +128,12 @@ class Dashboard:
             camera=self.camera,
             trail=self.trail,
             robot=self.robot,
+            replay_host=self,
+            ghost=self.ghost,
         )
         self.recorder.listeners.append(self._recording_changed)
         sim.listeners.append(self)
+        sim.listeners.append(self.history)
         self.layout.analysis.update_plant(sim.config)
 
     @property
@@ -175,6 +182,16 @@ class Dashboard:
     def set_speed(self, speed: float) -> None:
         self.pacer.set_speed(speed)
         self.pacer.restart_window()
+
+    # -- ReplayHost (panels/replay.py) ------------------------------------------------------
+    def pause(self, paused: bool) -> None:
+        self.layout.simulation.set_paused(paused)
+
+    def restored(self, snapshot: Snapshot) -> None:
+        """On the loop thread, after the live simulation was put back to `snapshot`."""
+        self.history.rewound(snapshot)
+        self._next_sample = snapshot.time
+        self.layout.plots.drop_after(snapshot.time)
 
     # -- Listener (called on the loop thread by sim.step) -------------------------------------
     def tick(self, sim: Simulation) -> None:
@@ -255,6 +272,7 @@ class Dashboard:
         with self.server.atomic():
             self.robot.update(sim.model, sim.data, level, sim.phase.label)
             self.camera.update(s.x, s.z, dt)
+            self.ghost.update(now)
         self.trail.publish()
         self.layout.plots.publish(now)
         self.frames += 1
