@@ -158,11 +158,9 @@ class ReflyPlots:
         self.pitch = _chart(
             gui, (time, _series("before (°)", BEFORE_COLOR), _series("after (°)", AFTER_COLOR, 2.0, (5, 3))), None
         )
-        limit = WHEEL_TORQUE_LIMIT * 1.08
+        # Auto-ranged (at least +-Y_SOFT N m): a flight's torque is often far below the 29.5 N m limit.
         self.torque = _chart(
-            gui,
-            (time, _series("before (N m)", BEFORE_COLOR), _series("after (N m)", AFTER_COLOR, 2.0, (5, 3))),
-            (-limit, limit),
+            gui, (time, _series("before (N m)", BEFORE_COLOR), _series("after (N m)", AFTER_COLOR, 2.0, (5, 3))), None
         )
 
     def show(self, dt: float, before: tuple[np.ndarray, np.ndarray], after: tuple[np.ndarray, np.ndarray]) -> None:

@@ -36,7 +36,7 @@ from hopper.app.dashboard.scene import (
 
 from hopper.config import WHEEL_NO_LOAD_SPEED
 from hopper.events import Event, EventKind, Fall
-from hopper.history import History, Snapshot
+from hopper.history import History, Snapshot, restore
 from hopper.metrics import RAD_S_TO_RPM
 from hopper.sim import Simulation
 
@@ -83,6 +83,7 @@ class Dashboard:
         self._stopped = False
         self._fallen_since: float | None = None
         self._next_sample = 0.0
+        self._restore: Snapshot | None = None  # asked by the Replay panel, applied by the loop
         self.frames = 0  # pose frames published, for tests and the benchmark
 
         self.recorder = Recorder(self.sim.submit, config.sessions_dir)
@@ -187,11 +188,24 @@ class Dashboard:
     def pause(self, paused: bool) -> None:
         self.layout.simulation.set_paused(paused)
 
-    def restored(self, snapshot: Snapshot) -> None:
-        """On the loop thread, after the live simulation was put back to `snapshot`."""
+    def request_restore(self, snapshot: Snapshot) -> None:
+        self._restore = snapshot  # one reference assignment: atomic; a newer request replaces an older one
+
+    def _apply_restore(self) -> bool:
+        """On the loop thread: restore a requested snapshot; True if one was (no steps this round)."""
+        snapshot, self._restore = self._restore, None
+        if snapshot is None:
+            return False
+        try:
+            restore(self.sim, snapshot)
+        except Exception as exc:
+            log.exception("restoring a snapshot failed")
+            notify_all(self.server, "Restore failed", f"{type(exc).__name__}: {exc}", "error")
+            return True
         self.history.rewound(snapshot)
         self._next_sample = snapshot.time
         self.layout.plots.drop_after(snapshot.time)
+        return True
 
     # -- Listener (called on the loop thread by sim.step) -------------------------------------
     def tick(self, sim: Simulation) -> None:
@@ -213,6 +227,8 @@ class Dashboard:
         while not self._stopping.is_set():
             now = time.perf_counter()
             budgeted = self.pacer.due(now)
+            if self._restore is not None and self._apply_restore():
+                budgeted = 0  # paused by the scrubber: the restored moment must be the one shown
             if self.pacer.paused:
                 self._apply_commands()
             with self._single_lock:
@@ -276,6 +292,8 @@ class Dashboard:
         self.trail.publish()
         self.layout.plots.publish(now)
         self.frames += 1
+        if with_status and self.layout.replay is not None:
+            self.layout.replay.show_span(self.pacer.paused)
         if with_status:
             self.layout.status.show(
                 Status(

@@ -1,8 +1,8 @@
 """Replay panel: re-fly the last flight with the current gains (A/B table), a history scrubber, keyframes.
 
-Callbacks run on viser's threads: re-flying uses a scratch simulation of its own; anything that
-touches the live simulation (restore a moment or a keyframe, save a keyframe) is a command the
-loop applies between ticks (also while paused).
+Callbacks run on viser's threads: re-flying uses a scratch simulation of its own; saving a keyframe
+is a command the loop applies between ticks; a restore (a scrubbed moment, a keyframe) is handed to
+the loop, which applies it between two step batches, so that no tick follows it while paused.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from hopper.app.dashboard.scene import GhostRobot
 
 from hopper import keyframes
 from hopper.config import Gains
-from hopper.history import GHOST_EVERY, RING_SPAN_S, Flight, History, Snapshot, fly, restore
+from hopper.history import GHOST_EVERY, RING_SPAN_S, Flight, History, Snapshot, fly
 
 if TYPE_CHECKING:
     from hopper.sim import Simulation
@@ -41,19 +41,8 @@ class ReplayHost(Protocol):
 
     def pause(self, paused: bool) -> None: ...
 
-    def restored(self, snapshot: Snapshot) -> None: ...
-
-
-@dataclasses.dataclass(frozen=True)
-class RestoreSnapshot:
-    """Command: put the live simulation back into a snapshot, then tell `then` (on the loop thread)."""
-
-    snapshot: Snapshot
-    then: Callable[[Snapshot], None]
-
-    def apply(self, sim: Simulation) -> None:
-        restore(sim, self.snapshot)
-        self.then(self.snapshot)
+    def request_restore(self, snapshot: Snapshot) -> None:
+        """Put the live simulation back into `snapshot` between two step batches (no tick after it)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -89,8 +78,8 @@ def refly(recorded: Flight, gains: Gains) -> Comparison:
 _COLUMNS = (
     ("peak_pitch_deg", "peak", "°", "{:.2f}"),
     ("rms_rate_deg_s", "rms rate", "°/s", "{:.1f}"),
-    ("landing_pitch_deg", "land err", "°", "{:.2f}"),
-    ("peak_torque_nm", "peak τ", "N m", "{:.1f}"),
+    ("landing_pitch_deg", "landing", "°", "{:.2f}"),
+    ("peak_torque_nm", "peak τ", "N m", "{:.2f}"),
 )
 
 
@@ -104,14 +93,15 @@ def ab_table_html(rows: list[tuple[str, float, Gains, dict[str, float]]], note: 
     body = []
     for label, t, g, summary in rows:
         cells = "".join(f"<td>{_fmt(summary[f], fmt)}</td>" for f, _, _, fmt in _COLUMNS)
-        gains = f"{g.kp:g} / {g.ki:g} / {g.kd:g}"
-        body.append(f"<tr><td style='text-align:left'>{html.escape(label)} @{t:.1f}s</td><td>{gains}</td>{cells}</tr>")
+        gains = f"{g.kp:g}/{g.ki:g}/{g.kd:g}"
+        where = f"<td style='text-align:left;white-space:nowrap'>{html.escape(label)} <span>{t:.1f} s</span></td>"
+        body.append(f"<tr>{where}<td style='white-space:nowrap'>{gains}</td>{cells}</tr>")
     if not body:
         body.append(f"<tr><td colspan={len(_COLUMNS) + 2} class='hd-empty'>re-fly a flight to compare gains</td></tr>")
     caption = f"<caption>{html.escape(note)}</caption>" if note else ""
     return (
-        f"<table class='hd-hops hd-ab'>{caption}<tr><th style='text-align:left'>flight</th>"
-        f"<th>Kp / Ki / Kd</th>{head}</tr>{''.join(body)}</table>"
+        f"<table class='hd-hops hd-ab'>{caption}<tr><th style='text-align:left'>flight<br><span>liftoff</span></th>"
+        f"<th>Kp/Ki/Kd<br><span>gains</span></th>{head}</tr>{''.join(body)}</table>"
     )
 
 
@@ -170,7 +160,7 @@ class ReplayPanel:
             return None
         self.host.pause(True)
         self.scrubbed = snap
-        self.host.sim.submit(RestoreSnapshot(snap, self.host.restored))
+        self.host.request_restore(snap)
         self.scrub_info.content = _scrub_html(snap, seconds_back, history.span)
         return snap
 
@@ -180,6 +170,14 @@ class ReplayPanel:
         self.scrub.value = 0.0  # a program assignment: the handler ignores it
         self.scrub_info.content = _scrub_html(None, 0.0, self.host.history.span)
         self.host.pause(False)
+
+    def show_span(self, paused: bool) -> None:
+        """Refresh the history line while live (the loop calls it with the status)."""
+        if self.scrubbed is not None and not paused:  # resumed by the Simulation panel's button
+            self.scrubbed = None
+            self.scrub.value = 0.0
+        if self.scrubbed is None:
+            self.scrub_info.content = _scrub_html(None, 0.0, self.host.history.span)
 
     # -- keyframes -------------------------------------------------------------------------
     def add_keyframe(self, keyframe: keyframes.Keyframe) -> None:
@@ -195,7 +193,7 @@ class ReplayPanel:
         return keyframe
 
     def restore_keyframe(self, keyframe: keyframes.Keyframe) -> None:
-        self.host.sim.submit(RestoreSnapshot(keyframe.snapshot, self.host.restored))
+        self.host.request_restore(keyframe.snapshot)
 
     def import_file(self, content: bytes, client: viser.ClientHandle | None) -> keyframes.Keyframe | None:
         try:
@@ -237,7 +235,7 @@ def build_replay_panel(
     with gui.add_folder("Keyframes"):
         name = gui.add_text("Name", "keyframe 1")
         save = gui.add_button("Save keyframe", icon=viser.Icon.BOOKMARK)
-        choice = gui.add_dropdown("Keyframe", ("",), "")
+        choice = gui.add_dropdown("Keyframe", ("",), initial_value="")
         restore_button = gui.add_button("Restore keyframe", icon=viser.Icon.RESTORE)
         export = gui.add_button("Export keyframe", icon=viser.Icon.DOWNLOAD, color="gray")
         upload = gui.add_upload_button("Import keyframe", icon=viser.Icon.UPLOAD, color="gray", mime_type=".json")
@@ -284,7 +282,7 @@ def build_replay_panel(
         keyframe = panel.selected(event.client)
         if keyframe is not None and event.client is not None:
             filename = "".join(c if c.isalnum() or c in "-_" else "_" for c in keyframe.name) + ".json"
-            event.client.send_file_download(filename, keyframes.to_json(keyframe).encode())
+            event.client.send_file_download(filename, keyframes.to_json(keyframe).encode(), save_immediately=True)
 
     @guarded
     def on_upload(event: viser.GuiEvent) -> None:
