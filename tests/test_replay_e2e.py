@@ -20,20 +20,31 @@ from test_workbench_e2e import _type
 from hopper import keyframes
 from hopper.control.memory import MEMORY
 
-VIEWPORT = {"width": 1440, "height": 900}
+VIEWPORT = {"width": 1440, "height": 900}  # for the screenshots
+# Headless Chromium draws the scene's WebGL in software: on a loaded machine a full-size frame takes
+# long enough to hold each click for seconds. The page is driven in a smaller window, resized for shots.
+WORK_VIEWPORT = {"width": 1100, "height": 700}
 NOTES_JS = "() => [...document.querySelectorAll('.mantine-Notification-root')].map(n => n.innerText).join(' | ')"
 
 
 def _shot(page, tmp_path: Path, name: str) -> None:
+    # Headless Chromium renders WebGL in software, and viser says so in a notification over the scene.
+    page.evaluate(
+        "() => document.querySelectorAll('.mantine-Notification-root').forEach("
+        "n => { if (n.innerText.includes('WebGL')) n.remove(); })"
+    )
     path = tmp_path / name
+    page.set_viewport_size(VIEWPORT)
+    page.wait_for_timeout(500)  # let the scene and the charts redraw at the new size (a picture, not an assertion)
     page.screenshot(path=str(path))
+    page.set_viewport_size(WORK_VIEWPORT)
     if os.environ.get("HOPPER_SHOTS"):
         Path(os.environ["HOPPER_SHOTS"]).mkdir(parents=True, exist_ok=True)
         shutil.copy(path, Path(os.environ["HOPPER_SHOTS"]) / name)
 
 
 def _open(browser, dashboard: Dashboard):  # noqa: F811
-    page = browser.new_page(viewport=VIEWPORT)
+    page = browser.new_page(viewport=WORK_VIEWPORT)
     page.set_default_timeout(60_000)  # a bound for a loaded machine, not a pace
     page.goto(dashboard.url)
     page.get_by_role("tab", name="Replay").wait_for(timeout=30_000)

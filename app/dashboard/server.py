@@ -205,6 +205,8 @@ class Dashboard:
         self.history.rewound(snapshot)
         self._next_sample = snapshot.time
         self.layout.plots.drop_after(snapshot.time)
+        if snapshot.hops is not None:  # the hop table shows the hops of the moment restored
+            self.layout.hops.show(list(snapshot.hops))
         return True
 
     # -- Listener (called on the loop thread by sim.step) -------------------------------------
