@@ -174,22 +174,27 @@ class History:
         self._torque = np.empty(MAX_FLIGHT_TICKS)
         self._n = 0
         self._rewound: Snapshot | None = None
+        self._q_pitch = self._s_torque = 0  # the model's indices, set at the first liftoff
+        self._hop: HopMetrics | None = None
 
     # -- Listener --------------------------------------------------------------------------
     def tick(self, sim: Simulation) -> None:
+        now = sim.data.time
+        if self._start is None and now < self._next - 5e-4 and not self._liftoff_due and self._rewound is None:
+            return  # most ticks on the ground
         if self._rewound is not None:
             self._resume_from(self._rewound)
         if self._start is not None:
             if self._n < MAX_FLIGHT_TICKS:
-                self._pitch[self._n] = sim._qpos[sim.layout.q_pitch]
-                self._torque[self._n] = sim._sensors[sim.layout.s_wheel_torque]
+                self._pitch[self._n] = sim._qpos[self._q_pitch]
+                self._torque[self._n] = sim._sensors[self._s_torque]
                 self._n += 1
             if self._landing:
                 self._finish()
         if self._liftoff_due:
             self._liftoff_due = False
+            self._q_pitch, self._s_torque = sim.layout.q_pitch, sim.layout.s_wheel_torque
             self._start, self._n, self._landing, self._hop = capture(sim, with_hops=False), 0, False, None
-        now = sim.data.time
         if now >= self._next - 5e-4:  # half a tick early: the float clock drifts around the grid
             self._next = self._next + self.period if now - self._next < self.period else now + self.period
             self.ring.append(capture(sim))
