@@ -14,13 +14,14 @@ from hopper.app.dashboard.panels.gains import GainsPanel, build_gains_panel
 from hopper.app.dashboard.panels.help import build_help_button
 from hopper.app.dashboard.panels.hops import HopTable, build_hop_table
 from hopper.app.dashboard.panels.record import RecordPanel, build_record_panel
+from hopper.app.dashboard.panels.replay import ReplayHost, ReplayPanel, build_replay_panel
 from hopper.app.dashboard.panels.simulation import SimulationPanel, build_simulation_panel
 from hopper.app.dashboard.panels.status import StatusPanel, build_status_panel
 from hopper.app.dashboard.panels.terrain import TerrainPanel, build_terrain_panel
 from hopper.app.dashboard.panels.view import ViewPanel, build_view_panel
-from hopper.app.dashboard.plots import LivePlots
+from hopper.app.dashboard.plots import LivePlots, ReflyPlots
 from hopper.app.dashboard.recording import Recorder
-from hopper.app.dashboard.scene import CameraFollow, RobotView, Trail
+from hopper.app.dashboard.scene import CameraFollow, GhostRobot, RobotView, Trail
 
 from hopper.config import Gains
 
@@ -42,6 +43,7 @@ class Layout:
     events: EventLog
     control: viser.GuiFolderHandle  # each client's own role widgets go in here (app/dashboard/roles.py)
     viewer_safe: tuple[viser.GuiButtonHandle, ...]  # inputs a viewer may use: they change nothing shared
+    replay: ReplayPanel | None = None  # re-fly, history scrubber, keyframes (issue 9, parts 4-5)
 
 
 def configure_theme(server: viser.ViserServer) -> None:
@@ -71,6 +73,8 @@ def build_layout(
     camera: CameraFollow,
     trail: Trail,
     robot: RobotView,
+    replay_host: ReplayHost | None = None,
+    ghost: GhostRobot | None = None,
 ) -> Layout:
     configure_theme(server)
     gui, theme = server.gui, assets.theme()
@@ -93,6 +97,10 @@ def build_layout(
         view = build_view_panel(gui, server.scene, camera, trail, robot)
     with tabs.add_tab("Record", viser.Icon.PLAYER_RECORD):
         record = build_record_panel(gui, recorder)
+    replay = None
+    if replay_host is not None and ghost is not None:
+        with tabs.add_tab("Replay", viser.Icon.HISTORY):
+            replay = build_replay_panel(gui, ctx, replay_host, None, ghost)
     help_button = build_help_button(gui, assets.help_markdown())
     server.gui.main_panel.dock_right()
     server.gui.main_panel.set_width(theme.right_panel_width)
@@ -104,6 +112,9 @@ def build_layout(
             hops = build_hop_table(gui)
         with gui.add_folder("Events"):
             events = build_event_log(gui)
+        if replay is not None:
+            with gui.add_folder("Re-fly: before / after"):
+                replay.plots = ReflyPlots(gui)
     live.dock_left()
     live.set_width(theme.left_panel_width)
     return Layout(
@@ -120,4 +131,5 @@ def build_layout(
         events,
         control=control,
         viewer_safe=(help_button, view.home),
+        replay=replay,
     )

@@ -43,6 +43,14 @@ class RollingWindow:
     def clear(self) -> None:
         self._next, self._full = 0, False
 
+    def drop_after(self, time: float) -> None:
+        """Forget rows newer than `time` (s): the simulation was put back to that moment."""
+        rows = self.columns().T
+        keep = rows[rows[:, 0] <= time]
+        self.clear()
+        for row in keep[-len(self._data) :]:
+            self.append(tuple(row))
+
     def columns(self) -> np.ndarray:
         """Shape (columns, n), oldest sample first (contiguous rows, ready to send)."""
         rows = (
@@ -165,6 +173,10 @@ class LivePlots:
         self.window.clear()
         self._dirty = True
 
+    def drop_after(self, time: float) -> None:
+        self.window.drop_after(time)
+        self._dirty = True
+
     def publish(self, now: float) -> None:
         """Send the window to the charts if it changed, every PLOT_PUBLISH_S of wall time `now` at most.
 
@@ -201,3 +213,37 @@ class LivePlots:
 def _constant(t: np.ndarray, value: float) -> tuple[np.ndarray, np.ndarray]:
     """+-value at every sample time (uPlot needs one y per x); compresses to nearly nothing as lists."""
     return np.full_like(t, value), np.full_like(t, -value)
+
+
+REFLY_EVERY = 5  # ticks between the re-fly charts' points (200 Hz: smooth at the wn = 30 rad/s loop)
+BEFORE_COLOR, AFTER_COLOR = "#ffb03b", "#5aa9ff"  # the recorded flight (as the live pitch), the re-flown one
+
+
+class ReflyPlots:
+    """Pitch and wheel torque of one flight, before (recorded gains) and after (current gains), overlaid
+    against the time since liftoff."""
+
+    def __init__(self, gui: viser.GuiApi) -> None:
+        time = _series("t since liftoff (s)", "")
+        self.pitch = _chart(
+            gui, (time, _series("before (°)", BEFORE_COLOR), _series("after (°)", AFTER_COLOR, 2.0, (5, 3))), None
+        )
+        # Auto-ranged (at least +-Y_SOFT N m): a flight's torque is often far below the 29.5 N m limit.
+        self.torque = _chart(
+            gui, (time, _series("before (N m)", BEFORE_COLOR), _series("after (N m)", AFTER_COLOR, 2.0, (5, 3))), None
+        )
+
+    def show(self, dt: float, before: tuple[np.ndarray, np.ndarray], after: tuple[np.ndarray, np.ndarray]) -> None:
+        """Overlay two flights given as (pitch rad, torque N m) per tick of `dt` s; the shorter one is padded
+        with NaN (uPlot leaves a gap)."""
+        n = max(len(before[0]), len(after[0]))
+        t = (np.arange(0, n, REFLY_EVERY) + 1) * dt
+
+        def column(values: np.ndarray, scale: float) -> np.ndarray:
+            padded = np.full(n, np.nan)
+            padded[: len(values)] = values * scale
+            return padded[::REFLY_EVERY].astype(np.float32)
+
+        deg = 180.0 / math.pi
+        self.pitch.data = (t.astype(np.float32), column(before[0], deg), column(after[0], deg))
+        self.torque.data = (t.astype(np.float32), column(before[1], 1.0), column(after[1], 1.0))

@@ -296,3 +296,70 @@ class CameraFollow:
         self.x += (x - self.x) * (1.0 - math.exp(-dt / FOLLOW_TAU_X))
         self.z += (z - self.z) * (1.0 - math.exp(-dt / FOLLOW_TAU_Z))
         self._move_world()
+
+
+GHOST_COLOR = (140, 200, 255)  # light blue: the re-flown "after" flight
+GHOST_OPACITY = 0.35
+
+
+class GhostRobot:
+    """A semi-transparent copy of the robot replaying a re-flown flight (qpos frames) in a loop.
+
+    Its own MjData turns each stored qpos into body poses; the live robot's data is never touched.
+    """
+
+    def __init__(self, scene: viser.SceneApi, model: mujoco.MjModel) -> None:
+        self._model, self._data = model, mujoco.MjData(model)
+        self._meshes = body_meshes(model)
+        self._handles = [
+            scene.add_mesh_simple(
+                f"{WORLD}/ghost/{body.name}",
+                body.vertices,
+                body.faces,
+                color=GHOST_COLOR,
+                opacity=GHOST_OPACITY,
+                side="double",
+                cast_shadow=False,
+                visible=False,
+            )
+            for body in self._meshes
+        ]
+        self._poses = np.empty((0, 0))
+        self._frame_s = 0.01
+        self._started = 0.0
+        self.shown_frame = -1  # index of the pose last sent, for tests
+        self._visible = False
+
+    def play(self, poses: np.ndarray, frame_s: float, now: float) -> None:
+        """Replay `poses` (qpos rows, `frame_s` s apart in simulation) from wall time `now`, looping."""
+        self._poses, self._frame_s, self._started = poses, frame_s, now
+        self.shown_frame = -1
+
+    def hide(self) -> None:
+        self._poses = np.empty((0, 0))
+        self._show(False)
+
+    def _show(self, visible: bool) -> None:
+        if visible != self._visible:
+            self._visible = visible
+            for handle in self._handles:
+                handle.visible = visible
+
+    @property
+    def playing(self) -> bool:
+        return len(self._poses) > 0
+
+    def update(self, now: float) -> None:
+        """Send the pose due at wall time `now` (call inside server.atomic(), from the loop)."""
+        if not len(self._poses):
+            return
+        frame = int((now - self._started) / self._frame_s) % len(self._poses)
+        if frame == self.shown_frame:
+            return
+        self.shown_frame = frame
+        self._data.qpos[:] = self._poses[frame]
+        mujoco.mj_kinematics(self._model, self._data)
+        positions, quats = body_poses(self._model, self._data, self._meshes)
+        for handle, p, q in zip(self._handles, positions, quats, strict=True):
+            handle.position, handle.wxyz = p, q
+        self._show(True)

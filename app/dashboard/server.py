@@ -27,6 +27,7 @@ from hopper.app.dashboard.recording import FileLimits, Recorder
 from hopper.app.dashboard.roles import Roles
 from hopper.app.dashboard.scene import (
     CameraFollow,
+    GhostRobot,
     RobotView,
     Trail,
     add_ground,
@@ -38,6 +39,7 @@ from hopper.app.dashboard.wire import guard_gui_updates
 
 from hopper.config import WHEEL_NO_LOAD_SPEED
 from hopper.events import Event, EventKind, Fall
+from hopper.history import History, Snapshot, restore
 from hopper.metrics import RAD_S_TO_RPM
 from hopper.sim import Simulation
 
@@ -84,6 +86,7 @@ class Dashboard:
         self._stopped = False
         self._fallen_since: float | None = None
         self._next_sample = 0.0
+        self._restore: Snapshot | None = None  # asked by the Replay panel, applied by the loop
         self.frames = 0  # pose frames published, for tests and the benchmark
 
         limits = FileLimits(max_mb=config.rrd_max_mb, max_min=config.rrd_max_min, flush_s=config.rrd_flush_s)
@@ -117,6 +120,8 @@ class Dashboard:
         self.terrain = add_terrain(self.server.scene, sim.heights, sim.config.craters)
         self.robot = RobotView(self.server.scene, sim.model)
         self.trail = Trail(self.server.scene)
+        self.history = History()  # replay: liftoff states and a ring of recent ones
+        self.ghost = GhostRobot(self.server.scene, sim.model)
         self.layout: Layout = build_layout(
             self.server,
             PanelContext(self.server, sim.submit, self),
@@ -130,10 +135,13 @@ class Dashboard:
             camera=self.camera,
             trail=self.trail,
             robot=self.robot,
+            replay_host=self,
+            ghost=self.ghost,
         )
         self.recorder.listeners.append(self._recording_changed)
         guard_gui_updates(self.server)  # malformed browser updates never reach a setting
         sim.listeners.append(self)
+        sim.listeners.append(self.history)
         self.layout.analysis.update_plant(sim.config)
         self.roles = Roles(  # after every shared input exists: it greys them for viewers
             self.server,
@@ -196,6 +204,31 @@ class Dashboard:
         self.pacer.set_speed(speed)
         self.pacer.restart_window()
 
+    # -- ReplayHost (panels/replay.py) ------------------------------------------------------
+    def pause(self, paused: bool) -> None:
+        self.layout.simulation.set_paused(paused)
+
+    def request_restore(self, snapshot: Snapshot) -> None:
+        self._restore = snapshot  # one reference assignment: atomic; a newer request replaces an older one
+
+    def _apply_restore(self) -> bool:
+        """On the loop thread: restore a requested snapshot; True if one was (no steps this round)."""
+        snapshot, self._restore = self._restore, None
+        if snapshot is None:
+            return False
+        try:
+            restore(self.sim, snapshot)
+        except Exception as exc:
+            log.exception("restoring a snapshot failed")
+            notify_all(self.server, "Restore failed", f"{type(exc).__name__}: {exc}", "error")
+            return True
+        self.history.rewound(snapshot)
+        self._next_sample = snapshot.time
+        self.layout.plots.drop_after(snapshot.time)
+        if snapshot.hops is not None:  # the hop table shows the hops of the moment restored
+            self.layout.hops.show(list(snapshot.hops))
+        return True
+
     # -- Listener (called on the loop thread by sim.step) -------------------------------------
     def tick(self, sim: Simulation) -> None:
         # Cheap on most ticks: read the state only when a plot sample is due.
@@ -216,6 +249,8 @@ class Dashboard:
         while not self._stopping.is_set():
             now = time.perf_counter()
             budgeted = self.pacer.due(now)
+            if self._restore is not None and self._apply_restore():
+                budgeted = 0  # paused by the scrubber: the restored moment must be the one shown
             if self.pacer.paused:
                 self._apply_commands()
             with self._single_lock:
@@ -275,9 +310,12 @@ class Dashboard:
         with self.server.atomic():
             self.robot.update(sim.model, sim.data, level, sim.phase.label)
             self.camera.update(s.x, s.z, dt)
+            self.ghost.update(now)
         self.trail.publish(now)
         self.layout.plots.publish(now)
         self.frames += 1
+        if with_status and self.layout.replay is not None:
+            self.layout.replay.show_span(self.pacer.paused)
         if with_status:
             self.roles.poll()  # an idle operator's control passes on
             self.layout.status.show(

@@ -47,6 +47,12 @@ class HopTable:
         self.hops.append(hop)
         self.table.content = hop_table_html(self.hops) + response_table_html(self.hops)
 
+    def show(self, hops: list[HopMetrics]) -> None:
+        """Exactly these hops (the simulation was put back to an earlier moment)."""
+        self.hops[:] = hops
+        self.stale = False
+        self.table.content = hop_table_html(self.hops)
+
     def clear(self) -> None:
         """After a reset: keep showing the last run (dimmed) until the first new hop replaces it."""
         if self.hops and not self.stale:

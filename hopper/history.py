@@ -1,0 +1,282 @@
+"""Full-state snapshots: a ring of recent states, the state at every liftoff, and re-flying a flight.
+
+A snapshot holds everything the next tick reads: MuJoCo's integration state (mj_getState with
+mjSTATE_INTEGRATION: time, qpos, qvel, act, warm start, ctrl and applied forces), the sensor
+values the kernel reads before mj_step recomputes them, the control kernel's memory record (phase,
+PID integral, contact debounce, IMU noise RNG, motor delay line), the scheduled torque pulse and the
+metrics tracker's hop in progress. Restoring it and stepping repeats the original ticks bit for bit
+(the command queue is empty between ticks).
+"""
+
+from __future__ import annotations
+
+import collections
+import dataclasses
+import math
+
+import mujoco
+import numpy as np
+
+from hopper.config import Gains, SimConfig
+from hopper.control import EV_FALL
+from hopper.control.memory import MEMORY
+from hopper.events import Event, EventKind
+from hopper.metrics import HopMetrics
+from hopper.sim import Simulation
+
+STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
+RING_PERIOD_S = 0.1  # s of simulation between ring snapshots
+RING_SPAN_S = 40.0  # s of simulation the ring covers (the scrubber shows 30 s or more)
+MAX_FLIGHT_TICKS = 20_000  # 20 s at 1 kHz: bounds a recorded or re-flown flight (a lunar hop is ~1 s)
+GHOST_EVERY = 10  # ticks between the ghost's stored poses (100 Hz)
+METRICS_ATTRS = ("_last_touchdown_x", "_ground_start", "_liftoff_time", "_liftoff_z", "_liftoff_momentum")
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Snapshot:
+    """The simulation between two ticks. Arrays are private copies; treat them as read-only."""
+
+    time: float  # s of simulation
+    physics: np.ndarray  # float64, mj_getState(STATE_SPEC)
+    sensors: np.ndarray  # float64, data.sensordata (what the next control tick reads)
+    memory: np.ndarray  # shape (1,), dtype MEMORY: the control kernel's record
+    pulse: tuple[float, float, float]  # armed magnitude (N m), running magnitude (N m), start/end time (s)
+    metrics: dict[str, float | None]  # the hop in progress (hopper.metrics.MetricsTracker)
+    hops: tuple[HopMetrics, ...] | None  # hops completed so far; None: keep the target's
+    config: SimConfig  # gains, gravity, terrain, sensing, ... at that moment
+
+    @property
+    def gains(self) -> Gains:
+        return self.config.gains
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of array data held (the rest is a few small Python objects)."""
+        return self.physics.nbytes + self.sensors.nbytes + self.memory.nbytes
+
+
+class SnapshotMismatch(ValueError):
+    """A snapshot that does not fit this model (another model size or controller memory layout)."""
+
+
+def capture(sim: Simulation, *, with_hops: bool = True) -> Snapshot:
+    """The simulation now (call between ticks, on its thread)."""
+    physics = np.empty(mujoco.mj_stateSize(sim.model, STATE_SPEC))
+    mujoco.mj_getState(sim.model, sim.data, physics, STATE_SPEC)
+    m = sim.metrics
+    return Snapshot(
+        time=float(sim.data.time),
+        physics=physics,
+        sensors=sim.data.sensordata.copy(),
+        memory=sim.controller.mem.copy(),
+        pulse=(sim._pulse_armed, sim._pulse_magnitude, sim._pulse_at),
+        metrics={name: getattr(m, name) for name in METRICS_ATTRS},
+        hops=tuple(m.hops) if with_hops else None,
+        config=sim.config,
+    )
+
+
+def check_fits(sim: Simulation, snap: Snapshot) -> None:
+    """Raise SnapshotMismatch unless the snapshot's arrays fit this simulation's model and kernel."""
+    size = mujoco.mj_stateSize(sim.model, STATE_SPEC)
+    if snap.physics.shape != (size,):
+        raise SnapshotMismatch(f"state has {snap.physics.size} values, this model needs {size}")
+    if snap.sensors.shape != sim.data.sensordata.shape:
+        raise SnapshotMismatch(f"{snap.sensors.size} sensor values, this model has {sim.data.sensordata.size}")
+    if snap.memory.dtype != MEMORY or snap.memory.shape != (1,):
+        raise SnapshotMismatch("the controller memory has another layout")
+    for name in ("q_x", "q_pitch", "v_x", "s_gyro", "s_wheel_torque", "a_wheel"):
+        if snap.memory[name][0] != sim.controller.mem[name][0]:
+            raise SnapshotMismatch(f"controller memory indexes another model ({name})")
+
+
+def apply_config(sim: Simulation, config: SimConfig) -> None:
+    """Bring the simulation's plant and gains to `config` through its own setters (each emits its event)."""
+    c = sim.config
+    if (c.terrain, c.seed) != (config.terrain, config.seed):
+        sim.set_terrain(config.terrain, config.seed)
+    if c.gravity != config.gravity:
+        sim.set_gravity(config.gravity)
+    if c.wheel != config.wheel:
+        sim.set_wheel(config.wheel)
+    if c.sensing != config.sensing:
+        sim.set_sensing(config.sensing)
+    if c.gains != config.gains:
+        sim.set_gains(config.gains, "restored")
+    sim.config = config  # the rest (gait, sensor parameters) as recorded; the memory below carries them
+
+
+def restore(sim: Simulation, snap: Snapshot) -> None:
+    """Put the simulation back into `snap` exactly (call between ticks, on its thread).
+
+    The plant settings come first (a terrain change resets the robot), then the state. mj_forward
+    refreshes the poses for display; the sensor values are then put back, because the kernel reads
+    the ones mj_step computed before integrating, not those of the integrated state.
+    """
+    check_fits(sim, snap)
+    apply_config(sim, snap.config)
+    mujoco.mj_setState(sim.model, sim.data, snap.physics, STATE_SPEC)
+    mujoco.mj_forward(sim.model, sim.data)
+    sim.data.sensordata[:] = snap.sensors
+    sim.controller.mem[:] = snap.memory
+    sim._pulse_armed, sim._pulse_magnitude, sim._pulse_at = snap.pulse
+    m = sim.metrics
+    for name, value in snap.metrics.items():
+        setattr(m, name, value)
+    if snap.hops is not None:
+        m.hops[:] = snap.hops
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Flight:
+    """One flight from the tick after liftoff to the touchdown (or fall), sampled every tick."""
+
+    start: Snapshot  # the state right after the liftoff tick
+    gains: Gains  # the flight PID gains it flew with
+    pitch: np.ndarray  # rad, torso pitch after each tick
+    torque: np.ndarray  # N m, wheel torque applied in each tick
+    poses: np.ndarray  # qpos every GHOST_EVERY ticks, for a ghost robot (may be empty)
+    hop: HopMetrics | None  # the hop's metrics at its touchdown (None: it did not land)
+
+    @property
+    def duration(self) -> float:
+        return len(self.pitch) * self.start.config.timestep
+
+    def summary(self) -> dict[str, float]:
+        """The A/B table's figures: peak pitch (deg), RMS pitch rate (deg/s), landing pitch error (deg), peak torque."""
+        hop = self.hop
+        nan = math.nan
+        return {
+            "peak_pitch_deg": hop.peak_pitch_deg if hop else math.degrees(float(np.abs(self.pitch).max(initial=nan))),
+            "rms_rate_deg_s": hop.rms_pitch_rate_deg_s if hop else nan,
+            "landing_pitch_deg": hop.landing_pitch_deg if hop else nan,
+            "peak_torque_nm": float(np.abs(self.torque).max(initial=0.0)),
+        }
+
+
+class History:
+    """A simulation listener keeping a ring of snapshots and the last complete flight.
+
+    Per tick it costs a time comparison, plus two stores while in flight; a snapshot (~1.9 KB)
+    every RING_PERIOD_S. Resets keep the ring (scrubbing back past a fall is the point); a new
+    terrain clears it, as its states belong to the old ground.
+    """
+
+    def __init__(self, period: float = RING_PERIOD_S, span: float = RING_SPAN_S) -> None:
+        self.period = period
+        self.ring: collections.deque[Snapshot] = collections.deque(maxlen=max(int(round(span / period)), 1))
+        self.last_flight: Flight | None = None
+        self._next = -math.inf
+        self._liftoff_due = False
+        self._landing = False
+        self._start: Snapshot | None = None
+        self._pitch = np.empty(MAX_FLIGHT_TICKS)
+        self._torque = np.empty(MAX_FLIGHT_TICKS)
+        self._n = 0
+        self._rewound: Snapshot | None = None
+        self._q_pitch = self._s_torque = 0  # the model's indices, set at the first liftoff
+        self._hop: HopMetrics | None = None
+
+    # -- Listener --------------------------------------------------------------------------
+    def tick(self, sim: Simulation) -> None:
+        now = sim.data.time
+        if self._start is None and now < self._next - 5e-4 and not self._liftoff_due and self._rewound is None:
+            return  # most ticks on the ground
+        if self._rewound is not None:
+            self._resume_from(self._rewound)
+        if self._start is not None:
+            if self._n < MAX_FLIGHT_TICKS:
+                self._pitch[self._n] = sim._qpos[self._q_pitch]
+                self._torque[self._n] = sim._sensors[self._s_torque]
+                self._n += 1
+            if self._landing:
+                self._finish()
+        if self._liftoff_due:
+            self._liftoff_due = False
+            self._q_pitch, self._s_torque = sim.layout.q_pitch, sim.layout.s_wheel_torque
+            self._start, self._n, self._landing, self._hop = capture(sim, with_hops=False), 0, False, None
+        if now >= self._next - 5e-4:  # half a tick early: the float clock drifts around the grid
+            self._next = self._next + self.period if now - self._next < self.period else now + self.period
+            self.ring.append(capture(sim))
+
+    def event(self, sim: Simulation, event: Event) -> None:
+        kind = event.kind
+        if kind == EventKind.LIFTOFF:
+            self._liftoff_due = True
+        elif kind == EventKind.TOUCHDOWN and self._start is not None and event.payload.hop is not None:
+            self._landing, self._hop = True, event.payload.hop  # the touchdown tick is sampled, then it ends
+        elif kind == EventKind.FALL and self._start is not None:
+            self._landing, self._hop = True, None
+        elif kind == EventKind.RESET:
+            self._start, self._liftoff_due, self._next = None, False, -math.inf
+        if kind == EventKind.TERRAIN:
+            self.ring.clear()
+            self.last_flight = None
+
+    def _finish(self) -> None:
+        n = self._n
+        assert self._start is not None
+        self.last_flight = Flight(
+            self._start, self._start.gains, self._pitch[:n].copy(), self._torque[:n].copy(), np.empty((0, 0)), self._hop
+        )
+        self._start, self._landing = None, False
+
+    # -- scrubbing -------------------------------------------------------------------------
+    def at(self, seconds_back: float) -> Snapshot | None:
+        """The ring's snapshot `seconds_back` (s, >= 0) before its newest one; None if the ring is empty."""
+        if not self.ring:
+            return None
+        back = min(max(int(round(seconds_back / self.period)), 0), len(self.ring) - 1)
+        return self.ring[len(self.ring) - 1 - back]
+
+    @property
+    def span(self) -> float:
+        """Seconds of simulation the ring holds now."""
+        return max(len(self.ring) - 1, 0) * self.period
+
+    def rewound(self, snap: Snapshot) -> None:
+        """The live simulation was restored to `snap` (a ring entry or a keyframe): when it steps
+        again, history after that moment is dropped and the flight in progress is forgotten."""
+        self._rewound = snap
+        self._start, self._liftoff_due, self._landing = None, False, False
+
+    def _resume_from(self, snap: Snapshot) -> None:
+        self._rewound = None
+        if snap in self.ring:
+            while self.ring and self.ring[-1] is not snap:
+                self.ring.pop()
+        self._next = snap.time + self.period
+
+    def nbytes(self) -> int:
+        """Bytes of array data the ring and the last flight hold."""
+        flight = self.last_flight
+        extra = flight.pitch.nbytes + flight.torque.nbytes + flight.start.nbytes if flight else 0
+        return sum(s.nbytes for s in self.ring) + extra + self._pitch.nbytes + self._torque.nbytes
+
+
+def fly(start: Snapshot, gains: Gains | None = None, max_ticks: int = MAX_FLIGHT_TICKS) -> Flight:
+    """Re-fly a flight in a scratch simulation: restore `start`, set `gains` (None: the recorded
+    ones), step until the hop's touchdown or a fall. The live simulation is not touched."""
+    config = start.config if gains is None else dataclasses.replace(start.config, gains=gains)
+    sim = Simulation(dataclasses.replace(start.config))
+    restore(sim, start)
+    if gains is not None and gains != start.gains:
+        sim.set_gains(gains, "re-fly")
+    assert sim.config == config
+    hops = len(sim.hops)
+    q_pitch, s_torque = sim.layout.q_pitch, sim.layout.s_wheel_torque
+    pitch, torque = np.empty(max_ticks), np.empty(max_ticks)
+    poses = []
+    qpos, sensors = sim.data.qpos, sim.data.sensordata
+    n = 0
+    while n < max_ticks:
+        events = sim.step()
+        pitch[n], torque[n] = qpos[q_pitch], sensors[s_torque]
+        if n % GHOST_EVERY == 0:
+            poses.append(qpos.copy())
+        n += 1
+        if len(sim.hops) > hops or events & EV_FALL or sim.fallen:
+            break
+    hop = sim.hops[hops] if len(sim.hops) > hops and sim.hops[hops].completed else None
+    poses.append(qpos.copy())
+    return Flight(start, sim.gains, pitch[:n].copy(), torque[:n].copy(), np.asarray(poses), hop)

@@ -1,0 +1,185 @@
+"""Named keyframes: a full snapshot plus the settings that define its world, saved as JSON files.
+
+The file carries the state arrays in base64 (float64 / the kernel's raw record, little-endian),
+the gains, terrain kind and seed, gravity, sensing and wheel, and a SHA-256 of the arrays so that
+a damaged file is refused rather than restored into a wrong state. Reading validates everything
+before anything changes.
+"""
+
+from __future__ import annotations
+
+import base64
+import dataclasses
+import hashlib
+import json
+import math
+
+import numpy as np
+
+from hopper.config import Gains, InvalidConfig
+from hopper.control.memory import MEMORY
+from hopper.history import METRICS_ATTRS, Snapshot, SnapshotMismatch, capture, check_fits, restore
+from hopper.sim import Simulation
+
+FORMAT = "hopper-keyframe"
+VERSION = 1
+MAX_FILE_BYTES = 1_000_000  # a keyframe is ~4 KB; anything far larger is not one
+MAX_NAME = 60  # characters
+
+
+class KeyframeError(ValueError):
+    """A keyframe file or name that cannot be used; the message says why, in one line."""
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Keyframe:
+    name: str
+    snapshot: Snapshot
+
+    @property
+    def time(self) -> float:
+        return self.snapshot.time
+
+
+def check_name(name: str) -> str:
+    name = name.strip()
+    if not name:
+        raise KeyframeError("a keyframe needs a name")
+    if len(name) > MAX_NAME or not name.isprintable():
+        raise KeyframeError(f"a keyframe name is at most {MAX_NAME} printable characters")
+    return name
+
+
+def save(sim: Simulation, name: str) -> Keyframe:
+    """The simulation now, named (call between ticks, on its thread)."""
+    return Keyframe(check_name(name), capture(sim))
+
+
+def apply(sim: Simulation, keyframe: Keyframe) -> None:
+    """Restore the keyframe's world and state exactly (call between ticks, on its thread)."""
+    restore(sim, keyframe.snapshot)
+
+
+def _b64(array: np.ndarray) -> str:
+    return base64.b64encode(array.tobytes()).decode("ascii")
+
+
+def _digest(*parts: bytes) -> str:
+    h = hashlib.sha256()
+    for part in parts:
+        h.update(part)
+    return h.hexdigest()
+
+
+def to_json(keyframe: Keyframe) -> str:
+    s = keyframe.snapshot
+    c = s.config
+    physics, sensors = s.physics.astype("<f8"), s.sensors.astype("<f8")
+    memory = s.memory.tobytes()
+    doc = {
+        "format": FORMAT,
+        "version": VERSION,
+        "name": keyframe.name,
+        "time": s.time,
+        "config": {
+            "gains": dataclasses.asdict(c.gains),
+            "terrain": c.terrain,
+            "seed": c.seed,
+            "gravity": c.gravity,
+            "sensing": c.sensing,
+            "wheel": c.wheel,
+            "timestep": c.timestep,
+        },
+        "pulse": list(s.pulse),  # inf (no pulse scheduled) as the JSON extension Infinity
+        "metrics": s.metrics,
+        "state": {
+            "physics": _b64(physics),
+            "sensors": _b64(sensors),
+            "memory": base64.b64encode(memory).decode("ascii"),
+            "memory_itemsize": MEMORY.itemsize,
+            "sha256": _digest(physics.tobytes(), sensors.tobytes(), memory),
+        },
+    }
+    return json.dumps(doc, indent=1)
+
+
+def _need(doc: dict, key: str, kind: type | tuple[type, ...]) -> object:
+    value = doc.get(key)
+    if not isinstance(value, kind) or isinstance(value, bool):
+        raise KeyframeError(f"field {key!r} is missing or not a {getattr(kind, '__name__', kind)}")
+    return value
+
+
+def _array(text: object, what: str) -> bytes:
+    if not isinstance(text, str):
+        raise KeyframeError(f"state field {what!r} is missing")
+    try:
+        return base64.b64decode(text, validate=True)
+    except ValueError:
+        raise KeyframeError(f"state field {what!r} is not valid base64 (the file is damaged)") from None
+
+
+def from_json(text: str | bytes, sim: Simulation) -> Keyframe:
+    """Parse and validate a keyframe file against `sim`'s model; raises KeyframeError, changes nothing.
+
+    Settings not in the file (gait, crater and sensor parameters) are taken from `sim`'s config.
+    """
+    if len(text) > MAX_FILE_BYTES:
+        raise KeyframeError(f"file too large for a keyframe ({len(text)} bytes)")
+    try:
+        doc = json.loads(text)
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise KeyframeError(f"not a keyframe file: invalid JSON ({exc})") from None
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        raise KeyframeError("not a keyframe file (no 'format': 'hopper-keyframe')")
+    if doc.get("version") != VERSION:
+        raise KeyframeError(f"keyframe version {doc.get('version')!r} is not supported (expected {VERSION})")
+    name = check_name(str(_need(doc, "name", str)))
+    time = float(_need(doc, "time", (int, float)))  # type: ignore[arg-type]
+    cfg, state = _need(doc, "config", dict), _need(doc, "state", dict)
+    assert isinstance(cfg, dict) and isinstance(state, dict)
+    try:
+        gains = Gains(**_need(cfg, "gains", dict))  # type: ignore[arg-type]
+        config = dataclasses.replace(
+            sim.config,
+            gains=gains,
+            terrain=cfg.get("terrain"),
+            seed=cfg.get("seed"),
+            gravity=cfg.get("gravity"),
+            sensing=cfg.get("sensing"),
+            wheel=bool(cfg.get("wheel", True)),
+        )
+    except (InvalidConfig, TypeError) as exc:
+        raise KeyframeError(f"bad settings in the keyframe: {exc}") from None
+    if cfg.get("timestep") != sim.config.timestep:
+        raise KeyframeError(f"keyframe timestep {cfg.get('timestep')!r} s differs from this model's")
+    physics, sensors = _array(state.get("physics"), "physics"), _array(state.get("sensors"), "sensors")
+    memory = _array(state.get("memory"), "memory")
+    if state.get("sha256") != _digest(physics, sensors, memory):
+        raise KeyframeError("the state's checksum does not match (the file is damaged)")
+    if state.get("memory_itemsize") != MEMORY.itemsize or len(memory) != MEMORY.itemsize:
+        raise KeyframeError("the controller memory has another layout (a keyframe from another version)")
+    if len(physics) % 8 or len(sensors) % 8:
+        raise KeyframeError("state arrays have a wrong length")
+    pulse, metrics = doc.get("pulse"), doc.get("metrics")
+    if not (isinstance(pulse, list) and len(pulse) == 3 and all(isinstance(v, (int, float)) for v in pulse)):
+        raise KeyframeError("field 'pulse' must be three numbers")
+    if not isinstance(metrics, dict) or set(metrics) != set(METRICS_ATTRS):
+        raise KeyframeError("field 'metrics' is missing or incomplete")
+    snap = Snapshot(
+        time=time,
+        physics=np.frombuffer(physics, "<f8").astype(np.float64),
+        sensors=np.frombuffer(sensors, "<f8").astype(np.float64),
+        memory=np.frombuffer(memory, MEMORY).copy(),
+        pulse=(float(pulse[0]), float(pulse[1]), float(pulse[2])),
+        metrics=metrics,
+        hops=None,
+        config=config,
+    )
+    try:
+        check_fits(sim, snap)
+    except SnapshotMismatch as exc:
+        raise KeyframeError(f"keyframe does not fit this model: {exc}") from None
+    if not (np.isfinite(snap.physics).all() and math.isfinite(time) and snap.physics[0] == time):
+        raise KeyframeError("the state holds non-finite values or a wrong time")
+    return Keyframe(name, snap)

@@ -1,0 +1,167 @@
+"""Snapshots, re-fly and keyframes on the real model: restores are bit-identical, bad files refused."""
+
+from __future__ import annotations
+
+import base64
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from hopper import keyframes
+from hopper.config import Gains, SimConfig
+from hopper.control.memory import MEMORY
+from hopper.history import RING_PERIOD_S, RING_SPAN_S, History, fly, restore
+from hopper.sim import Simulation
+
+
+def _state(sim: Simulation) -> list[bytes]:
+    """qpos, qvel, act, ctrl, time and every field of the controller memory, as raw bytes."""
+    d, mem = sim.data, sim.controller.mem
+    return [d.qpos.tobytes(), d.qvel.tobytes(), d.act.tobytes(), d.ctrl.tobytes(), np.float64(d.time).tobytes()] + [
+        mem[name].tobytes() for name in MEMORY.names
+    ]
+
+
+def _trace(sim: Simulation, ticks: int) -> bytes:
+    out = np.empty(ticks)
+    for i in range(ticks):
+        sim.step()
+        out[i] = sim.data.qpos[sim.layout.q_pitch]
+    return out.tobytes()
+
+
+@pytest.fixture(scope="module")
+def flown() -> tuple[Simulation, History]:
+    """Realistic sensing (IMU noise from the kernel's RNG, motor delay) through two hops."""
+    sim = Simulation(SimConfig(sensing="realistic"))
+    history = History()
+    sim.listeners.append(history)
+    sim.run(2)
+    assert history.last_flight is not None and len(sim.hops) == 2
+    return sim, history
+
+
+def test_refly_with_the_recorded_gains_repeats_the_flight_bit_for_bit(flown):
+    sim, history = flown
+    recorded = history.last_flight
+    assert recorded.hop == sim.hops[-1] and len(recorded.pitch) > 500  # the whole ~1 s flight, per tick
+    before = fly(recorded.start)
+    assert before.pitch.tobytes() == recorded.pitch.tobytes()
+    assert before.torque.tobytes() == recorded.torque.tobytes()
+    assert dataclasses.replace(before.hop, index=recorded.hop.index) == recorded.hop
+    assert sim.hops[-1] is recorded.hop  # the live simulation was not touched
+
+
+def test_refly_with_other_gains_flies_differently(flown):
+    _, history = flown
+    recorded = history.last_flight
+    stiffer = Gains(kp=1200.0, ki=50.0, kd=60.0)
+    after = fly(recorded.start, stiffer)
+    assert after.gains == stiffer and recorded.gains == Gains()
+    n = min(len(after.pitch), len(recorded.pitch))
+    assert np.abs(after.pitch[:n] - recorded.pitch[:n]).max() > 1e-5
+    assert after.summary()["peak_torque_nm"] != recorded.summary()["peak_torque_nm"]
+    assert len(after.poses) >= n // 10  # the ghost's frames
+
+
+def test_ring_holds_the_span_and_its_memory_is_small():
+    sim = Simulation(SimConfig(terrain="flat"))
+    history = History(span=3.0)
+    sim.listeners.append(history)
+    for _ in range(4000):
+        sim.step()
+    assert len(history.ring) == 30 and history.span == pytest.approx(2.9)
+    assert history.ring[-1].time - history.ring[0].time == pytest.approx(2.9, abs=2e-3)
+    per_snapshot = history.ring[-1].nbytes
+    assert per_snapshot < 4096, per_snapshot
+    full = History()
+    assert full.ring.maxlen * RING_PERIOD_S >= 30.0 and RING_SPAN_S >= 30.0
+    assert full.ring.maxlen * per_snapshot < 2_000_000  # the default 40 s ring: under 2 MB of arrays
+
+
+def test_restoring_a_ring_entry_resumes_exactly():
+    sim = Simulation(SimConfig(terrain="flat", sensing="realistic"))
+    history = History()
+    sim.listeners.append(history)
+    for _ in range(2600):
+        sim.step()
+    snap = history.at(1.0)
+    assert snap.time == pytest.approx(history.ring[-1].time - 1.0, abs=0.0015) and sim.time - snap.time < 1.11
+    replay = Simulation(SimConfig(terrain="flat", sensing="realistic"))
+    restore(replay, snap)
+    expected = _trace(replay, 1500)
+    restore(sim, snap)
+    history.rewound(snap)
+    assert _trace(sim, 1500) == expected
+    assert history.ring[-1].time > snap.time and all(
+        a.time < b.time for a, b in zip(list(history.ring)[:-1], list(history.ring)[1:], strict=True)
+    )
+
+
+def test_keyframe_round_trip_is_bit_identical():
+    sim = Simulation(SimConfig(sensing="realistic"))
+    for _ in range(2700):  # mid-push or in flight: a state with everything moving
+        sim.step()
+    saved = _state(sim)
+    text = keyframes.to_json(keyframes.save(sim, "mid hop"))
+    continuation = _trace(sim, 800)
+    sim.reset()
+    sim.set_gains(Gains(kp=900.0, ki=0.0, kd=40.0))
+    assert _state(sim) != saved
+    keyframe = keyframes.from_json(text, sim)
+    keyframes.apply(sim, keyframe)
+    assert keyframe.name == "mid hop" and sim.gains == Gains()
+    assert _state(sim) == saved
+    assert _trace(sim, 800) == continuation
+
+
+def _doc(sim: Simulation) -> dict:
+    return json.loads(keyframes.to_json(keyframes.save(sim, "k")))
+
+
+@pytest.mark.parametrize(
+    "damage, message",
+    [
+        (lambda d: "{ not json", "invalid JSON"),
+        (lambda d: json.dumps(d)[:-40], "invalid JSON"),
+        (lambda d: json.dumps({**d, "format": "x"}), "not a keyframe file"),
+        (lambda d: json.dumps({**d, "version": 99}), "version"),
+        (
+            lambda d: json.dumps(_with_state(d, physics=d["state"]["physics"][:8] + "!!" + d["state"]["physics"][10:])),
+            "base64",
+        ),
+        (lambda d: json.dumps(_with_state(d, physics=_flip(d["state"]["physics"]))), "checksum"),
+        (lambda d: json.dumps(_resized(d)), "does not fit this model"),
+        (lambda d: json.dumps({**d, "config": {**d["config"], "gravity": -3}}), "gravity"),
+        (lambda d: json.dumps({**d, "name": ""}), "name"),
+    ],
+)
+def test_bad_keyframe_files_are_refused_and_change_nothing(flat_sim, damage, message):
+    for _ in range(300):
+        flat_sim.step()
+    text = damage(_doc(flat_sim))
+    before = _state(flat_sim)
+    with pytest.raises(keyframes.KeyframeError, match=message):
+        keyframes.from_json(text, flat_sim)
+    assert _state(flat_sim) == before
+
+
+def _with_state(doc: dict, **state: object) -> dict:
+    return {**doc, "state": {**doc["state"], **state}}
+
+
+def _flip(text: str) -> str:
+    raw = bytearray(base64.b64decode(text))
+    raw[20] ^= 0x01
+    return base64.b64encode(bytes(raw)).decode()
+
+
+def _resized(doc: dict) -> dict:
+    """A state one value longer, with a checksum that matches it: a keyframe from another model."""
+    st = doc["state"]
+    physics = base64.b64decode(st["physics"]) + np.float64(0.0).tobytes()
+    sensors, memory = base64.b64decode(st["sensors"]), base64.b64decode(st["memory"])
+    digest = keyframes._digest(physics, sensors, memory)
+    return _with_state(doc, physics=base64.b64encode(physics).decode(), sha256=digest)
