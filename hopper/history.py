@@ -22,6 +22,7 @@ from hopper.control import EV_FALL
 from hopper.control.memory import MEMORY
 from hopper.events import Event, EventKind
 from hopper.metrics import HopMetrics
+from hopper.schedule import KickSchedule
 from hopper.sim import Simulation
 
 STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
@@ -44,6 +45,8 @@ class Snapshot:
     metrics: dict[str, float | None]  # the hop in progress (hopper.metrics.MetricsTracker)
     hops: tuple[HopMetrics, ...] | None  # hops completed so far; None: keep the target's
     config: SimConfig  # gains, gravity, terrain, sensing, ... at that moment
+    schedule: KickSchedule | None = None  # the repeatable test's kick (hopper.schedule)
+    kick: tuple[float, float] = (math.inf, 0.0)  # its pending time and the last liftoff's, s
 
     @property
     def gains(self) -> Gains:
@@ -73,6 +76,8 @@ def capture(sim: Simulation, *, with_hops: bool = True) -> Snapshot:
         metrics={name: getattr(m, name) for name in METRICS_ATTRS},
         hops=tuple(m.hops) if with_hops else None,
         config=sim.config,
+        schedule=sim.schedule,
+        kick=(sim._kick_at, sim._liftoff_at),
     )
 
 
@@ -120,6 +125,9 @@ def restore(sim: Simulation, snap: Snapshot) -> None:
     sim.data.sensordata[:] = snap.sensors
     sim.controller.mem[:] = snap.memory
     sim._pulse_armed, sim._pulse_magnitude, sim._pulse_at = snap.pulse
+    if sim.schedule != snap.schedule:
+        sim.set_schedule(snap.schedule)
+    sim._kick_at, sim._liftoff_at = snap.kick
     m = sim.metrics
     for name, value in snap.metrics.items():
         setattr(m, name, value)

@@ -19,6 +19,7 @@ import numpy as np
 from hopper.config import Gains, InvalidConfig
 from hopper.control.memory import MEMORY
 from hopper.history import METRICS_ATTRS, Snapshot, SnapshotMismatch, capture, check_fits, restore
+from hopper.schedule import KickSchedule
 from hopper.sim import Simulation
 
 FORMAT = "hopper-keyframe"
@@ -91,6 +92,8 @@ def to_json(keyframe: Keyframe) -> str:
             "timestep": c.timestep,
         },
         "pulse": list(s.pulse),  # inf (no pulse scheduled) as the JSON extension Infinity
+        "schedule": dataclasses.asdict(s.schedule) if s.schedule else None,
+        "kick": list(s.kick),
         "metrics": s.metrics,
         "state": {
             "physics": _b64(physics),
@@ -166,6 +169,13 @@ def from_json(text: str | bytes, sim: Simulation) -> Keyframe:
         raise KeyframeError("field 'pulse' must be three numbers")
     if not isinstance(metrics, dict) or set(metrics) != set(METRICS_ATTRS):
         raise KeyframeError("field 'metrics' is missing or incomplete")
+    schedule, kick = doc.get("schedule"), doc.get("kick", [math.inf, 0.0])
+    try:
+        schedule = KickSchedule(**schedule) if schedule is not None else None
+    except (TypeError, ValueError) as exc:
+        raise KeyframeError(f"field 'schedule' is not a valid kick schedule: {exc}") from None
+    if not (isinstance(kick, list) and len(kick) == 2 and all(isinstance(v, (int, float)) for v in kick)):
+        raise KeyframeError("field 'kick' must be two numbers")
     snap = Snapshot(
         time=time,
         physics=np.frombuffer(physics, "<f8").astype(np.float64),
@@ -175,6 +185,8 @@ def from_json(text: str | bytes, sim: Simulation) -> Keyframe:
         metrics=metrics,
         hops=None,
         config=config,
+        schedule=schedule,
+        kick=(float(kick[0]), float(kick[1])),
     )
     try:
         check_fits(sim, snap)

@@ -13,6 +13,7 @@ from hopper import keyframes
 from hopper.config import Gains, SimConfig
 from hopper.control.memory import MEMORY
 from hopper.history import RING_PERIOD_S, RING_SPAN_S, History, fly, restore
+from hopper.schedule import KickSchedule
 from hopper.sim import Simulation
 
 
@@ -52,6 +53,35 @@ def test_refly_with_the_recorded_gains_repeats_the_flight_bit_for_bit(flown):
     assert before.torque.tobytes() == recorded.torque.tobytes()
     assert dataclasses.replace(before.hop, index=recorded.hop.index) == recorded.hop
     assert sim.hops[-1] is recorded.hop  # the live simulation was not touched
+
+
+def test_refly_repeats_a_scheduled_kick():
+    """Under the repeatable test's schedule, the re-flown flight gets the same kick at the same tick."""
+    sim = Simulation(SimConfig(terrain="flat"))
+    history = History()
+    sim.listeners.append(history)
+    sim.set_schedule(KickSchedule("pitch_kick", 0.3, 0.15))
+    kicks = []
+    sim.listeners.append(_Kicks(kicks))
+    while len(sim.hops) < 2:
+        sim.step()
+    recorded = history.last_flight
+    assert kicks and kicks[-1] > recorded.start.time  # the last flight was kicked
+    before = fly(recorded.start)
+    assert before.pitch.tobytes() == recorded.pitch.tobytes()
+    assert np.abs(before.pitch).max() > np.radians(0.5)  # the kick shows
+
+
+class _Kicks:
+    def __init__(self, times: list[float]) -> None:
+        self.times = times
+
+    def tick(self, sim: Simulation) -> None:
+        pass
+
+    def event(self, sim: Simulation, event) -> None:
+        if event.kind == "disturbance":
+            self.times.append(event.time)
 
 
 def test_refly_with_other_gains_flies_differently(flown):
