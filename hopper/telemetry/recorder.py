@@ -322,6 +322,8 @@ class Telemetry:
 
     def _stop(self) -> None:
         """Close now (the simulation applies _StopRecording), then tell on_stop why."""
+        if self._closed:
+            return  # closed meanwhile by its owner, who reports that
         self.close()
         if self.failure is not None and self._file is not None and self._file.error is None:
             size = self._file.path.stat().st_size / 1e6
