@@ -108,6 +108,7 @@ def run_soak(
         "client_errors": result["errors"],
         "updates_per_s": [s["updates_per_s"] for s in result["sessions"]],
         "parts": verified,
+        "rss_by_minute_mb": [r / 1e6 for t, r in rss if int(t / 60) != int((t - sample_s) / 60)],
     }
 
 
@@ -118,6 +119,7 @@ def report(r: dict[str, Any]) -> str:
         f"{len(r['updates_per_s'])} clients",
         f"RSS {r['rss_after_warmup_mb']:.1f} MB after the {r['warmup_min']:g} min warm-up, {r['rss_end_mb']:.1f} MB "
         f"at the end (max {r['rss_max_mb']:.1f}): growth {r['rss_growth_pct']:+.2f} % (target < 5 %)",
+        "RSS at each minute (MB): " + " ".join(f"{m:.0f}" for m in r["rss_by_minute_mb"]),
         f"RTF {r['rtf']:.3f} overall, worst 10 s window {r['rtf_worst_10s']:.3f}; loop alive: {r['loop_alive']}",
         f"errors: server {r['server_errors']}, clients {len(r['client_errors'])} (target 0)",
         "scene updates/s per client: " + ", ".join(f"{u:.1f}" for u in r["updates_per_s"]),
