@@ -68,8 +68,12 @@ def test_size_limit_cuts_parts_near_it(tmp_path: Path) -> None:
                 sim.reset()
     sizes = [p.stat().st_size for p in telemetry.parts]
     print(f"\npart sizes at a {limit / 1e6:g} MB limit: {[f'{s / 1e6:.3f}' for s in sizes]} MB")
-    # Checked once a batch (1 s of simulation, ~70 kB), plus the footer (~25 kB here).
-    assert all(limit <= s <= limit + 200_000 for s in sizes[:-1]), sizes
+    print(f"each switch held the stepping thread {[f'{1e3 * s:.0f}' for s in telemetry.switch_s]} ms")
+    assert len(telemetry.switch_s) == 2
+    # Checked once a batch (1 s of simulation, ~70 kB) against what the writer has stored, which
+    # trails what was sent by a batch or two when the simulation runs faster than real time (here,
+    # ~50x); plus the footer (~25 kB).
+    assert all(limit <= s <= limit + 400_000 for s in sizes[:-1]), sizes
     verify(*telemetry.parts)
 
 

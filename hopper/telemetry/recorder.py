@@ -200,6 +200,7 @@ class Telemetry:
         self.path: Path | None = None  # the part being written
         self.parts: list[Path] = []  # every part so far, the current one last
         self.failure: str | None = None  # why the recording stopped by itself
+        self.switch_s: list[float] = []  # wall s each rollover held the flushing thread (the loop)
         self._stopping = False
         self._sinks = tuple(sinks)
         self._name = recording_name or f"hopper {sim.config.terrain} seed {sim.config.seed}"
@@ -283,11 +284,12 @@ class Telemetry:
 
     def _rollover(self) -> None:
         """Finish the current part and start the next (on the thread that flushes)."""
-        old = self._file
+        old, began = self._file, time.perf_counter()
         assert old is not None
         self._open_part()  # set_sinks drops the old FileSink: it writes its footer into its pipe
         if not old.join():
             log.error("recording: %s was not finished in time", old.path.name)
+        self.switch_s.append(time.perf_counter() - began)
         if old.error is not None:
             self._request_stop(old.error)
         elif self._on_part is not None:
