@@ -107,3 +107,16 @@ def test_bad_rollover_flags_fail_in_one_line(args: list[str], message: str, caps
         cli.parse(args)
     err = capsys.readouterr().err
     assert exit_.value.code == 2 and message in err and err.count("\n") == 1, err
+
+
+def test_hopper_sim_run_rolls_over(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    from hopper.app import sim_cli
+
+    base = tmp_path / "run.rrd"
+    assert sim_cli.main(["run", "--hops", "3", "--terrain", "flat", "--rrd", str(base), "--rrd-max-min", "0.05"]) == 0
+    parts = sorted(tmp_path.glob("run-*.rrd"))
+    assert len(parts) >= 2 and f"recording: {parts[0]}, {parts[1]}" in capsys.readouterr().out
+    verify(*parts)
+    with pytest.raises(SystemExit) as exit_:
+        sim_cli.main(["run", "--rrd", str(base), "--rrd-max-mb", "1"])
+    assert exit_.value.code == 2 and "must be at least 2 MB" in capsys.readouterr().err
