@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pyarrow as pa
 import rerun as rr
+import rerun_bindings as bindings
 
 from hopper.config import WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT
 from hopper.control import Phase
@@ -26,7 +27,7 @@ from hopper.events import EventKind
 from hopper.layout import LEG_JOINTS
 from hopper.meshes import body_meshes
 from hopper.metrics import RAD_S_TO_RPM
-from hopper.telemetry.blueprint import RED, default_blueprint
+from hopper.telemetry.blueprint import RED, BlueprintSource
 from hopper.telemetry.columns import (
     CHILD_FRAME,
     LEVEL,
@@ -248,6 +249,7 @@ class Telemetry:
         self.rec = rr.RecordingStream(APPLICATION_ID)
         self.rec.set_log_tick_enabled(False)  # only our two timelines
         self.rec.set_log_time_enabled(False)
+        self._blueprints = BlueprintSource(APPLICATION_ID)
         if self.base is not None:
             first = part_path(self.base, 1) if self._rolls else self.base
             self._reserve = Reserve(reserve_path(first), MIN_RESERVE)
@@ -266,7 +268,10 @@ class Telemetry:
             self.path = path
             self.parts.append(path)
             files = [self._file.sink]
-        rr.set_sinks(*files, *self._sinks, default_blueprint=default_blueprint(), recording=self.rec)
+        # rr.set_sinks, with the blueprint from one stream (BlueprintSource: rerun leaks one a call)
+        bindings.set_sinks(
+            [*files, *self._sinks], default_blueprint=self._blueprints.storage(), recording=self.rec.to_native()
+        )
         if self._file is not None:
             self._file.attached()
         sim = self.sim
@@ -591,6 +596,7 @@ class Telemetry:
                 self._wait_for_sinks()
             finally:
                 self.rec.disconnect()  # writes the .rrd footer, stops a gRPC server sink
+                self._blueprints.close()
                 self._finish_file()
                 _open.discard(self)
                 self._closed_callback()
