@@ -203,6 +203,7 @@ class Telemetry:
         self.failure: str | None = None  # why the recording stopped by itself
         self.switch_s: list[float] = []  # wall s each rollover held the flushing thread (the loop)
         self._stopping = False
+        self._stop_lock = threading.Lock()
         self._sinks = tuple(sinks)
         self._name = recording_name or f"hopper {sim.config.terrain} seed {sim.config.seed}"
         self._batch = batch_ticks
@@ -264,7 +265,7 @@ class Telemetry:
         if self.base is not None:
             assert self._reserve is not None
             path = part_path(self.base, len(self.parts) + 1) if self._rolls else self.base
-            self._file = PipedFile(path, self._reserve)
+            self._file = PipedFile(path, self._reserve, on_full=self._request_stop)
             self.path = path
             self.parts.append(path)
             files = [self._file.sink]
@@ -318,25 +319,34 @@ class Telemetry:
             self._rollover()
 
     def _request_stop(self, problem: str) -> None:
-        """Stop recording soon: queued on the simulation, so that no listener list changes mid-step."""
-        if self._stopping:
-            return
-        self._stopping = True
+        """Stop recording soon: queued on the simulation, so that no listener list changes mid-step.
+
+        Also called by the file's thread at a full disk: from then on batches are dropped."""
+        with self._stop_lock:
+            if self._stopping:
+                return
+            self._stopping = True
         where = f" in {self.path.parent}" if self.path is not None else ""
         self.failure = f"{problem}{where}; recording stopped"
         log.warning("recording: %s", self.failure)
         self.sim.submit(_StopRecording(self))
 
     def _stop(self) -> None:
-        """Close now (the simulation applies _StopRecording), then tell on_stop why."""
-        if self._closed:
-            return  # closed meanwhile by its owner, who reports that
+        """Close now (the simulation applies _StopRecording); close() tells on_stop why."""
         self.close()
-        if self.failure is not None and self._file is not None and self._file.error is None:
+
+    def _report_failure(self) -> None:
+        """After closing a recording cut short: say why, and whether the file is whole, once."""
+        if self.failure is None or self._on_stop is None:
+            return
+        if self._file is not None and self._file.error is None:
             size = self._file.path.stat().st_size / 1e6
             self.failure += f"; {self._file.path.name} is complete ({size:.1f} MB)"
-        if self._on_stop is not None and self.failure is not None:
-            self._on_stop(self.failure)
+        on_stop, self._on_stop = self._on_stop, None
+        try:
+            on_stop(self.failure)
+        except Exception:
+            log.exception("recording: on_stop failed")
 
     def _layout(self, sim: Simulation) -> None:
         """Columns of each signal in a buffered row, from the simulation's model layout."""
@@ -600,6 +610,7 @@ class Telemetry:
                 self._finish_file()
                 _open.discard(self)
                 self._closed_callback()
+        self._report_failure()  # outside the lock: the owner may look at this recording
 
     def _finish_file(self) -> None:
         """Wait for the writer to store the footer, then give back the reserve."""
