@@ -80,7 +80,9 @@ def run_soak(
         rtf.stop()
         alive = dashboard._thread.is_alive()
         steps = dashboard.pacer._steps
-        parts = list(dashboard.recorder._telemetry.parts) if dashboard.recorder._telemetry else []
+        telemetry = dashboard.recorder._telemetry
+        parts = list(telemetry.parts) if telemetry else []
+        switches = list(telemetry.switch_s) if telemetry else []
     finally:
         stop.set()
         sampler_thread.join()
@@ -108,6 +110,9 @@ def run_soak(
         "client_errors": result["errors"],
         "updates_per_s": [s["updates_per_s"] for s in result["sessions"]],
         "parts": verified,
+        "rollover_ms_max": 1e3 * max(switches, default=0.0),
+        "rollover_ms_mean": 1e3 * sum(switches) / len(switches) if switches else 0.0,
+        "rss_by_minute_mb": [r / 1e6 for t, r in rss if int(t / 60) != int((t - sample_s) / 60)],
     }
 
 
@@ -118,11 +123,13 @@ def report(r: dict[str, Any]) -> str:
         f"{len(r['updates_per_s'])} clients",
         f"RSS {r['rss_after_warmup_mb']:.1f} MB after the {r['warmup_min']:g} min warm-up, {r['rss_end_mb']:.1f} MB "
         f"at the end (max {r['rss_max_mb']:.1f}): growth {r['rss_growth_pct']:+.2f} % (target < 5 %)",
+        "RSS at each minute (MB): " + " ".join(f"{m:.0f}" for m in r["rss_by_minute_mb"]),
         f"RTF {r['rtf']:.3f} overall, worst 10 s window {r['rtf_worst_10s']:.3f}; loop alive: {r['loop_alive']}",
         f"errors: server {r['server_errors']}, clients {len(r['client_errors'])} (target 0)",
         "scene updates/s per client: " + ", ".join(f"{u:.1f}" for u in r["updates_per_s"]),
         f"recorded parts: {len(r['parts'])}, verified with `rerun rrd verify`: {len(ok)} (target: all), "
-        f"{sum(p[1] for p in r['parts']) / 1e6:.1f} MB in all",
+        f"{sum(p[1] for p in r['parts']) / 1e6:.1f} MB in all; each rollover held the loop "
+        f"{r['rollover_ms_mean']:.0f} ms on average, {r['rollover_ms_max']:.0f} ms at most",
     ]
     lines += [
         f"  {name}: {size / 1e6:.2f} MB: {'ok' if good else 'FAILED ' + msg}" for name, size, good, msg in r["parts"]

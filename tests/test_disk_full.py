@@ -1,6 +1,6 @@
 """A full disk mid-recording: the recording stops with a notification, the file verifies, the dashboard goes on.
 
-The disk is a real 3 MB tmpfs (mounting one needs root or CAP_SYS_ADMIN): the writes hit a real
+The disk is a real 2 MB tmpfs (mounting one needs root or CAP_SYS_ADMIN): the writes hit a real
 ENOSPC, the same path a full disk takes. RLIMIT_FSIZE would raise EFBIG instead, and a loop device
 needs root as well; where the mount is refused the test says so and skips.
 """
@@ -19,7 +19,7 @@ from rrd import signal_times, verify
 
 from benchmarks.probe import ProbeClient
 
-SIZE = "3m"  # the terrain and robot take ~1.1 MB, the reserve 0.5 MB: about 20 s of data fit
+SIZE = "2m"  # the terrain and robot take ~1.1 MB, the reserve 0.5 MB: a few seconds of data fit
 
 
 @pytest.fixture
@@ -67,7 +67,7 @@ def test_full_disk_stops_the_recording_and_the_dashboard_goes_on(small_disk: Pat
             verify(files[0])
             rows = signal_times(files[0])
             print(f"recorded {len(rows) / 1000:.1f} s of simulation in {files[0].stat().st_size / 1e6:.2f} MB")
-            assert len(rows) > 1000
+            assert len(rows) > 500
 
             # Room again: recording works again.
             files[0].unlink()

@@ -68,8 +68,12 @@ def test_size_limit_cuts_parts_near_it(tmp_path: Path) -> None:
                 sim.reset()
     sizes = [p.stat().st_size for p in telemetry.parts]
     print(f"\npart sizes at a {limit / 1e6:g} MB limit: {[f'{s / 1e6:.3f}' for s in sizes]} MB")
-    # Checked once a batch (1 s of simulation, ~70 kB), plus the footer (~25 kB here).
-    assert all(limit <= s <= limit + 200_000 for s in sizes[:-1]), sizes
+    print(f"each switch held the stepping thread {[f'{1e3 * s:.0f}' for s in telemetry.switch_s]} ms")
+    assert len(telemetry.switch_s) == 2
+    # Checked once a batch (1 s of simulation, ~70 kB) against what the writer has stored, which
+    # trails what was sent by a batch or two when the simulation runs faster than real time (here,
+    # ~50x); plus the footer (~25 kB).
+    assert all(limit <= s <= limit + 400_000 for s in sizes[:-1]), sizes
     verify(*telemetry.parts)
 
 
@@ -105,23 +109,14 @@ def test_bad_rollover_flags_fail_in_one_line(args: list[str], message: str, caps
     assert exit_.value.code == 2 and message in err and err.count("\n") == 1, err
 
 
-def test_hopper_sim_run_rolls_its_recording_over(tmp_path: Path) -> None:
-    """`hopper-sim run --rrd-max-min` writes numbered parts, each verifying, and lists them."""
-    import json
-    import subprocess
-    import sys
+def test_hopper_sim_run_rolls_over(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    from hopper.app import sim_cli
 
-    out = tmp_path / "run.rrd"
-    done = subprocess.run(
-        [sys.executable, "-m", "hopper.app.sim_cli", "run", "--terrain", "flat", "--hops", "3"]
-        + ["--rrd", str(out), "--rrd-max-min", "0.05", "--json", str(tmp_path / "run.json")],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
-    assert done.returncode == 0, done.stderr
+    base = tmp_path / "run.rrd"
+    assert sim_cli.main(["run", "--hops", "3", "--terrain", "flat", "--rrd", str(base), "--rrd-max-min", "0.05"]) == 0
     parts = sorted(tmp_path.glob("run-*.rrd"))
-    # Three hops from standing take about 7 s of simulation: at 3 s a part, three parts.
-    assert len(parts) >= 2, (done.stdout, list(tmp_path.iterdir()))
-    assert json.loads((tmp_path / "run.json").read_text())["rrd_parts"] == [str(p) for p in parts]
+    assert len(parts) >= 2 and f"recording: {parts[0]}, {parts[1]}" in capsys.readouterr().out
     verify(*parts)
+    with pytest.raises(SystemExit) as exit_:
+        sim_cli.main(["run", "--rrd", str(base), "--rrd-max-mb", "1"])
+    assert exit_.value.code == 2 and "must be at least 2 MB" in capsys.readouterr().err

@@ -125,6 +125,7 @@ class Recorder:
         try:
             live = open_viewer(viewer)
             options = self.limits.telemetry_options() if path is not None else {}
+            mine: list[Any] = []  # this recording, for callbacks that may come after a newer one started
             recording = telemetry_module().Telemetry(
                 sim,
                 path=path,
@@ -132,7 +133,7 @@ class Recorder:
                 on_close=live.close,
                 recording_name=name,
                 on_part=lambda finished, started: self._next_part(sim, finished, started),
-                on_stop=lambda message: self._stopped(sim, message),
+                on_stop=lambda message: self._stopped(sim, mine, message),
                 **options,
             )
         except Exception as exc:
@@ -140,6 +141,7 @@ class Recorder:
             raise  # the simulation logs it as a failed command
         finally:
             self._pending = False
+        mine.append(recording)
         self._telemetry = recording
         self.viewer_url = live.url
         self.path = recording.path
@@ -151,8 +153,10 @@ class Recorder:
         self.path = started
         self._changed(sim, "recording")
 
-    def _stopped(self, sim: Simulation, message: str) -> None:
+    def _stopped(self, sim: Simulation, mine: list[Any], message: str) -> None:
         """The recording stopped by itself (a full disk; on the loop thread): say so, keep the path."""
+        if not mine or mine[0] is not self._telemetry:
+            return
         self._telemetry = None
         self._changed(sim, "failed", message)
 

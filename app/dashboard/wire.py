@@ -2,7 +2,7 @@
 
 viser applies a GuiUpdateMessage's `updates` as they come: any property (label, min, max,
 disabled, ...) and a value cast with the control's type, so that "false" or 1 ticks a checkbox
-(bool("false") is True), True moves a slider to 1.0 and 123 types "123" in a text box. Worse, any key names
+(bool("false") is True) and True moves a slider to 1.0. Worse, any key names
 a field of viser's handle state: {"removed": true} or {"update_cb": 0} would silently kill a
 control for everyone. A browser only ever sends {"value": v} with v of the control's type (viser's client, ControlPanel/
 Generated.tsx and components/), so anything else is malformed and dropped here, logged, before
@@ -30,8 +30,8 @@ def _same_kind(current: object, value: object) -> bool:
         return isinstance(value, bool)
     if isinstance(current, (int, float)):
         return isinstance(value, (int, float)) and not isinstance(value, bool)
-    if isinstance(current, str):
-        return isinstance(value, str)
+    if isinstance(current, str):  # a number typed into a text box reads as its text, as viser makes it
+        return isinstance(value, (str, int, float)) and not isinstance(value, bool)
     if isinstance(current, tuple):
         return (
             isinstance(value, (list, tuple))

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pyarrow as pa
 import rerun as rr
+import rerun_bindings as bindings
 
 from hopper.config import WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT
 from hopper.control import Phase
@@ -26,7 +27,7 @@ from hopper.events import EventKind
 from hopper.layout import LEG_JOINTS
 from hopper.meshes import body_meshes
 from hopper.metrics import RAD_S_TO_RPM
-from hopper.telemetry.blueprint import RED, default_blueprint
+from hopper.telemetry.blueprint import RED, BlueprintSource
 from hopper.telemetry.columns import (
     CHILD_FRAME,
     LEVEL,
@@ -200,7 +201,9 @@ class Telemetry:
         self.path: Path | None = None  # the part being written
         self.parts: list[Path] = []  # every part so far, the current one last
         self.failure: str | None = None  # why the recording stopped by itself
+        self.switch_s: list[float] = []  # wall s each rollover held the flushing thread (the loop)
         self._stopping = False
+        self._stop_lock = threading.Lock()
         self._sinks = tuple(sinks)
         self._name = recording_name or f"hopper {sim.config.terrain} seed {sim.config.seed}"
         self._batch = batch_ticks
@@ -247,6 +250,7 @@ class Telemetry:
         self.rec = rr.RecordingStream(APPLICATION_ID)
         self.rec.set_log_tick_enabled(False)  # only our two timelines
         self.rec.set_log_time_enabled(False)
+        self._blueprints = BlueprintSource(APPLICATION_ID)
         if self.base is not None:
             first = part_path(self.base, 1) if self._rolls else self.base
             self._reserve = Reserve(reserve_path(first), MIN_RESERVE)
@@ -261,11 +265,14 @@ class Telemetry:
         if self.base is not None:
             assert self._reserve is not None
             path = part_path(self.base, len(self.parts) + 1) if self._rolls else self.base
-            self._file = PipedFile(path, self._reserve)
+            self._file = PipedFile(path, self._reserve, on_full=self._request_stop)
             self.path = path
             self.parts.append(path)
             files = [self._file.sink]
-        rr.set_sinks(*files, *self._sinks, default_blueprint=default_blueprint(), recording=self.rec)
+        # rr.set_sinks, with the blueprint from one stream (BlueprintSource: rerun leaks one a call)
+        bindings.set_sinks(
+            [*files, *self._sinks], default_blueprint=self._blueprints.storage(), recording=self.rec.to_native()
+        )
         if self._file is not None:
             self._file.attached()
         sim = self.sim
@@ -283,11 +290,12 @@ class Telemetry:
 
     def _rollover(self) -> None:
         """Finish the current part and start the next (on the thread that flushes)."""
-        old = self._file
+        old, began = self._file, time.perf_counter()
         assert old is not None
         self._open_part()  # set_sinks drops the old FileSink: it writes its footer into its pipe
         if not old.join():
             log.error("recording: %s was not finished in time", old.path.name)
+        self.switch_s.append(time.perf_counter() - began)
         if old.error is not None:
             self._request_stop(old.error)
         elif self._on_part is not None:
@@ -311,23 +319,34 @@ class Telemetry:
             self._rollover()
 
     def _request_stop(self, problem: str) -> None:
-        """Stop recording soon: queued on the simulation, so that no listener list changes mid-step."""
-        if self._stopping:
-            return
-        self._stopping = True
+        """Stop recording soon: queued on the simulation, so that no listener list changes mid-step.
+
+        Also called by the file's thread at a full disk: from then on batches are dropped."""
+        with self._stop_lock:
+            if self._stopping:
+                return
+            self._stopping = True
         where = f" in {self.path.parent}" if self.path is not None else ""
         self.failure = f"{problem}{where}; recording stopped"
         log.warning("recording: %s", self.failure)
         self.sim.submit(_StopRecording(self))
 
     def _stop(self) -> None:
-        """Close now (the simulation applies _StopRecording), then tell on_stop why."""
+        """Close now (the simulation applies _StopRecording); close() tells on_stop why."""
         self.close()
-        if self.failure is not None and self._file is not None and self._file.error is None:
+
+    def _report_failure(self) -> None:
+        """After closing a recording cut short: say why, and whether the file is whole, once."""
+        if self.failure is None or self._on_stop is None:
+            return
+        if self._file is not None and self._file.error is None:
             size = self._file.path.stat().st_size / 1e6
             self.failure += f"; {self._file.path.name} is complete ({size:.1f} MB)"
-        if self._on_stop is not None and self.failure is not None:
-            self._on_stop(self.failure)
+        on_stop, self._on_stop = self._on_stop, None
+        try:
+            on_stop(self.failure)
+        except Exception:
+            log.exception("recording: on_stop failed")
 
     def _layout(self, sim: Simulation) -> None:
         """Columns of each signal in a buffered row, from the simulation's model layout."""
@@ -587,9 +606,11 @@ class Telemetry:
                 self._wait_for_sinks()
             finally:
                 self.rec.disconnect()  # writes the .rrd footer, stops a gRPC server sink
+                self._blueprints.close()
                 self._finish_file()
                 _open.discard(self)
                 self._closed_callback()
+        self._report_failure()  # outside the lock: the owner may look at this recording
 
     def _finish_file(self) -> None:
         """Wait for the writer to store the footer, then give back the reserve."""

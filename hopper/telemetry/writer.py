@@ -21,6 +21,7 @@ import logging
 import os
 import struct
 import threading
+from collections.abc import Callable
 from pathlib import Path
 
 import rerun as rr
@@ -102,8 +103,9 @@ class PipedFile:
     that rerun never blocks on a file it can no longer write.
     """
 
-    def __init__(self, path: Path, reserve: Reserve) -> None:
+    def __init__(self, path: Path, reserve: Reserve, on_full: Callable[[str], None] | None = None) -> None:
         self.path = path
+        self._on_full = on_full  # called once, on this file's thread, at the first "no room"
         self.written = 0
         self.full: str | None = None
         self.error: str | None = None
@@ -160,6 +162,8 @@ class PipedFile:
                 if exc.errno in NO_ROOM and self._reserve.release():
                     self.full = f"{os.strerror(exc.errno)} writing {self.path.name}"
                     log.warning("recording: %s; using the reserve to finish the file", self.full)
+                    if self._on_full is not None:
+                        self._on_full(self.full)  # stop sending now: the reserve is for the footer
                     continue
                 self.error = f"{exc.strerror or exc} writing {self.path.name} after {self.written} bytes"
                 log.error("recording: %s; the rest of this file is dropped", self.error)
