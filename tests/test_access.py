@@ -23,6 +23,7 @@ from hopper.app.dashboard.config import DashboardConfig
 from hopper.app.dashboard.server import Dashboard
 from net import free_port, wait_until
 from rerun.chunk import RrdReader
+from rrd import verify
 
 from benchmarks.probe import ProbeClient
 from hopper.config import InvalidConfig
@@ -216,7 +217,7 @@ def test_the_token_appears_in_no_log_and_no_recording(tmp_path: Path) -> None:
     assert token not in stderr
     assert [line for line in out if token in line] == [line for line in out if "serving" in line]
 
-    subprocess.run([sys.executable, "-m", "rerun_cli", "rrd", "verify", str(rrd)], check=True, capture_output=True)
+    verify(rrd)
     assert token.encode() not in rrd.read_bytes()
     decoded = " ".join(str(chunk.to_record_batch().to_pylist()) for chunk in RrdReader(rrd).stream())
     # What is searched holds the events (a positive control for the search below).

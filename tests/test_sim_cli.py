@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 
 import pytest
+from rrd import verify
 
 HOP_KEYS = {
     "distance_m",
@@ -204,8 +205,7 @@ def test_a_signal_mid_run_exits_130_with_a_finalized_recording(tmp_path: Path, s
             process.kill()
     assert process.returncode == 130, (process.returncode, out, err)
     assert err.strip().splitlines()[-1] == "hopper-sim: interrupted" and "Traceback" not in err
-    verify = subprocess.run([sys.executable, "-m", "rerun_cli", "rrd", "verify", str(rrd)], capture_output=True)
-    assert verify.returncode == 0, verify.stderr
+    verify(rrd)
 
 
 def test_ctrl_c_during_compare_exits_130_without_worker_tracebacks() -> None:

@@ -18,6 +18,7 @@ import numpy as np
 import pyarrow as pa
 import pytest
 from rerun.chunk import RrdReader
+from rrd import verify
 
 from hopper.config import Gains, SimConfig
 from hopper.metrics import HopMetrics
@@ -25,7 +26,6 @@ from hopper.sim import Simulation
 from hopper.telemetry import HOP_DECIMALS, SIGNALS, Telemetry, check_writable, session_path
 
 REPO = Path(__file__).resolve().parent.parent
-RERUN = [sys.executable, "-m", "rerun_cli"]
 
 
 class Probe:
@@ -108,7 +108,7 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Simulation, Probe, Pa
 
 def test_recording_verifies_and_has_both_timelines(run) -> None:
     _, _, path, tables = run
-    subprocess.run([*RERUN, "rrd", "verify", str(path)], check=True, capture_output=True)
+    verify(path)
     timelines = {name for table in tables.values() for name in table.column_names}
     assert {"sim_time", "hop"} <= timelines
     assert tables["hops"].column("hop").to_pylist() == [1, 2]
@@ -270,7 +270,7 @@ def test_interrupt_leaves_a_verified_recording(tmp_path: Path, signum: int) -> N
             child.kill()
             child.wait()
     assert code == (-signal.SIGINT if signum == signal.SIGINT else 128 + signal.SIGTERM)
-    subprocess.run([*RERUN, "rrd", "verify", str(path)], check=True, capture_output=True)
+    verify(path)
     t = seconds(read(path)["signals"])
     # Every step is there, the partial last batch too; the signal may land between a step and its tick().
     assert steps - 1 <= len(t) <= steps and steps > 2500
