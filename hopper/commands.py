@@ -21,9 +21,10 @@ class Command(Protocol):
 @dataclasses.dataclass(frozen=True)
 class SetGains:
     gains: Gains
+    source: str = ""  # what chose them when not typed or dragged, e.g. "pole placement, wn 25 rad/s"
 
     def apply(self, sim: Simulation) -> None:
-        sim.set_gains(self.gains)
+        sim.set_gains(self.gains, self.source)
 
 
 @dataclasses.dataclass(frozen=True)

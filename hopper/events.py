@@ -102,10 +102,12 @@ class Reset:
 class GainsChanged:
     kind: ClassVar[EventKind] = EventKind.GAINS
     gains: Gains
+    source: str = ""  # what chose them, when a design helper did
 
     def describe(self) -> str:
         g = self.gains
-        return f"gains Kp {g.kp:g} N m/rad, Ki {g.ki:g} N m/(rad s), Kd {g.kd:g} N m s/rad"
+        by = f", by {self.source}" if self.source else ""
+        return f"gains Kp {g.kp:.4g} N m/rad, Ki {g.ki:.4g} N m/(rad s), Kd {g.kd:.4g} N m s/rad{by}"
 
 
 @dataclasses.dataclass(frozen=True)

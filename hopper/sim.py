@@ -228,9 +228,9 @@ class Simulation:
         self.config = dataclasses.replace(self.config, **changes)  # validates
         self.controller.configure(self.config)
 
-    def set_gains(self, gains: Gains) -> None:
+    def set_gains(self, gains: Gains, source: str = "") -> None:
         self._reconfigure(gains=gains)
-        self._emit(GainsChanged(gains))
+        self._emit(GainsChanged(gains, source))
 
     def set_wheel(self, enabled: bool) -> None:
         self._reconfigure(wheel=enabled)

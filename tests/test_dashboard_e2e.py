@@ -76,6 +76,8 @@ def distinct_colours(path: Path) -> int:
 
 HOP_ROWS_JS = """() => [...document.querySelectorAll('table.hd-hops tr:not(.hd-mean)')]
     .slice(1).map(row => row.innerText.trim().split(/\\s+/))"""
+LOG_TEXT_JS = "() => [...document.querySelectorAll('table.hd-log')].map(t => t.textContent).join(' | ')"
+LOG_HAS_JS = "line => [...document.querySelectorAll('table.hd-log')].some(t => t.textContent.includes(line))"
 LARGEST_CANVAS_JS = """() => { const cs = [...document.querySelectorAll('canvas')];
     const area = c => c.clientWidth * c.clientHeight;
     return cs.reduce((best, c, i) => area(c) > area(cs[best]) ? i : best, 0); }"""
@@ -150,7 +152,17 @@ def test_dashboard_in_a_real_browser(browser, tmp_path: Path) -> None:
         excursion = max(abs(p - at_kick) for t, p in probe.samples if kick.time <= t <= kick.time + 0.3)
         print(f"pitch excursion after the kick: {math.degrees(excursion):.1f} deg ({elapsed()})")
         assert math.degrees(excursion) > 1.5
-        page.get_by_text("pitch kick +1 N m s").first.wait_for(timeout=20_000)  # shown in the event log
+        # The kick is shown in the event log: first in the server's log, then in the page's log table.
+        # (Checked in two steps so that a failure says which side lost it.)
+        line = "pitch kick +1 N m s"
+        assert wait_until(lambda: any(line in row for row in list(dashboard.layout.events.lines)), timeout=20), list(
+            dashboard.layout.events.lines
+        )
+        try:
+            page.wait_for_function(LOG_HAS_JS, arg=line, timeout=20_000)
+        except Exception:
+            page.screenshot(path=str(tmp_path / "event-log.png"))
+            raise AssertionError(f"not in the page's event log: {page.evaluate(LOG_TEXT_JS)!r}") from None
     finally:
         page.close()
         dashboard.stop()

@@ -7,6 +7,7 @@ import dataclasses
 import viser
 from hopper.app.dashboard import assets
 from hopper.app.dashboard.panels import PanelContext
+from hopper.app.dashboard.panels.analysis import AnalysisPanel, build_analysis_panel
 from hopper.app.dashboard.panels.disturbances import DisturbancesPanel, build_disturbances_panel
 from hopper.app.dashboard.panels.events import EventLog, build_event_log
 from hopper.app.dashboard.panels.gains import GainsPanel, build_gains_panel
@@ -31,6 +32,7 @@ class Layout:
     status: StatusPanel
     simulation: SimulationPanel
     gains: GainsPanel
+    analysis: AnalysisPanel
     disturbances: DisturbancesPanel
     terrain: TerrainPanel
     view: ViewPanel
@@ -81,6 +83,9 @@ def build_layout(
     tabs = gui.add_tab_group()
     with tabs.add_tab("Gains", viser.Icon.ADJUSTMENTS):
         gains_panel = build_gains_panel(gui, ctx, gains, sensing=sensing)
+        analysis = build_analysis_panel(
+            gui, gains, lambda g, source: gains_panel.apply(source=source, kp=g.kp, ki=g.ki, kd=g.kd)
+        )
     with tabs.add_tab("Disturb", viser.Icon.BOLT):
         disturbances = build_disturbances_panel(gui, ctx)
     with tabs.add_tab("World", viser.Icon.PLANET):
@@ -105,6 +110,7 @@ def build_layout(
         status,
         simulation,
         gains_panel,
+        analysis,
         disturbances,
         terrain_panel,
         view,

@@ -41,6 +41,7 @@ from hopper.metrics import RAD_S_TO_RPM
 from hopper.sim import Simulation
 
 log = logging.getLogger(__name__)
+PLANT_CHANGES = (EventKind.GRAVITY, EventKind.TERRAIN, EventKind.SENSING)
 
 FRAME_S = 1 / 30  # s of wall time between pose updates
 MAX_SLEEP_S = 0.005  # s; the loop wakes at least this often to step (5 steps a wake at 1x)
@@ -130,6 +131,7 @@ class Dashboard:
         )
         self.recorder.listeners.append(self._recording_changed)
         sim.listeners.append(self)
+        self.layout.analysis.update_plant(sim.config)
         self.roles = Roles(  # after every shared input exists: it greys them for viewers
             self.server,
             sim.submit,
@@ -160,6 +162,7 @@ class Dashboard:
             return
         self._stopped = True
         self._stopping.set()
+        self.layout.analysis.close()
         if self._thread.is_alive():
             self._thread.join(timeout=5.0)
         try:
@@ -309,6 +312,10 @@ class Dashboard:
             notify_all(self.server, "Command failed", payload.describe(), "error")
         elif kind == EventKind.TERRAIN:
             self.terrain = add_terrain(self.server.scene, self.sim.heights, self.sim.config.craters)
+        if kind == EventKind.GAINS:
+            layout.analysis.show_gains(payload.gains)
+        elif kind in PLANT_CHANGES:  # the flight the analysis linearizes is another one now
+            layout.analysis.update_plant(self.sim.config)
         elif kind == EventKind.RESET:
             self._next_sample = 0.0
             layout.plots.clear()

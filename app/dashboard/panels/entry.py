@@ -17,6 +17,10 @@ from hopper.app.dashboard.feedback import Refused, format_number, notify, parse_
 log = logging.getLogger(__name__)
 
 QUIET_S = 0.5  # s without a keystroke before typed text is applied
+# Text that ends like this is a number being typed ("0.", "1e", "-"): applied only after a longer
+# pause, so that a slow typist's "0." is not clamped and rewritten before the 5 arrives.
+UNFINISHED = (".", "e", "E", "+", "-")
+UNFINISHED_QUIET_S = 3.0
 
 Apply = Callable[[float, "viser.ClientHandle | None"], None]
 
@@ -100,7 +104,10 @@ class NumberEntry:
             self._client = event.client
             if self._timer is not None:
                 self._timer.cancel()
-            self._timer = threading.Timer(self.quiet_s, self._quiet)
+            wait = self.quiet_s
+            if self.handle.value.strip().endswith(UNFINISHED):
+                wait = max(wait, UNFINISHED_QUIET_S)
+            self._timer = threading.Timer(wait, self._quiet)
             self._timer.daemon = True
             self._timer.start()
 

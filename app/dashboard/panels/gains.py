@@ -42,8 +42,10 @@ class GainsPanel:
     def sliders(self) -> dict[str, viser.GuiSliderHandle[float]]:
         return {"kp": self.kp, "ki": self.ki, "kd": self.kd}
 
-    def apply(self, **changes: float) -> None:
+    def apply(self, source: str = "", **changes: float) -> None:
         """Queue the gains in use with `changes` if they differ, and show the changed ones in slider and box.
+
+        `source` says what chose them when a design helper did (the event log shows it).
 
         Called from viser's and the boxes' timer threads, hence the lock. Only the changed gains'
         handles are set: another slider may hold a value whose callback has yet to run.
@@ -53,7 +55,7 @@ class GainsPanel:
             gains = dataclasses.replace(self.applied, **changes)  # the core's own validation first
             if gains != self.applied:
                 self.applied = gains
-                ctx.submit(SetGains(gains))
+                ctx.submit(SetGains(gains, source))
             for name, value in changes.items():
                 self.sliders[name].value = value  # a program assignment: the slider's handler ignores it
                 if self.entries[name].value != value:  # a typed value is shown by its box already

@@ -1,0 +1,191 @@
+"""Loop analysis beside the gains, and the design helpers that write them.
+
+The analysis is of the flight plant (hopper.linearize): the whole model linearized early in a
+flight of the present configuration, computed on a worker thread whenever gravity, terrain or
+sensing change; a gain change only re-closes the loop (about 60 ms), so it follows every change.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import html
+import logging
+import math
+import threading
+from collections.abc import Callable
+
+import viser
+from hopper.app.dashboard.feedback import guarded, notify
+from hopper.app.dashboard.panels.entry import NumberEntry
+
+from hopper.config import WHEEL_TORQUE_LIMIT, Gains, SimConfig
+from hopper.control.gait import momentum_capacity
+from hopper.design import lqr_bryson, place_poles
+from hopper.linearize import flight_plant, settled_flight
+from hopper.loop import LoopAnalysis, Plant, analyse
+
+log = logging.getLogger(__name__)
+
+ApplyGains = Callable[[Gains, str], None]  # (gains, what chose them)
+
+
+@dataclasses.dataclass
+class AnalysisPanel:
+    html: viser.GuiHtmlHandle
+    rate: NumberEntry  # deg/s, the rate disturbance whose cost is shown
+    wn: NumberEntry
+    zeta: NumberEntry
+    max_pitch: NumberEntry
+    max_torque: NumberEntry
+    place_button: viser.GuiButtonHandle
+    lqr_button: viser.GuiButtonHandle
+    apply_gains: ApplyGains
+    gains: Gains
+    delay: int = 0
+    plant: Plant | None = None
+    result: LoopAnalysis | None = None
+    _generation: int = 0
+    _lock: threading.RLock = dataclasses.field(default_factory=threading.RLock, repr=False)
+
+    def show_gains(self, gains: Gains, delay: int | None = None) -> None:
+        """Re-close the loop at these gains (and command delay, ticks) and show it."""
+        with self._lock:
+            self.gains = gains
+            if delay is not None:
+                self.delay = delay
+            self._refresh()
+
+    def update_plant(self, config: SimConfig) -> None:
+        """Linearize a flight of `config` on a worker thread; the newest request wins."""
+        with self._lock:
+            self._generation += 1
+            generation = self._generation
+            self.delay = config.sensor.motor_delay_ticks if config.sensing == "realistic" else 0
+            self.html.content = _render(None, self.gains, self.plant, pending=True)
+
+        def work() -> None:
+            try:
+                plant = flight_plant(settled_flight(config))
+            except Exception as exc:  # e.g. no flight at all: the panel says so, the dashboard goes on
+                log.warning("no flight plant for the analysis: %s", exc)
+                plant = None
+            with self._lock:
+                if generation == self._generation:
+                    self.plant = plant
+                    self._refresh()
+
+        threading.Thread(target=work, name="flight-plant", daemon=True).start()
+
+    def close(self) -> None:
+        """Drop a linearization still under way (the server is stopping: nobody to show it to)."""
+        with self._lock:
+            self._generation += 1
+
+    def _refresh(self) -> None:
+        self.result = analyse(self.plant, self.gains, self.delay, self.rate.value) if self.plant else None
+        self.html.content = _render(self.result, self.gains, self.plant)
+
+    def design(self, kind: str, client: viser.ClientHandle | None) -> None:
+        """Run a design helper on the present plant and apply its gains (or say why not)."""
+        with self._lock:
+            plant, gains = self.plant, self.gains
+        if plant is None:
+            notify(client, "Analysis not ready", "The flight plant is still being computed; try again in a second.")
+            return
+        try:
+            if kind == "poles":
+                wn, zeta = self.wn.commit(client), self.zeta.commit(client)
+                if wn is None or zeta is None:
+                    return
+                designed = place_poles(plant, wn, zeta, delay=self.delay)
+                source = f"pole placement (wn {wn:g} rad/s, zeta {zeta:g})"
+            else:
+                max_pitch, max_torque = self.max_pitch.commit(client), self.max_torque.commit(client)
+                if max_pitch is None or max_torque is None:
+                    return
+                designed = lqr_bryson(plant.inertia.effective, max_pitch, max_torque, ki=gains.ki)
+                source = f"LQR (Bryson: {max_pitch:g} deg, {max_torque:g} N m)"
+        except ValueError as exc:
+            notify(client, "Design refused", str(exc), "warning")
+            return
+        self.apply_gains(designed, source)
+
+
+def _render(result: LoopAnalysis | None, gains: Gains, plant: Plant | None, pending: bool = False) -> str:
+    if result is None:
+        text = "linearizing a flight…" if pending or plant is None else "no analysis"
+        return f"<div class='hd-analysis hd-dim'>{text}</div>"
+    inertia = plant.inertia if plant else None
+    rows = []
+    if not result.stable:
+        rows.append(("loop", "<b class='hd-bad'>unstable</b>: a mode grows within a flight"))
+    else:
+        rows.append(("pair", f"ω<sub>n</sub> {result.wn:.1f} rad/s · ζ {result.zeta:.2f}"))
+    pm = "∞" if math.isinf(result.phase_margin_deg) else f"{result.phase_margin_deg:.0f}°"
+    gm = "∞" if math.isinf(result.gain_margin_db) else f"{result.gain_margin_db:.1f} dB"
+    pm_class = "hd-bad" if result.phase_margin_deg < 30.0 else ""
+    at = "" if math.isnan(result.crossover_rad_s) else f" at {result.crossover_rad_s:.0f} rad/s"
+    rows.append(("margins", f"<span class='{pm_class}'>phase {pm}</span>{at} · gain {gm}"))
+    rows.append(("poles", ", ".join(_pole(p) for p in _pairs(result.poles)) + " 1/s"))
+    if inertia is not None:
+        rows.append(("inertia", f"J {inertia.effective:.3f} kg m² legs held · {inertia.torso:.3f} torso alone"))
+    torque_class = "hd-bad" if result.torque_fraction > 1.0 else ""
+    momentum_class = "hd-bad" if result.momentum_fraction > 1.0 else ""
+    rows.append(
+        (
+            f"{result.rate_disturbance_deg_s:g}°/s turn",
+            f"<span class='{torque_class}'>{result.peak_torque:.1f} N m ({result.torque_fraction:.0%} of"
+            f" {WHEEL_TORQUE_LIMIT:g})</span> · <span class='{momentum_class}'>{result.peak_momentum:.2f} N m s"
+            f" ({result.momentum_fraction:.0%} of {momentum_capacity():.2f})</span>",
+        )
+    )
+    delay = f", {result.delay_ticks} ms command delay" if result.delay_ticks else ""
+    body = "".join(f"<tr><td>{html.escape(k)}</td><td>{v}</td></tr>" for k, v in rows)
+    caption = f"flight loop at Kp {gains.kp:.4g}, Ki {gains.ki:.4g}, Kd {gains.kd:.4g}{delay}"
+    return f"<div class='hd-analysis'><table>{body}</table><div class='hd-dim'>{caption}</div></div>"
+
+
+def _pairs(poles: tuple[complex, ...]) -> list[complex]:
+    """One of each conjugate pair (the upper), slowest first, at most six."""
+    return [p for p in poles if p.imag >= 0.0][:6]
+
+
+def _pole(p: complex) -> str:
+    if abs(p.imag) < 1e-6:
+        return f"{p.real:.3g}"
+    return f"{p.real:.3g}±{abs(p.imag):.3g}j"
+
+
+def build_analysis_panel(gui: viser.GuiApi, initial: Gains, apply_gains: ApplyGains) -> AnalysisPanel:
+    """The analysis (HTML) and the two design helpers, in folders of the Gains tab."""
+    with gui.add_folder("Loop analysis"):
+        handle = gui.add_html(_render(None, initial, None, pending=True))
+        rate = _entry(gui, "Turn to stop", 60.0, 1.0, 1000.0, "deg/s", "The rate disturbance whose cost is shown")
+    with gui.add_folder("Design gains", expand_by_default=False):
+        wn = _entry(gui, "ωn", 25.0, 1.0, 200.0, "rad/s", "Natural frequency of the dominant pair")
+        zeta = _entry(gui, "ζ", 0.7, 0.05, 2.0, "", "Damping ratio of the dominant pair")
+        place = gui.add_button("Place poles", icon=viser.Icon.TARGET, hint="Kp, Ki, Kd giving this pair in flight")
+        max_pitch = _entry(gui, "max pitch", 3.0, 0.1, 90.0, "deg", "Bryson: the pitch error worth the full torque")
+        max_torque = _entry(gui, "max torque", WHEEL_TORQUE_LIMIT, 0.1, 100.0, "N m", "Bryson: the torque allowed")
+        lqr = gui.add_button("LQR (Bryson)", icon=viser.Icon.MATH_FUNCTION, hint="Kp, Kd of the 2-state LQR; Ki kept")
+    panel = AnalysisPanel(
+        html=handle,
+        rate=rate,
+        wn=wn,
+        zeta=zeta,
+        max_pitch=max_pitch,
+        max_torque=max_torque,
+        place_button=place,
+        lqr_button=lqr,
+        apply_gains=apply_gains,
+        gains=initial,
+    )
+    rate.on_apply = lambda _value, _client: panel.show_gains(panel.gains)
+    place.on_click(guarded(lambda event: panel.design("poles", event.client)))
+    lqr.on_click(guarded(lambda event: panel.design("lqr", event.client)))
+    return panel
+
+
+def _entry(gui: viser.GuiApi, label: str, value: float, low: float, high: float, unit: str, hint: str) -> NumberEntry:
+    handle = gui.add_text(f"{label} ({unit})" if unit else label, "", hint=hint)
+    return NumberEntry(handle, label, low, high, unit, value=value)

@@ -1,0 +1,90 @@
+"""The flight plant: the whole MuJoCo model linearized in flight, with the leg servos closed.
+
+The legs' servos (hopper.control.legs) hold each leg's angle in the world, so a wheel torque turns
+the torso against the hip servos' springs, not against a rigid robot. Linearizing the simulation
+itself captures that: MuJoCo's finite-differenced transition (mjd_transitionFD) for the physics,
+and central differences of the controller's kernel for the legs' torques. The wheel's torque is
+left as the plant's input; hopper.loop closes the flight PID around it.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from hopper.config import WHEEL_TORQUE_LIMIT, SimConfig
+from hopper.control.kernel import EV_APEX, control_tick
+from hopper.control.wheel import WHEEL_DAMPING
+from hopper.loop import Plant, pitch_inertia
+from hopper.sim import Simulation
+
+EPS = 1e-6  # finite-difference step (rad, m, rad/s, m/s)
+SETTLED_AFTER_APEX_S = 0.1  # s: by then the legs hold their landing pose (the tuck ends at apex)
+PHYSICS = mujoco.mjtState.mjSTATE_FULLPHYSICS
+
+
+def flight_plant(sim: Simulation) -> Plant:
+    """The plant at the simulation's present state (which should be in flight)."""
+    model, data, lay = sim.model, sim.data, sim.layout
+    nv = model.nv
+    n = 2 * nv + model.na
+    a, b = np.zeros((n, n)), np.zeros((n, model.nu))
+    mujoco.mjd_transitionFD(model, data, EPS, True, a, b, None, None)
+    legs = _kernel_jacobian(sim)
+    # Close everything the kernel does but the wheel's PID: the leg servos, and the wheel driver's
+    # back-EMF feedforward (wheel_ctrl adds damping * speed so that the torque is what was asked).
+    legs[lay.a_wheel, :] = 0.0
+    legs[lay.a_wheel, nv + lay.v_wheel] = WHEEL_DAMPING / WHEEL_TORQUE_LIMIT
+    full = np.zeros((nv, nv))
+    mujoco.mj_fullM(model, data, full)
+    kick = np.zeros(n)
+    kick[nv : 2 * nv] = np.linalg.solve(full, np.eye(nv)[lay.v_pitch])  # as Simulation.disturb does
+    return Plant(
+        a=a + b @ legs,
+        b=b[:, lay.a_wheel : lay.a_wheel + 1] / WHEEL_TORQUE_LIMIT,
+        pitch=lay.v_pitch,
+        rate=nv + lay.v_pitch,
+        kick=kick,
+        dt=model.opt.timestep,
+        inertia=pitch_inertia(model, data),
+    )
+
+
+def _kernel_jacobian(sim: Simulation) -> np.ndarray:
+    """d ctrl / d x of one controller tick, x in MuJoCo's tangent space [dq, dv], by central differences.
+
+    The kernel runs on scratch copies (MjData and its memory record), so the run is untouched.
+    """
+    model, data = sim.model, sim.data
+    nv = model.nv
+    state = np.empty(mujoco.mj_stateSize(model, PHYSICS))
+    mujoco.mj_getState(model, data, state, PHYSICS)
+    scratch = mujoco.MjData(model)
+
+    def ctrl_at(dq: np.ndarray, dv: np.ndarray) -> np.ndarray:
+        mujoco.mj_setState(model, scratch, state, PHYSICS)
+        mujoco.mj_integratePos(model, scratch.qpos, dq, 1.0)
+        scratch.qvel[:] += dv
+        mujoco.mj_forward(model, scratch)
+        ctrl = np.zeros(model.nu)
+        control_tick(scratch.qpos, scratch.qvel, scratch.sensordata, ctrl, sim.controller.mem.copy())
+        return ctrl
+
+    jacobian = np.zeros((model.nu, 2 * nv + model.na))
+    for i in range(2 * nv):
+        step = np.zeros(2 * nv)
+        step[i] = EPS
+        jacobian[:, i] = (ctrl_at(step[:nv], step[nv:]) - ctrl_at(-step[:nv], -step[nv:])) / (2.0 * EPS)
+    return jacobian
+
+
+def settled_flight(config: SimConfig) -> Simulation:
+    """A simulation of `config` stepped to its first flight, once the legs hold their landing pose."""
+    sim = Simulation(config)
+    limit = 30.0  # s: the first apex comes within a few seconds at any gravity the config accepts
+    while not sim.step() & EV_APEX:
+        if sim.time > limit or sim.fallen:
+            raise RuntimeError(f"no flight within {limit:g} s of simulation")
+    for _ in range(round(SETTLED_AFTER_APEX_S / config.timestep)):
+        sim.step()
+    return sim
