@@ -118,10 +118,14 @@ def test_asking_and_handing_over(start: Start, probes) -> None:
     first, second = d.roles.seated
 
     # A viewer's crafted press of its own (hidden) Hand over button does nothing: it does not operate.
+    # Its own widgets are no shared input: pressing them is not refused (nor met with "Read-only").
+    refused = d.roles.refused
     b.set_gui_value("Hand over", True)
     b.set_gui_value("Ask for control", True)
     assert wait_until(lambda: d.roles.askers == [second])
     assert d.roles.operator == first
+    # viser hands each message to the server's handlers (gated) before the client's own (not gated).
+    assert d.roles.refused == refused
     assert a.wait_for(lambda p: f"Client {second} (127.0.0.1) asks for control" in titles(p))
 
     a.set_gui_value("Hand over", True)

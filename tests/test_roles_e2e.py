@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from hopper.app.dashboard.access import page_url
 from hopper.app.dashboard.server import Dashboard
 from net import wait_until
 from test_dashboard_e2e import MIN_CANVAS_COLOURS, browser, distinct_colours  # noqa: F401  (browser: a fixture)
@@ -30,7 +31,7 @@ def open_page(browser, d: Dashboard, clients: int):  # noqa: F811
     """A page that has the dashboard and its own Control widgets."""
     page = browser.new_page(viewport=VIEWPORT)
     page.add_init_script(HIDE_FROM_START)
-    page.goto(d.url)
+    page.goto(d.url, timeout=120_000)
     page.get_by_text("Kp", exact=True).first.wait_for(timeout=120_000)  # minutes on a loaded machine
     assert wait_until(lambda: len(d.roles.seated) == clients, timeout=60), "the page was never seated"
     page.locator(".hd-role").wait_for(timeout=60_000)
@@ -109,6 +110,34 @@ def test_a_viewer_changes_nothing_until_control_is_handed_over(browser, tmp_path
         screenshot(first, tmp_path / "viewer-after.png")
     finally:
         for page in (first, second):
+            if page is not None:
+                page.close()
+        d.stop()
+
+
+def test_off_loopback_the_printed_url_opens_the_dashboard_and_the_bare_address_gets_nothing(
+    browser,  # noqa: F811
+    tmp_path: Path,
+) -> None:
+    """Bound to 0.0.0.0 with a token, opened over 127.0.0.1 only: the URL's `websocket` parameter
+    carries the token in a real browser; without it the page stays empty and is refused."""
+    d = start(tmp_path, host="0.0.0.0", token="auto")
+    with_token = without = None
+    try:
+        url = page_url("127.0.0.1", d.server.get_port(), d.config.token)
+        with_token = browser.new_page(viewport=VIEWPORT)
+        with_token.add_init_script(HIDE_FROM_START)
+        with_token.goto(url, timeout=120_000)
+        with_token.get_by_text("Kp", exact=True).first.wait_for(timeout=120_000)
+        assert wait_until(lambda: d.roles.operator is not None, timeout=60), "the token holder does not operate"
+
+        without = browser.new_page(viewport=VIEWPORT)
+        refused = d.gatekeeper.refused
+        without.goto(f"http://127.0.0.1:{d.server.get_port()}/", timeout=120_000)
+        assert wait_until(lambda: d.gatekeeper.refused > refused, timeout=60), "the bare page was never refused"
+        assert without.get_by_text("Kp", exact=True).count() == 0 and len(d.roles.seated) == 1
+    finally:
+        for page in (with_token, without):
             if page is not None:
                 page.close()
         d.stop()

@@ -132,6 +132,8 @@ class Roles:
             if client_id == self.operator:
                 self._last_input = self.clock()
                 return True
+            if not self._targets_shared(message):  # the client's own widgets (Ask for control, Help's Esc)
+                return True
             if isinstance(message, INPUT_MESSAGES) and message.uuid in self.viewer_safe:
                 return True
             self.refused += 1
@@ -139,6 +141,17 @@ class Roles:
         if seat is not None:
             self._refused(seat, message)
         return False
+
+    def _targets_shared(self, message: Any) -> bool:
+        """Whether viser's server-scope handlers would act on it. viser hands every message to both
+        the server's and the sending client's handlers; one for the client's own widgets finds
+        nothing on the server's side, so it may pass (its own handler is not gated)."""
+        gui = self.server.gui
+        if isinstance(message, INPUT_MESSAGES):
+            return message.uuid in gui._gui_input_handle_from_uuid
+        if isinstance(message, messages.CommandTriggerMessage):
+            return message.uuid in gui._command_handle_from_uuid
+        return True  # anything else from a viewer is refused
 
     def _refused(self, seat: Seat, message: Any) -> None:
         """Show the refused client what runs again (its widget may have moved) and why."""
@@ -235,7 +248,7 @@ class Roles:
             await asyncio.sleep(0.05)
         await asyncio.sleep(REPLAY_MARGIN_S)
         with self._lock:
-            if self._seats.get(seat.client.client_id) is not seat:
+            if self._seats.get(seat.client.client_id) is not seat or _gone(seat.client):
                 return
             try:
                 seat.view = self._build_view(seat)
