@@ -34,7 +34,9 @@ def verify(path: Path) -> tuple[bool, str]:
     binary = os.path.join(os.path.dirname(rerun_cli.__file__), "rerun")
     done = subprocess.run([binary, "rrd", "verify", str(path)], capture_output=True, text=True, timeout=600)
     out = (done.stdout + done.stderr).strip()
-    return done.returncode == 0 and "verified without error" in out, out.splitlines()[-1] if out else ""
+    # The summary names the count: a file it could not read at all gives "0 files verified" and exit 0.
+    ok = done.returncode == 0 and "1 file verified without error" in out
+    return ok, out.splitlines()[-1] if out else ""
 
 
 def run_soak(
