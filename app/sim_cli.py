@@ -23,7 +23,7 @@ import numpy as np
 from hopper.app import report_cli
 from hopper.app.signals import raise_if_stop_requested, stop_like_ctrl_c
 
-from hopper.config import GRAVITY_PRESETS, Gains, InvalidConfig, SimConfig
+from hopper.config import GRAVITY_PRESETS, Gains, GaitParams, InvalidConfig, SimConfig
 from hopper.scenarios import SCENARIOS, scenario
 from hopper.schedule import KickSchedule, parse
 
@@ -463,9 +463,15 @@ def command_compare(args: argparse.Namespace) -> int:
     from hopper.experiments.executor import ExecutorError, choose, chunks
     from hopper.experiments.spec import Episode
 
+    gait, default = scenario(args.scenario).gait, GaitParams()
+    changed = tuple(
+        (f.name, getattr(gait, f.name))
+        for f in dataclasses.fields(GaitParams)
+        if getattr(gait, f.name) != getattr(default, f.name)
+    )  # the scenario's gait, as a sweep's gait axes
     episodes = [
         Episode(kp=args.kp, ki=args.ki, kd=args.kd, gravity=args.gravity, seed=seed, hops_target=args.hops,
-                terrain=args.terrain, wheel=wheel, sensing=args.sensing)
+                terrain=args.terrain, wheel=wheel, sensing=args.sensing, gait=changed)
         for seed in range(args.seeds)
         for wheel in (True, False)
     ]  # fmt: skip

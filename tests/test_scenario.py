@@ -140,3 +140,16 @@ def test_the_cli_runs_the_scenario_and_records_its_gait(tmp_path: Path) -> None:
     assert data["hops"][0]["peak_pitch_deg"] > 10.0 and math.isfinite(data["hops"][0]["rms_pitch_rate_deg_s"])
     bad = subprocess.run([*command[:5], "nope"], capture_output=True, text=True, timeout=300)
     assert bad.returncode == 2 and "invalid choice: 'nope'" in bad.stderr and bad.stderr.count("\n") == 1
+
+
+def test_compare_runs_the_scenario_too(tmp_path: Path) -> None:
+    """compare (on the sweep's executors) flies the scenario's gait, not the default one."""
+    out = tmp_path / "compare.json"
+    command = [sys.executable, "-m", "hopper.app.sim_cli", "compare", "--scenario", "paper", "--seeds", "1",
+               "--hops", "1", "--terrain", "flat", "--workers", "1", "--json", str(out)]  # fmt: skip
+    result = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    runs = json.loads(out.read_text())["runs"]
+    on = next(r for r in runs if r["wheel"])
+    assert on["settings"]["gait"] == dataclasses.asdict(PAPER_GAIT)
+    assert on["hops"][0]["peak_pitch_deg"] > 10.0
