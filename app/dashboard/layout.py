@@ -43,7 +43,7 @@ class Layout:
     events: EventLog
     control: viser.GuiFolderHandle  # each client's own role widgets go in here (app/dashboard/roles.py)
     viewer_safe: tuple[viser.GuiButtonHandle, ...]  # inputs a viewer may use: they change nothing shared
-    replay: ReplayPanel | None = None  # re-fly, history scrubber, keyframes (issue 9, parts 4-5)
+    replay: ReplayPanel | None = None  # re-fly, history scrubber, keyframes
 
 
 def configure_theme(server: viser.ViserServer) -> None:
