@@ -9,6 +9,8 @@ left as the plant's input; hopper.loop closes the flight PID around it.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import mujoco
 import numpy as np
 
@@ -21,6 +23,7 @@ from hopper.sim import Simulation
 EPS = 1e-6  # finite-difference step (rad, m, rad/s, m/s)
 SETTLED_AFTER_APEX_S = 0.1  # s: by then the legs hold their landing pose (the tuck ends at apex)
 PHYSICS = mujoco.mjtState.mjSTATE_FULLPHYSICS
+CHECK_TICKS = 100  # settled_flight polls its cancel flag this often: 0.1 s of simulation, ~1 ms of work
 
 
 def flight_plant(sim: Simulation) -> Plant:
@@ -78,13 +81,25 @@ def _kernel_jacobian(sim: Simulation) -> np.ndarray:
     return jacobian
 
 
-def settled_flight(config: SimConfig) -> Simulation:
-    """A simulation of `config` stepped to its first flight, once the legs hold their landing pose."""
+class Cancelled(Exception):
+    """settled_flight was asked to stop (its caller is shutting down)."""
+
+
+def settled_flight(config: SimConfig, cancelled: Callable[[], bool] = lambda: False) -> Simulation:
+    """A simulation of `config` stepped to its first flight, once the legs hold their landing pose.
+
+    `cancelled` is polled every CHECK_TICKS ticks; when it says so, Cancelled is raised.
+    """
     sim = Simulation(config)
     limit = 30.0  # s: the first apex comes within a few seconds at any gravity the config accepts
-    while not sim.step() & EV_APEX:
-        if sim.time > limit or sim.fallen:
+    settle = round(SETTLED_AFTER_APEX_S / config.timestep)
+    ticks = apex = 0
+    while apex == 0 or ticks < apex + settle:
+        if ticks % CHECK_TICKS == 0 and cancelled():
+            raise Cancelled
+        if sim.step() & EV_APEX and apex == 0:
+            apex = ticks
+        ticks += 1
+        if apex == 0 and (sim.time > limit or sim.fallen):
             raise RuntimeError(f"no flight within {limit:g} s of simulation")
-    for _ in range(round(SETTLED_AFTER_APEX_S / config.timestep)):
-        sim.step()
     return sim

@@ -8,6 +8,7 @@ import socket
 import subprocess
 import sys
 import time
+import urllib.request
 from pathlib import Path
 
 import pytest
@@ -134,6 +135,29 @@ def test_a_signal_stops_cleanly_finalizes_the_recording_and_frees_the_port(tmp_p
     assert rrd.stat().st_size > 10_000
     verify_recording(rrd)
     assert port_is_free(port)
+
+
+def test_sigterm_right_after_serving_exits_0(tmp_path: Path) -> None:
+    """The loop analysis linearizes a flight on a worker thread just after start-up; a SIGTERM then
+    must wait for it, not let the interpreter exit under a thread in MuJoCo (it crashed: -11, 8 of 8)."""
+    for _ in range(3):
+        port = free_port()
+        process = dashboard_process("--port", str(port), "--sessions-dir", str(tmp_path))
+        try:
+            for line in process.stdout:  # the banner's last line comes once everything is built
+                if "serving" in line:
+                    break
+            else:
+                raise AssertionError("the dashboard never served")
+            with urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=30) as page:  # as a user would
+                assert page.status == 200
+            process.send_signal(signal.SIGTERM)
+            out, err = process.communicate(timeout=60)
+        finally:
+            if process.poll() is None:
+                process.kill()
+        assert process.returncode == 0, (process.returncode, err[-2000:])
+        assert "Traceback" not in err and "stopped" in out
 
 
 def test_sigterm_while_starting_up_stops_cleanly_and_finalizes_the_recording(tmp_path: Path) -> None:

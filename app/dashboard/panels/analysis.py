@@ -21,7 +21,7 @@ from hopper.app.dashboard.panels.entry import NumberEntry
 from hopper.config import WHEEL_TORQUE_LIMIT, Gains, SimConfig
 from hopper.control.gait import momentum_capacity
 from hopper.design import lqr_bryson, place_poles
-from hopper.linearize import flight_plant, settled_flight
+from hopper.linearize import Cancelled, flight_plant, settled_flight
 from hopper.loop import LoopAnalysis, Plant, analyse
 
 log = logging.getLogger(__name__)
@@ -46,6 +46,8 @@ class AnalysisPanel:
     result: LoopAnalysis | None = None
     _generation: int = 0
     _lock: threading.RLock = dataclasses.field(default_factory=threading.RLock, repr=False)
+    _workers: list[threading.Thread] = dataclasses.field(default_factory=list, repr=False)
+    _closed: bool = False
 
     def show_gains(self, gains: Gains, delay: int | None = None) -> None:
         """Re-close the loop at these gains (and command delay, ticks) and show it."""
@@ -65,7 +67,9 @@ class AnalysisPanel:
 
         def work() -> None:
             try:
-                plant = flight_plant(settled_flight(config))
+                plant = flight_plant(settled_flight(config, cancelled=lambda: generation != self._generation))
+            except Cancelled:
+                return
             except Exception as exc:  # e.g. no flight at all: the panel says so, the dashboard goes on
                 log.warning("no flight plant for the analysis: %s", exc)
                 plant = None
@@ -74,12 +78,23 @@ class AnalysisPanel:
                     self.plant = plant
                     self._refresh()
 
-        threading.Thread(target=work, name="flight-plant", daemon=True).start()
+        with self._lock:
+            if self._closed:
+                return
+            self._workers = [w for w in self._workers if w.is_alive()]
+            worker = threading.Thread(target=work, name="flight-plant", daemon=True)
+            self._workers.append(worker)
+            worker.start()
 
-    def close(self) -> None:
-        """Drop a linearization still under way (the server is stopping: nobody to show it to)."""
+    def close(self, timeout: float = 30.0) -> None:
+        """Stop a linearization under way and wait for it (s): a thread still stepping MuJoCo or
+        compiling the kernel while the interpreter exits can crash it."""
         with self._lock:
             self._generation += 1
+            self._closed = True
+            workers = list(self._workers)
+        for worker in workers:
+            worker.join(timeout)
 
     def _refresh(self) -> None:
         self.result = analyse(self.plant, self.gains, self.delay, self.rate.value) if self.plant else None
