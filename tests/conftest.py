@@ -27,6 +27,21 @@ def dashboard(tmp_path: Path):
 
 
 @pytest.fixture
+def start(tmp_path: Path):
+    """Start dashboards with the given DashboardConfig settings on free loopback ports; all stop after the test."""
+    dashboards: list[Dashboard] = []
+
+    def make(**settings: object) -> Dashboard:
+        config = DashboardConfig(port=free_port(), sessions_dir=tmp_path / "sessions", **settings)  # type: ignore[arg-type]
+        dashboards.append(Dashboard(config, verbose=False).start())
+        return dashboards[-1]
+
+    yield make
+    for d in dashboards:
+        d.stop()
+
+
+@pytest.fixture
 def client(dashboard: Dashboard):
     c = ProbeClient(dashboard.url)
     assert c.wait_for(lambda p: len(p.gui) > 20 and p.pose_frames > 0), "the probe never saw the page"

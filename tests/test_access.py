@@ -11,7 +11,6 @@ import signal
 import subprocess
 import sys
 import threading
-from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -20,7 +19,6 @@ import websockets.exceptions
 import websockets.sync.client as ws_client
 from hopper.app.dashboard.access import Access, is_loopback, page_url
 from hopper.app.dashboard.config import DashboardConfig
-from hopper.app.dashboard.server import Dashboard
 from net import free_port, wait_until
 from rerun.chunk import RrdReader
 from rrd import verify
@@ -50,20 +48,6 @@ def refused(url: str) -> int:
         pytest.fail(f"a client without the token received {len(data)} bytes")
     assert closed.value.rcvd is not None, "the server did not close the connection"
     return closed.value.rcvd.code
-
-
-@pytest.fixture
-def start(tmp_path: Path) -> Iterator[Callable[..., Dashboard]]:
-    dashboards: list[Dashboard] = []
-
-    def make(**settings: object) -> Dashboard:
-        config = DashboardConfig(port=free_port(), sessions_dir=tmp_path / "sessions", **settings)  # type: ignore[arg-type]
-        dashboards.append(Dashboard(config, verbose=False).start())
-        return dashboards[-1]
-
-    yield make
-    for d in dashboards:
-        d.stop()
 
 
 def test_what_counts_as_loopback_and_the_url_that_carries_the_token() -> None:

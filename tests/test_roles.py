@@ -8,32 +8,16 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterator
-from pathlib import Path
 
 import pytest
 import viser._messages as messages
-from hopper.app.dashboard.config import DashboardConfig
 from hopper.app.dashboard.server import Dashboard
-from net import free_port, wait_until
+from net import wait_until
 
 from benchmarks.probe import ProbeClient
 from hopper.events import EventKind, OperatorChanged
 
 Start = Callable[..., Dashboard]
-
-
-@pytest.fixture
-def start(tmp_path: Path) -> Iterator[Start]:
-    dashboards: list[Dashboard] = []
-
-    def make(**settings: object) -> Dashboard:
-        config = DashboardConfig(port=free_port(), sessions_dir=tmp_path / "sessions", **settings)  # type: ignore[arg-type]
-        dashboards.append(Dashboard(config, verbose=False).start())
-        return dashboards[-1]
-
-    yield make
-    for d in dashboards:
-        d.stop()
 
 
 @pytest.fixture
