@@ -9,9 +9,9 @@ from __future__ import annotations
 import re
 import shutil
 import signal
-import socket
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -49,16 +49,17 @@ def test_kill_9_loses_at_most_the_flush_period(tmp_path: Path, flush_s: float) -
     server = subprocess.Popen(
         [sys.executable, "-m", "hopper.app.dashboard.cli", "--port", str(port), "--terrain", "flat",
          "--rrd", str(path), "--rrd-flush-s", str(flush_s), "--sessions-dir", str(tmp_path / "s")],
-        cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+        cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
     )  # fmt: skip
+    out: list[str] = []
+    reader = threading.Thread(target=lambda: out.extend(server.stdout), daemon=True)  # type: ignore[arg-type]
+    reader.start()
     probe = None
     try:
-        probe = (
-            StatusProbe(f"http://127.0.0.1:{port}", open_timeout=10)
-            if wait_until(lambda: _listening(port), timeout=60)
-            else None
-        )
-        assert probe is not None, "the server never listened"
+        # "serving" comes once the scene and the access check exist: a websocket opened while the
+        # port merely listens is closed for the browser to reconnect, which this probe does not.
+        assert wait_until(lambda: any("serving" in line for line in out), timeout=90), out
+        probe = StatusProbe(f"http://127.0.0.1:{port}", open_timeout=10)
         assert wait_until(lambda: probe.latest is not None and probe.latest[0] > 1.5 + flush_s, timeout=60)
         sim_s, seen = probe.latest
         server.send_signal(signal.SIGKILL)
@@ -85,8 +86,3 @@ def test_kill_9_loses_at_most_the_flush_period(tmp_path: Path, flush_s: float) -
     subprocess.run([RERUN_BINARY, "rrd", "migrate", str(copy)], check=True, capture_output=True, timeout=120)
     verify(copy)
     assert len(signal_times(copy)) == len(rows)
-
-
-def _listening(port: int) -> bool:
-    with socket.socket() as s:
-        return s.connect_ex(("127.0.0.1", port)) == 0
