@@ -71,6 +71,34 @@ class Disturb:
 
 
 @dataclasses.dataclass(frozen=True)
+class Grab:
+    """Start a mouse pull (hopper.perturb) at a point of the torso, world (x, z) in m."""
+
+    point: tuple[float, float]
+
+    def apply(self, sim: Simulation) -> None:
+        sim.grab(self.point)
+
+
+@dataclasses.dataclass(frozen=True)
+class PullTo:
+    """Move the running pull's target to world (x, z), m."""
+
+    target: tuple[float, float]
+
+    def apply(self, sim: Simulation) -> None:
+        sim.pull_to(self.target)
+
+
+@dataclasses.dataclass(frozen=True)
+class Release:
+    """End the running pull; it is recorded as a disturbance."""
+
+    def apply(self, sim: Simulation) -> None:
+        sim.release()
+
+
+@dataclasses.dataclass(frozen=True)
 class SetSchedule:
     schedule: KickSchedule | None  # None clears it
 

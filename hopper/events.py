@@ -166,6 +166,24 @@ class Disturbance:
 
 
 @dataclasses.dataclass(frozen=True)
+class Dragged:
+    """The mouse pulled the robot (hopper.perturb): one event on release, with what the pull added up to."""
+
+    kind: ClassVar[EventKind] = EventKind.DISTURBANCE
+    disturbance: ClassVar[str] = "drag"
+    impulse_x: float  # N s, world x (+ forward)
+    impulse_z: float  # N s, world z (+ up)
+    peak_force_n: float  # N
+    duration_s: float  # s, grab to release
+
+    def describe(self) -> str:
+        return (
+            f"drag {self.impulse_x:+.2f} N s forward, {self.impulse_z:+.2f} N s up over {self.duration_s:.2f} s "
+            f"(peak {self.peak_force_n:.0f} N)"
+        )
+
+
+@dataclasses.dataclass(frozen=True)
 class ScheduleChanged:
     kind: ClassVar[EventKind] = EventKind.SCHEDULE
     schedule: KickSchedule | None  # None: cleared
@@ -245,7 +263,8 @@ class OperatorChanged:
 Payload = (
     Liftoff | Apex | Touchdown | Fall | Reset | GainsChanged | WheelChanged | SensingChanged | GravityChanged
     | TerrainChanged
-    | Disturbance | DisturbanceArmed | Diverged | CommandFailed | Recording | OperatorChanged | ScheduleChanged
+    | Disturbance | Dragged
+    | DisturbanceArmed | Diverged | CommandFailed | Recording | OperatorChanged | ScheduleChanged
 )  # fmt: skip
 
 

@@ -26,6 +26,7 @@ from hopper.events import (
     DisturbanceArmed,
     DisturbanceKind,
     Diverged,
+    Dragged,
     Event,
     Fall,
     GainsChanged,
@@ -42,6 +43,7 @@ from hopper.events import (
 from hopper.layout import ModelLayout
 from hopper.metrics import HopMetrics, MetricsTracker
 from hopper.model import build_model, set_terrain, set_wheel_enabled, terrain_heights
+from hopper.perturb import Pull
 from hopper.schedule import KickSchedule
 from hopper.state import RobotState, angular_momentum, read_state
 
@@ -92,6 +94,7 @@ class Simulation:
         self.ticks = 0  # control ticks stepped since construction
         self.schedule: KickSchedule | None = None  # the repeatable test's kick (hopper.schedule)
         self._kick_at, self._liftoff_at = math.inf, 0.0  # s: the scheduled kick's time, the last liftoff's
+        self.pull: Pull | None = None  # a mouse drag under way (hopper.perturb)
         self.reset(reason="start")
 
     # -- reading ---------------------------------------------------------------------------
@@ -134,6 +137,8 @@ class Simulation:
             self._pulse_event()
         if self._kick_at != math.inf and self._kick_at <= self.data.time:
             self._scheduled_kick()
+        if self.pull is not None:
+            self.pull.apply(self.model, self.data)
         mujoco.mj_step(self.model, self.data)
         self.ticks += 1
         if self.ticks % HEALTH_CHECK_TICKS == 0:
@@ -231,6 +236,7 @@ class Simulation:
         mujoco.mj_forward(self.model, self.data)
         self._pulse_armed, self._pulse_magnitude, self._pulse_at = 0.0, 0.0, math.inf
         self._kick_at = math.inf
+        self.pull = None  # mj_resetData cleared its force; the drag, if any, ends unrecorded
         self._warnings = int(self.data.warning.number.sum())
         self.controller.reset(self.time, standing=True)
         self.metrics.reset(self.state().x, self.time)
@@ -325,6 +331,30 @@ class Simulation:
         else:
             self.data.xfrc_applied[torso, 4] = 0.0
             self._pulse_at, self._pulse_magnitude = math.inf, 0.0
+
+    def grab(self, point: tuple[float, float]) -> None:
+        """Grab the torso at world (x, z) `point` (m) with a spring (hopper.perturb), replacing any pull."""
+        require_finite("grab x", point[0], -1e3, 1e3, "m")
+        require_finite("grab z", point[1], -1e3, 1e3, "m")
+        if self.pull is not None:
+            self.release()
+        self.pull = Pull.grab(self.model, self.data, self.layout.torso, point)
+
+    def pull_to(self, target: tuple[float, float]) -> None:
+        """Move the pull's target to world (x, z), m (ignored without a pull: it was released or reset)."""
+        require_finite("pull x", target[0], -1e3, 1e3, "m")
+        require_finite("pull z", target[1], -1e3, 1e3, "m")
+        if self.pull is not None:
+            self.pull.target = np.array(target, dtype=float)
+
+    def release(self) -> None:
+        """End the pull and record it as a disturbance (nothing if there is none)."""
+        pull, self.pull = self.pull, None
+        if pull is None:
+            return
+        pull.remove(self.data)
+        ix, iz = pull.impulse.tolist()
+        self._emit(Dragged(ix, iz, pull.peak_force, self.time - pull.started))
 
     # -- health ----------------------------------------------------------------------------
     def _check_health(self) -> None:

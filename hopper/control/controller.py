@@ -99,6 +99,20 @@ class HopController:
         )  # fmt: skip
         m["land_l"], m["land_r"] = lengths
 
+    def landing_feet(self, data: mujoco.MjData, layout: ModelLayout) -> list[tuple[float, float]]:
+        """World (x, z) of the left and right foot centres now, were the legs in their landing pose.
+
+        Ahead of the hip by the kernel's swing target, below it by the landing reach: the nominal
+        flight length while rising, each leg's planned length once the apex has set them.
+        """
+        m, s, q = self.mem, data.sensordata, data.qpos
+        torso = (float(q[layout.q_x]) + layout.torso_origin[0], float(q[layout.q_z]) + layout.torso_origin[1])
+        hip_x, hip_z = landing.hip_position(torso, float(q[layout.q_pitch]))
+        mid, half = float(m["feet_mid"][0]), 0.5 * float(m["spread"][0])
+        rising = float(s[layout.s_com_vel + 2]) > 0.0
+        reach = (m["flight_length"][0],) * 2 if rising else (m["land_l"][0], m["land_r"][0])
+        return [(hip_x + mid + half, hip_z - float(reach[0])), (hip_x + mid - half, hip_z - float(reach[1]))]
+
     def field(self, name: str) -> np.ndarray:
         """A live view (shape (1,)) of one field of the kernel's memory, e.g. for a recorder."""
         return self.mem[name]
