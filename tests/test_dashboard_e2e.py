@@ -54,6 +54,16 @@ def browser():
         browser.close()
 
 
+def open_workbench(browser, dashboard: Dashboard, viewport: dict | None = None):
+    """A 1440x900 page on the dashboard, once its panels are up and the server counts it as a client."""
+    page = browser.new_page(viewport=viewport or {"width": 1440, "height": 900})
+    page.set_default_timeout(60_000)  # a bound for a loaded machine, not a pace
+    page.goto(dashboard.url)
+    page.get_by_text("Loop analysis").first.wait_for(timeout=30_000)
+    assert wait_until(lambda: len(dashboard.server.get_clients()) == 1, timeout=30)
+    return page
+
+
 class PitchProbe:
     """A listener (attached on the loop thread) that keeps pitch samples and events."""
 

@@ -9,7 +9,7 @@ import re
 
 from hopper.app.dashboard.server import Dashboard
 from net import wait_until
-from test_dashboard_e2e import browser  # noqa: F401  (the Chromium fixture)
+from test_dashboard_e2e import browser, open_workbench  # noqa: F401  (the Chromium fixture)
 
 from hopper.loop import analyse
 
@@ -40,12 +40,8 @@ def _type(page, entry, text: str) -> None:
 
 def test_analysis_follows_the_gains_and_pole_placement_drives_the_controller(browser, dashboard: Dashboard):  # noqa: F811
     dashboard.layout.simulation.set_paused(True)
-    page = browser.new_page(viewport={"width": 1440, "height": 900})
-    page.set_default_timeout(60_000)  # a bound for a loaded machine, not a pace
+    page = open_workbench(browser, dashboard)
     try:
-        page.goto(dashboard.url)
-        page.get_by_text("Loop analysis").first.wait_for(timeout=30_000)
-        assert wait_until(lambda: len(dashboard.server.get_clients()) == 1, timeout=30)
         page.wait_for_function(f"() => ({ANALYSIS_JS})().includes('rad/s · ζ')", timeout=30_000)
         before = _pair(page.evaluate(ANALYSIS_JS))
         plant = dashboard.layout.analysis.plant

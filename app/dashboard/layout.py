@@ -19,6 +19,7 @@ from hopper.app.dashboard.panels.simulation import SimulationPanel, build_simula
 from hopper.app.dashboard.panels.status import StatusPanel, build_status_panel
 from hopper.app.dashboard.panels.terrain import TerrainPanel, build_terrain_panel
 from hopper.app.dashboard.panels.view import ViewPanel, build_view_panel
+from hopper.app.dashboard.physics import PhysicsView
 from hopper.app.dashboard.plots import LivePlots, ReflyPlots
 from hopper.app.dashboard.recording import Recorder
 from hopper.app.dashboard.scene import CameraFollow, GhostRobot, RobotView, Trail
@@ -75,6 +76,7 @@ def build_layout(
     robot: RobotView,
     replay_host: ReplayHost | None = None,
     ghost: GhostRobot | None = None,
+    physics: PhysicsView | None = None,
 ) -> Layout:
     configure_theme(server)
     gui, theme = server.gui, assets.theme()
@@ -94,7 +96,7 @@ def build_layout(
         disturbances = build_disturbances_panel(gui, ctx)
     with tabs.add_tab("World", viser.Icon.PLANET):
         terrain_panel = build_terrain_panel(gui, ctx, seed, terrain, gravity)
-        view = build_view_panel(gui, server.scene, camera, trail, robot)
+        view = build_view_panel(gui, server.scene, camera, trail, robot, physics)
     with tabs.add_tab("Record", viser.Icon.PLAYER_RECORD):
         record = build_record_panel(gui, recorder)
     replay = None

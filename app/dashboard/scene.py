@@ -169,6 +169,13 @@ class RobotView:
         self.show_label = True
         self.torso_position = np.zeros(3)  # m, in the world frame, as last sent
 
+    def grabbable(self) -> list[viser.SceneNodeHandle]:
+        """The nodes a mouse drag pulls the torso by: the torso, the bodies fixed on it (the wheel), its ring."""
+        root = self._parents.index(-1)
+        bodies = [h for h, mesh, parent in zip(self._handles, self._meshes, self._parents, strict=True)
+                  if parent == -1 or (parent == root and mesh.name == "wheel")]  # fmt: skip
+        return [*bodies, self.ring]
+
     def update(self, model: mujoco.MjModel, data: mujoco.MjData, level: float, phase: str) -> None:
         """Send this frame's poses (call inside server.atomic(), from the simulation loop)."""
         positions, quats = body_poses(model, data, self._meshes)

@@ -22,6 +22,7 @@ from hopper.app.dashboard.layout import Layout, build_layout
 from hopper.app.dashboard.pacing import Pacer
 from hopper.app.dashboard.panels import PanelContext
 from hopper.app.dashboard.panels.status import Status
+from hopper.app.dashboard.physics import PhysicsView, bind_drag
 from hopper.app.dashboard.plots import PLOT_SAMPLE_S
 from hopper.app.dashboard.recording import FileLimits, Recorder
 from hopper.app.dashboard.roles import Roles
@@ -38,6 +39,7 @@ from hopper.app.dashboard.scene import (
 from hopper.app.dashboard.wire import guard_gui_updates
 
 from hopper.config import WHEEL_NO_LOAD_SPEED
+from hopper.control.gait import momentum_capacity
 from hopper.events import Event, EventKind, Fall
 from hopper.history import History, Snapshot, restore
 from hopper.metrics import RAD_S_TO_RPM
@@ -122,6 +124,8 @@ class Dashboard:
         self.trail = Trail(self.server.scene)
         self.history = History()  # replay: liftoff states and a ring of recent ones
         self.ghost = GhostRobot(self.server.scene, sim.model)
+        self.physics = PhysicsView(self.server.scene, sim)
+        bind_drag(self.robot, self.camera, sim.submit)
         self.layout: Layout = build_layout(
             self.server,
             PanelContext(self.server, sim.submit, self),
@@ -137,6 +141,7 @@ class Dashboard:
             robot=self.robot,
             replay_host=self,
             ghost=self.ghost,
+            physics=self.physics,
         )
         self.recorder.listeners.append(self._recording_changed)
         guard_gui_updates(self.server)  # malformed browser updates never reach a setting
@@ -248,7 +253,9 @@ class Dashboard:
         last_frame = next_frame
         while not self._stopping.is_set():
             now = time.perf_counter()
-            budgeted = self.pacer.due(now)
+            # At most two frames' worth of steps between publishes: fast-forward keeps the scene and
+            # the charts moving together even when the machine cannot deliver the asked speed.
+            budgeted = self.pacer.due(now, most=math.ceil(2 * FRAME_S * self.pacer.speed / self.pacer.timestep))
             if self._restore is not None and self._apply_restore():
                 budgeted = 0  # paused by the scrubber: the restored moment must be the one shown
             if self.pacer.paused:
@@ -311,6 +318,7 @@ class Dashboard:
             self.robot.update(sim.model, sim.data, level, sim.phase.label)
             self.camera.update(s.x, s.z, dt)
             self.ghost.update(now)
+            self.physics.update(sim, now)
         self.trail.publish(now)
         self.layout.plots.publish(now)
         self.frames += 1
@@ -331,6 +339,7 @@ class Dashboard:
                     wheel_rpm=s.wheel_speed * RAD_S_TO_RPM,
                     saturation=level,
                     capacity=s.wheel_speed / WHEEL_NO_LOAD_SPEED,
+                    capacity_nms=momentum_capacity(),
                     gravity=sim.config.gravity,
                     recording=self.recorder.active,
                 )
@@ -354,6 +363,7 @@ class Dashboard:
             notify_all(self.server, "Command failed", payload.describe(), "error")
         elif kind == EventKind.TERRAIN:
             self.terrain = add_terrain(self.server.scene, self.sim.heights, self.sim.config.craters)
+            self.physics.terrain_changed(self.sim)
         if kind == EventKind.SCHEDULE:
             layout.disturbances.schedule.show(payload.schedule)
         elif kind == EventKind.GAINS:

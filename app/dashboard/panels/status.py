@@ -23,8 +23,30 @@ class Status:
     wheel_rpm: float
     saturation: float  # 0..1
     capacity: float  # -1..1, the wheel's momentum as a fraction of its capacity (signed)
+    capacity_nms: float  # N m s, the capacity itself: (I_w + armature) * no-load speed
     gravity: float  # m/s^2
     recording: bool
+
+
+def gauge_html(fraction: float, capacity_nms: float) -> str:
+    """A centre-zero bar: the wheel's momentum against its capacity each way, and the headroom left.
+
+    The fill grows from the middle toward the side the wheel spins; the ticks at +-50 % and the
+    colour (green, amber from 50 %, red from 80 %) say how much of the next flight's authority is gone.
+    """
+    f = max(-1.0, min(1.0, fraction))
+    level = "hd-ok" if abs(f) < 0.5 else "hd-warn" if abs(f) < 0.8 else "hd-bad"
+    side = "left" if f >= 0 else "right"  # the fill starts at the centre line
+    start = 50.0 if f >= 0 else 50.0 + f * 50.0
+    return (
+        "<div class='hd-gauge' title='wheel momentum / capacity; a kick the other way has the rest'>"
+        f"<span>−{capacity_nms:.2f}</span>"
+        f"<div class='hd-gauge-bar'><div class='hd-gauge-fill {level}' data-side='{side}' "
+        f"style='left:{start:.1f}%;width:{abs(f) * 50:.1f}%'></div><i></i></div>"
+        f"<span>+{capacity_nms:.2f} N m s</span></div>"
+        f"<div class='hd-gauge-text'>wheel momentum {f * capacity_nms:+.2f} N m s "
+        f"({abs(f) * 100:.0f} % of capacity)</div>"
+    )
 
 
 def status_html(s: Status) -> str:
@@ -47,7 +69,9 @@ def status_html(s: Status) -> str:
         f"<tr><td>gravity</td><td>{s.gravity:g} m/s²</td>"
         f"<td title='wheel momentum / (I_w + armature) w_max: what is left for the next flight'>capacity</td>"
         f"<td>{s.capacity * 100:+4.0f} %</td></tr>"
-        "</table></div>"
+        "</table>"
+        f"{gauge_html(s.capacity, s.capacity_nms)}"
+        "</div>"
     )
 
 

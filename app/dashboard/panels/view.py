@@ -1,4 +1,4 @@
-"""View panel: camera follow or free, home view, trail and phase label."""
+"""View panel: camera follow or free, home view, trail, phase label and the physics overlays."""
 
 from __future__ import annotations
 
@@ -6,6 +6,7 @@ import dataclasses
 
 import viser
 from hopper.app.dashboard.feedback import guarded
+from hopper.app.dashboard.physics import PhysicsView
 from hopper.app.dashboard.scene import CameraFollow, RobotView, Trail, configure_lighting
 
 
@@ -16,14 +17,20 @@ class ViewPanel:
     trail: viser.GuiCheckboxHandle
     label: viser.GuiCheckboxHandle
     shadows: viser.GuiCheckboxHandle
+    physics: viser.GuiCheckboxHandle
     reset_button: viser.GuiButtonHandle
 
     def reset(self) -> None:
-        self.follow.value = self.trail.value = self.label.value = self.shadows.value = True
+        self.follow.value = self.trail.value = self.label.value = self.shadows.value = self.physics.value = True
 
 
 def build_view_panel(
-    gui: viser.GuiApi, scene: viser.SceneApi, camera: CameraFollow, trail: Trail, robot: RobotView
+    gui: viser.GuiApi,
+    scene: viser.SceneApi,
+    camera: CameraFollow,
+    trail: Trail,
+    robot: RobotView,
+    physics: PhysicsView | None = None,
 ) -> ViewPanel:
     """Scene options only: nothing here reaches the simulation."""
     panel = ViewPanel(
@@ -34,6 +41,12 @@ def build_view_panel(
         trail=gui.add_checkbox("Torso trail", True),
         label=gui.add_checkbox("Phase label", True),
         shadows=gui.add_checkbox("Shadows", True, hint="Untick on software-rendered (no GPU) browsers"),
+        physics=gui.add_checkbox(
+            "Forces and flight",
+            True,
+            hint="Ground reaction arrows (robot weight = 0.5 m), the predicted CoM arc and landing, "
+            "the mouse's pull. Drag the torso to pull it.",
+        ),
         reset_button=gui.add_button("Default view", icon=viser.Icon.RESTORE, color="dark"),
     )
 
@@ -49,6 +62,10 @@ def build_view_panel(
     def on_label(_: viser.GuiEvent) -> None:
         robot.show_label = bool(panel.label.value)
 
+    def on_physics(_: viser.GuiEvent) -> None:
+        if physics is not None:
+            physics.visible = bool(panel.physics.value)
+
     def on_home(event: viser.GuiEvent) -> None:
         if event.client is not None:
             camera.home(event.client)
@@ -57,6 +74,7 @@ def build_view_panel(
     panel.trail.on_update(guarded(on_trail))
     panel.label.on_update(guarded(on_label))
     panel.shadows.on_update(guarded(on_shadows))
+    panel.physics.on_update(guarded(on_physics))
     panel.home.on_click(guarded(on_home))
     panel.reset_button.on_click(guarded(lambda _: panel.reset()))
     return panel
