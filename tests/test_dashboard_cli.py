@@ -62,7 +62,7 @@ def dashboard_process(*args: str) -> subprocess.Popen[str]:
         (["--terrain", "moon"], "invalid choice 'moon'"),
         (["--port", "abc"], "--port"),
         (["--port", "70000"], "port must be an integer in [1, 65535]"),
-        (["--speed", "9"], "speed must be in [0.1, 4]"),
+        (["--speed", "99"], "speed must be in [0.1, 64]"),
         (["--seed", "-3"], "seed must be a non-negative integer"),
         (["--host", "not a host"], "host must be an IP address"),
         (["--rrd", "/nonexistent/dir/run.rrd"], "does not exist"),

@@ -5,7 +5,7 @@ from __future__ import annotations
 import collections
 import math
 
-MIN_SPEED, MAX_SPEED = 0.1, 4.0  # x real time, the Simulation panel's range
+MIN_SPEED, MAX_SPEED = 0.1, 64.0  # x real time, the Simulation panel's range (the loop says when it falls behind)
 MAX_LAG_S = 0.25  # s of wall time the budget may owe (a scheduling stall is caught up); older debt is dropped
 RTF_WINDOW_S = 1.0  # s of wall time the real-time factor is averaged over
 BEHIND_FRACTION = 0.95  # delivered / asked speed below this means "cannot keep up"
@@ -33,15 +33,20 @@ class Pacer:
             raise ValueError(f"speed must be a number in [{MIN_SPEED:g}, {MAX_SPEED:g}] x real time, got {speed!r}")
         self.speed = float(speed)
 
-    def due(self, now: float) -> int:
-        """Whole steps owed at wall time `now` (s, monotonic clock)."""
+    def due(self, now: float, most: int | None = None) -> int:
+        """Whole steps owed at wall time `now` (s, monotonic clock), at `most` this many.
+
+        The rest stays owed (up to MAX_LAG_S): a loop that cannot keep up still publishes between
+        batches of steps instead of stepping a quarter second of wall time at once.
+        """
         wall_dt = 0.0 if self._last is None else max(now - self._last, 0.0)
         self._last = now
         if self.paused:
             self._budget = 0.0
             return 0
         self._budget = min(self._budget + wall_dt * self.speed, MAX_LAG_S * self.speed)
-        return int(self._budget / self.timestep + 1e-6)
+        steps = int(self._budget / self.timestep + 1e-6)
+        return steps if most is None else min(steps, most)
 
     def done(self, budgeted: int, now: float, extra: int = 0) -> None:
         """Record steps taken at `now`: `budgeted` are paid from the budget, `extra` (single steps) are not."""

@@ -12,6 +12,7 @@ from hopper.app.dashboard.panels import LoopControls, PanelContext
 from hopper.commands import Reset
 
 STEPS = {"+1 ms": 1, "+10 ms": 10, "+100 ms": 100}  # control ticks of 1 ms
+SPEEDS = {"¼×": 0.25, "1×": 1.0, "4×": 4.0, "16×": 16.0, "64×": 64.0}  # one click each; the slider takes any
 
 
 @dataclasses.dataclass
@@ -22,6 +23,7 @@ class SimulationPanel:
     step: viser.GuiButtonGroupHandle
     reset_robot: viser.GuiButtonHandle
     speed: viser.GuiSliderHandle[float]
+    presets: viser.GuiButtonGroupHandle
     stay_fallen: viser.GuiCheckboxHandle
     reset_button: viser.GuiButtonHandle
     applied_speed: float = 1.0
@@ -49,8 +51,9 @@ def build_simulation_panel(gui: viser.GuiApi, ctx: PanelContext, speed: float = 
             "Reset robot", icon=viser.Icon.REFRESH, color="gray", hint="Stand the robot at the start"
         ),
         speed=gui.add_slider(
-            "Speed ×", MIN_SPEED, MAX_SPEED, 0.1, speed, marks=((0.1, "0.1"), (1.0, "1"), (2.0, "2"), (4.0, "4"))
+            "Speed ×", MIN_SPEED, MAX_SPEED, 0.1, speed, marks=((1.0, "1"), (16.0, "16"), (32.0, "32"), (64.0, "64"))
         ),
+        presets=gui.add_button_group("Speeds", tuple(SPEEDS), hint="Fast-forward; the status says if it keeps up"),
         stay_fallen=gui.add_checkbox("Stay fallen", False, hint="After a fall, keep the robot down for inspection"),
         reset_button=gui.add_button("Defaults", icon=viser.Icon.RESTORE, color="dark", hint="1x speed, auto reset"),
         applied_speed=speed,
@@ -60,6 +63,7 @@ def build_simulation_panel(gui: viser.GuiApi, ctx: PanelContext, speed: float = 
     panel.step.on_click(guarded(lambda _: ctx.loop.request_steps(STEPS.get(panel.step.value, 0))))
     panel.reset_robot.on_click(guarded(lambda _: ctx.submit(Reset("user"))))
     panel.reset_button.on_click(guarded(lambda _: panel.reset()))
+    panel.presets.on_click(guarded(lambda _: setattr(panel.speed, "value", SPEEDS.get(panel.presets.value, 1.0))))
 
     @guarded
     def on_speed(event: viser.GuiEvent) -> None:
