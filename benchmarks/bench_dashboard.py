@@ -1,6 +1,7 @@
 """Dashboard load: real-time factor, scene updates, chart refreshes and bandwidth with 0 to 16 clients.
 
 Run: python -m benchmarks.bench_dashboard [--seconds 10] [--speed 1] [--clients 0,1,4,16]
+         [--workbench] [--speeds 4,16,32,64] [--speed-clients 1]
 
 The server runs in this process at the asked speed; the clients run in a child process (browsers
 are separate processes too) and speak viser's real protocol: subprotocol handshake, a camera
@@ -11,6 +12,13 @@ Per client it reports the bytes received per second split into charts (uPlot dat
 scene nodes' transforms) and other (status, trail, tables, ...), as benchmarks/probe.py attributes
 them, the scene updates per second (frames that moved the robot) and the chart refreshes per
 second (data updates of the least refreshed chart).
+
+--workbench turns on what a tuning session runs besides the scene and charts: a repeatable kick
+after every liftoff (per-hop response metrics), the physics overlays (on by default) and the
+replay history (always on). --speeds then asks the loop for each speed in turn, with
+--speed-clients clients connected, and reports what it delivered: the highest speed it sustains
+is the largest whose delivered speed is at least 0.95 of the asked one (the status strip's
+"behind" threshold).
 """
 
 from __future__ import annotations
@@ -103,6 +111,9 @@ def main() -> None:
     parser.add_argument("--settle", type=float, default=3.0, help="wait after connecting, before measuring (s)")
     parser.add_argument("--speed", type=float, default=1.0, help="simulation speed (x real time)")
     parser.add_argument("--clients", default="0,1,4,16", help="comma-separated client counts, one case each")
+    parser.add_argument("--workbench", action="store_true", help="a kick schedule on every hop, overlays on")
+    parser.add_argument("--speeds", default="", help="comma-separated speeds to measure the delivered speed at")
+    parser.add_argument("--speed-clients", type=int, default=1, help="clients connected while --speeds runs")
     parser.add_argument("--probe", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.probe:
@@ -114,12 +125,48 @@ def main() -> None:
     from hopper.app.dashboard.server import Dashboard
 
     dashboard = Dashboard(DashboardConfig(port=free_port(), speed=args.speed), verbose=False).start()
+    speeds = [float(v) for v in args.speeds.split(",") if v]
     try:
+        if args.workbench:
+            enable_workbench(dashboard)
         results = [measure(dashboard, n, args.settle, args.seconds) for n in cases]
+        fast = []
+        for speed in speeds:
+            dashboard.set_speed(speed)
+            fast.append(measure(dashboard, args.speed_clients, args.settle, args.seconds))
+        kicked = sum(h.kicked for h in dashboard.sim.hops) if args.workbench else 0
     finally:
         dashboard.stop()
 
     report(results, args.seconds, args.speed)
+    if args.workbench:
+        print(f"workbench on: {kicked} hops kicked by the schedule since the last reset, overlays and history on")
+    if fast:
+        report_speeds(fast, speeds, args.speed_clients)
+
+
+def enable_workbench(dashboard) -> None:
+    """A repeatable test on every hop (a small pitch kick 0.2 s after liftoff); overlays and history are on."""
+    from hopper.commands import SetSchedule
+    from hopper.schedule import KickSchedule
+
+    dashboard.sim.submit(SetSchedule(KickSchedule("pitch_kick", 0.3, delay_s=0.2, every=1)))
+    assert dashboard.physics.visible
+
+
+def report_speeds(results: list[dict], speeds: list[float], clients: int) -> None:
+    print(f"\nfast-forward with {clients} client(s): delivered speed = RTF x asked (sustained: >= 0.95 of asked)")
+    print(f"{'asked':>6}  {'delivered':>9}  {'RTF':>6}  {'server frames/s':>15}  {'updates/s':>9}  {'kB/s':>6}")
+    sustained = 0.0
+    for speed, r in zip(speeds, results, strict=True):
+        per = r["per_client"]
+        updates = _mean(per, "pose_updates_per_s") if per else float("nan")
+        kb = _mean(per, "bytes_per_s") / 1e3 if per else float("nan")
+        print(f"{speed:6g}  {r['rtf'] * speed:9.1f}  {r['rtf']:6.3f}  {r['server_frames_per_s']:15.1f}  "
+              f"{updates:9.1f}  {kb:6.1f}")  # fmt: skip
+        if r["rtf"] >= 0.95:
+            sustained = max(sustained, speed)
+    print(f"highest sustained speed among those asked: {sustained:g}x")
 
 
 def _mean(per: list[dict], key: str, sub: str | None = None) -> float:
