@@ -147,7 +147,7 @@ class _Recorder:
 def test_commands_apply_while_paused(dashboard: Dashboard, client: ProbeClient) -> None:
     client.set_gui_value("Pause", True)
     assert wait_until(lambda: dashboard.pacer.paused)
-    t = dashboard.sim.time
+    t = _settled_time(dashboard)  # the loop may be finishing the round of steps it began before the pause
     client.set_gui_value("Kp", 700.0)
     assert wait_until(lambda: dashboard.sim.gains.kp == 700.0)
     client.set_gui_value("Step", "+10 ms")
@@ -339,3 +339,16 @@ def test_realistic_sensing_is_switched_from_the_gains_tab(dashboard: Dashboard, 
     assert wait_until(lambda: dashboard.sim.time > t + 0.5) and not dashboard.sim.fallen
     client.set_gui_value("Realistic sensing", False)
     assert wait_until(lambda: dashboard.sim.config.sensing == "ideal")
+
+
+def _settled_time(dashboard: Dashboard) -> float:
+    """The simulation time once the loop has stopped stepping (equal over 0.2 s)."""
+    seen: list[float] = []
+
+    def still() -> bool:
+        seen.append(dashboard.sim.time)
+        time.sleep(0.2)
+        return dashboard.sim.time == seen[-1]
+
+    assert wait_until(still, timeout=30)
+    return dashboard.sim.time
