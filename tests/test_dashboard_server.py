@@ -352,3 +352,16 @@ def _settled_time(dashboard: Dashboard) -> float:
 
     assert wait_until(still, timeout=30)
     return dashboard.sim.time
+
+
+def test_at_64x_the_camera_keeps_the_robot_in_view(dashboard: Dashboard) -> None:
+    """The camera's smoothing runs in simulated time: at 64x a wall-time lag would leave the robot
+    metres behind the view (0.25 s x 64 x 0.6 m/s)."""
+    dashboard.set_speed(64.0)
+    assert wait_until(lambda: dashboard.sim.time > 5.0, timeout=30)
+    offsets = []
+    for _ in range(40):
+        offsets.append(abs(float(dashboard.camera.shown_robot()[0])))
+        time.sleep(0.05)
+    assert sorted(offsets)[len(offsets) // 2] < 0.5, offsets  # the median frame: the robot near the centre
+    assert dashboard.pacer.real_time_factor() > 16.0  # it did fast-forward
