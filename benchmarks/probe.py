@@ -129,18 +129,35 @@ class ProbeClient:
             }
         )
 
-    def set_gui_value(self, label: str, value: Any) -> str:
-        """Send a value for the GUI input with this label, as the browser would; returns its uuid."""
-        uuid = self.uuid_of(label)
+    def set_gui_value(self, label: str, value: Any, timeout: float = 30.0) -> str:
+        """Send a value for the GUI input with this label, as the browser would; returns its uuid.
+
+        Waits up to `timeout` s for the input to arrive: the page comes in several frames, and a
+        busy server may not have sent the later panels when the first ones are seen.
+        """
+        uuid = self.input_uuid(label, timeout)
         self.send({"type": "GuiUpdateMessage", "uuid": uuid, "updates": {"value": value}})
         return uuid
 
+    def input_uuid(self, label: str, timeout: float = 30.0) -> str:
+        """The uuid of the GUI input with this label, once it has arrived (up to `timeout` s)."""
+        if not self.wait_for(lambda p: p._find(label) is not None, timeout):
+            raise KeyError(f"no GUI input labelled {label!r} seen in {timeout:g} s")
+        return self.uuid_of(label)
+
     def uuid_of(self, label: str) -> str:
         with self._lock:
-            for uuid, message in self.gui.items():
-                if message.get("props", {}).get("label") == label:
-                    return uuid
-        raise KeyError(f"no GUI input labelled {label!r} seen yet")
+            uuid = self._find(label)
+        if uuid is None:
+            raise KeyError(f"no GUI input labelled {label!r} seen yet")
+        return uuid
+
+    def _find(self, label: str) -> str | None:
+        """The uuid of the input labelled `label` (call with the lock held)."""
+        for uuid, message in self.gui.items():
+            if message.get("props", {}).get("label") == label:
+                return uuid
+        return None
 
     def wait_for(self, predicate: Any, timeout: float = 10.0) -> bool:
         deadline = time.monotonic() + timeout

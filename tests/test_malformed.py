@@ -50,7 +50,7 @@ def raw_frame(url: str, frame: bytes | str) -> None:
 
 
 def send_updates(client: ProbeClient, label: str, values: list) -> None:
-    uuid = client.uuid_of(label)
+    uuid = client.input_uuid(label)
     for value in values:
         client.send({"type": "GuiUpdateMessage", "uuid": uuid, "updates": {"value": value}})
 
@@ -78,7 +78,7 @@ def test_malformed_traffic_never_stops_the_loop_or_corrupts_settings(dashboard: 
     send_updates(client, "Flat ground", ["yes", 1])
     send_updates(client, "Gravity", ["Jupiter", 3, None])
     send_updates(client, "Pause", [False, "x", 2])
-    uuid = client.uuid_of("Kp")
+    uuid = client.input_uuid("Kp")
     for updates in (
         {"no_such_prop": 1.0},
         {"removed": True},  # viser would mark the slider removed for everyone
