@@ -10,9 +10,13 @@ force are what the disturbance event reports on release.
 from __future__ import annotations
 
 import dataclasses
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
+
+if TYPE_CHECKING:
+    from hopper.sim import Simulation
 
 PULL_OMEGA = 8.0  # rad/s, natural frequency of the robot on the spring (about 1.3 Hz: a hand's pull)
 PULL_MAX_ACCEL = 10.0  # m/s^2: the pull never exceeds this times the robot's mass
@@ -30,6 +34,7 @@ class Pull:
     impulse: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(2))  # N s, world (x, z)
     peak_force: float = 0.0  # N
     _applied: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(6))  # what it added to xfrc_applied
+    _pending: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(2))  # impulse of the step to come
 
     @classmethod
     def grab(cls, model: mujoco.MjModel, data: mujoco.MjData, body: int, point: tuple[float, float]) -> Pull:
@@ -62,10 +67,20 @@ class Pull:
         contribution = np.concatenate([f, moment])
         data.xfrc_applied[self.body] += contribution - self._applied
         self._applied = contribution
-        self.impulse += f[[0, 2]] * model.opt.timestep
+        self._pending = f[[0, 2]] * model.opt.timestep
+        self.impulse += self._pending
         self.peak_force = max(self.peak_force, float(np.linalg.norm(f)))
 
     def remove(self, data: mujoco.MjData) -> None:
-        """Take this pull's force off the body."""
+        """Take this pull's force off the body (the step it was set for will not come)."""
         data.xfrc_applied[self.body] -= self._applied
         self._applied = np.zeros(6)
+        self.impulse -= self._pending
+        self._pending = np.zeros(2)
+
+    # -- a Simulation listener while it acts: after each step, the force for the next ------------
+    def tick(self, sim: Simulation) -> None:
+        self.apply(sim.model, sim.data)
+
+    def event(self, sim: Simulation, event: Any) -> None:
+        pass

@@ -137,8 +137,6 @@ class Simulation:
             self._pulse_event()
         if self._kick_at != math.inf and self._kick_at <= self.data.time:
             self._scheduled_kick()
-        if self.pull is not None:
-            self.pull.apply(self.model, self.data)
         mujoco.mj_step(self.model, self.data)
         self.ticks += 1
         if self.ticks % HEALTH_CHECK_TICKS == 0:
@@ -236,7 +234,9 @@ class Simulation:
         mujoco.mj_forward(self.model, self.data)
         self._pulse_armed, self._pulse_magnitude, self._pulse_at = 0.0, 0.0, math.inf
         self._kick_at = math.inf
-        self.pull = None  # mj_resetData cleared its force; the drag, if any, ends unrecorded
+        if self.pull is not None:  # mj_resetData cleared its force; the drag ends unrecorded
+            self.listeners.remove(self.pull)
+            self.pull = None
         self._warnings = int(self.data.warning.number.sum())
         self.controller.reset(self.time, standing=True)
         self.metrics.reset(self.state().x, self.time)
@@ -339,6 +339,9 @@ class Simulation:
         if self.pull is not None:
             self.release()
         self.pull = Pull.grab(self.model, self.data, self.layout.torso, point)
+        # A listener: each tick sets the force for the next step, and a tick without a drag pays nothing.
+        self.pull.apply(self.model, self.data)
+        self.listeners.append(self.pull)
 
     def pull_to(self, target: tuple[float, float]) -> None:
         """Move the pull's target to world (x, z), m (ignored without a pull: it was released or reset)."""
@@ -352,6 +355,7 @@ class Simulation:
         pull, self.pull = self.pull, None
         if pull is None:
             return
+        self.listeners.remove(pull)
         pull.remove(self.data)
         ix, iz = pull.impulse.tolist()
         self._emit(Dragged(ix, iz, pull.peak_force, self.time - pull.started))

@@ -43,7 +43,8 @@ def test_a_pull_forward_moves_the_robot_and_its_release_is_a_disturbance_event(s
     (event,) = [e for e in sim.events if isinstance(e.payload, Dragged)]
     drag = event.payload
     assert event.kind == EventKind.DISTURBANCE and drag.disturbance == "drag"
-    assert drag.impulse_x == pytest.approx(impulse[0]) and drag.impulse_x > 1.0
+    # What acted: the sum so far, less the force set for the step the release cancelled (one tick's).
+    assert abs(drag.impulse_x - impulse[0]) <= PULL_MAX_ACCEL * 8.2 * 1e-3 and drag.impulse_x > 1.0
     assert drag.duration_s == pytest.approx(0.601, abs=2e-3)
     assert "drag +" in event.describe() and "N s forward" in event.describe()
     assert np.allclose(sim.data.xfrc_applied[sim.layout.torso], 0.0, atol=1e-9)  # the force is gone
