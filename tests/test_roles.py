@@ -68,6 +68,7 @@ def test_the_first_client_operates_and_a_viewers_inputs_change_nothing(start: St
     b.set_gui_value("Reset robot", True)
     assert wait_until(lambda: d.roles.refused == refused + 4), "the viewer's messages were not all refused"
     assert b.wait_for(lambda p: "Read-only" in titles(p))
+    assert titles(b).count("Read-only") == 1  # one notice for the four (a drag would send 20 a second)
     assert d.layout.gains.kp.value == 450.0 and d.layout.gains.entries["kp"].handle.value == "450"
 
     # The operator's change goes through; the viewer's never reached the controller (a refused

@@ -14,6 +14,7 @@ import asyncio
 import dataclasses
 import html
 import logging
+import math
 import threading
 import time
 from collections.abc import Callable, Iterable
@@ -31,6 +32,7 @@ from hopper.sim import Simulation
 log = logging.getLogger(__name__)
 
 IDLE_TIMEOUT_S = 300.0  # s without input before an operator's control passes to a viewer
+READ_ONLY_NOTICE_S = 5.0  # s between a viewer's 'Read-only' notices (its refused inputs are each undone)
 REPLAY_WAIT_S = 20.0  # s at most to wait for a new client's replay of the scene before greying its controls
 REPLAY_MARGIN_S = 0.2  # s after viser has queued the replay's last window, for it to be sent
 # Per-client, harmless from anyone: the camera, and answers to the server's own requests.
@@ -67,6 +69,7 @@ class Seat:
     may_operate: bool  # False: a --public-view client without the token
     view: ControlView | None = None  # built once the client has the scene
     read_only: bool | None = None  # the greying last sent to this client (None: none yet)
+    last_notice: float = -math.inf  # when it was last told it is read-only (clock s)
 
 
 class Roles:
@@ -159,6 +162,10 @@ class Roles:
         handle = self.server.gui._gui_input_handle_from_uuid.get(uuid) if isinstance(uuid, str) else None
         if handle is not None:
             _send(seat.client, messages.GuiUpdateMessage(handle._impl.uuid, {"value": handle._impl.value}))
+        now = self.clock()
+        if now - seat.last_notice < READ_ONLY_NOTICE_S:  # a drag or a held slider sends 20 a second
+            return
+        seat.last_notice = now
         operator = self.name_of(self.operator) or "nobody"
         notify(seat.client, "Read-only", f"{operator} operates; ask for control in the Control panel.", "warning")
 
