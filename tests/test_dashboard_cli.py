@@ -43,6 +43,14 @@ def cli(*args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
     )
 
 
+def _ended(process: subprocess.Popen[str]) -> str:
+    """Stop the process if it still runs; its exit status and the end of what it wrote."""
+    if process.poll() is None:
+        process.kill()
+    out, err = process.communicate(timeout=30)
+    return f"exit {process.returncode}; stdout {out[-300:]!r}; stderr {err[-600:]!r}"
+
+
 def dashboard_process(*args: str) -> subprocess.Popen[str]:
     """hopper-dashboard running in the background, its output piped."""
     return subprocess.Popen(
@@ -122,7 +130,9 @@ def test_a_signal_stops_cleanly_finalizes_the_recording_and_frees_the_port(tmp_p
     port, rrd = free_port(), tmp_path / "run.rrd"
     process = dashboard_process("--port", str(port), "--rrd", str(rrd), "--sessions-dir", str(tmp_path))
     try:
-        assert wait_until(lambda: not port_is_free(port), timeout=60), "the dashboard never started"
+        # A bound for a loaded machine, not a pace; a process that exits instead says why.
+        serving = wait_until(lambda: not port_is_free(port) or process.poll() is not None, timeout=120)
+        assert serving and process.poll() is None, f"the dashboard never started: {_ended(process)}"
         time.sleep(1.5)  # some simulation into the recording
         process.send_signal(signum)
         out, err = process.communicate(timeout=60)
