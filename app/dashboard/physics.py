@@ -63,7 +63,6 @@ class PhysicsView:
         self._force = np.zeros(6)
         self._tips: list[np.ndarray | None] = [None, None]
         self._next_forces = -math.inf
-        self._metres_per_newton = 0.0
         self._arc: Arc | None = None
         self._flown = np.zeros((0, 2))  # CoM (x, z) of this flight's earlier arcs, up to their replanning
         self._planned_rising = False
@@ -81,18 +80,17 @@ class PhysicsView:
             if not shown:
                 self._hide_arc()
                 for side in range(2):
-                    self._set_force(side, None)
+                    self._set_force(side, None, 0.0)
                 self.pull.visible = False
         if not shown:
             return
         flight = sim.phase is Phase.FLIGHT
-        weight = float(sim.model.body_subtreemass[sim.layout.torso]) * sim.config.gravity
-        self._metres_per_newton = WEIGHT_M / weight
         self._update_arc(sim, flight)
         if now >= self._next_forces:
             self._next_forces = now + FORCES_S
+            weight = float(sim.model.body_subtreemass[sim.layout.torso]) * sim.config.gravity  # N, at this gravity
             for side in range(2):
-                self._set_force(side, None if flight else self._ground_force(sim, side))
+                self._set_force(side, None if flight else self._ground_force(sim, side), WEIGHT_M / weight)
         self._update_pull(sim)
 
     # -- the flight ----------------------------------------------------------------------------
@@ -155,7 +153,7 @@ class PhysicsView:
             return None
         return point / count, total
 
-    def _set_force(self, side: int, force: tuple[np.ndarray, np.ndarray] | None) -> None:
+    def _set_force(self, side: int, force: tuple[np.ndarray, np.ndarray] | None, metres_per_newton: float) -> None:
         arrow = self.forces[side]
         if force is None:
             if self._tips[side] is not None:
@@ -163,7 +161,7 @@ class PhysicsView:
                 arrow.visible = False
             return
         point, total = force
-        tip = point + total * self._metres_per_newton
+        tip = point + total * metres_per_newton
         previous = self._tips[side]
         if previous is not None and float(np.linalg.norm(tip - previous)) < FORCE_MOVE_M:
             return

@@ -87,17 +87,23 @@ class HopController:
 
         ground(x, foot) is the terrain height (m) under foot 0 (left) or 1 (right) at world x.
         """
-        m, s, q = self.mem, data.sensordata, data.qpos
+        m, s = self.mem, data.sensordata
+        hip, ahead = self._hip_and_feet_ahead(data, layout)
+        vx, vz = float(s[layout.s_com_vel]), float(s[layout.s_com_vel + 2])
+        lengths = landing.plan_reach(
+            hip, (vx, vz), float(m["gravity"][0]), ahead, float(m["flight_length"][0]), float(m["push"][0]), ground
+        )
+        m["land_l"], m["land_r"] = lengths
+
+    def _hip_and_feet_ahead(
+        self, data: mujoco.MjData, layout: ModelLayout
+    ) -> tuple[tuple[float, float], tuple[float, float]]:
+        """The hip's world (x, z) now and where the kernel's swing puts each foot ahead of it (m)."""
+        q = data.qpos
         torso = (float(q[layout.q_x]) + layout.torso_origin[0], float(q[layout.q_z]) + layout.torso_origin[1])
         hip = landing.hip_position(torso, float(q[layout.q_pitch]))
-        vx, vz = float(s[layout.s_com_vel]), float(s[layout.s_com_vel + 2])
-        mid = float(m["feet_mid"][0])  # where the kernel's swing puts the feet, ahead of the hip
-        half = 0.5 * float(m["spread"][0])
-        lengths = landing.plan_reach(
-            hip, (vx, vz), float(m["gravity"][0]), (mid + half, mid - half), float(m["flight_length"][0]),
-            float(m["push"][0]), ground,
-        )  # fmt: skip
-        m["land_l"], m["land_r"] = lengths
+        mid, half = float(self.mem["feet_mid"][0]), 0.5 * float(self.mem["spread"][0])
+        return hip, (mid + half, mid - half)
 
     def landing_feet(self, data: mujoco.MjData, layout: ModelLayout) -> list[tuple[float, float]]:
         """World (x, z) of the left and right foot centres now, were the legs in their landing pose.
@@ -105,13 +111,11 @@ class HopController:
         Ahead of the hip by the kernel's swing target, below it by the landing reach: the nominal
         flight length while rising, each leg's planned length once the apex has set them.
         """
-        m, s, q = self.mem, data.sensordata, data.qpos
-        torso = (float(q[layout.q_x]) + layout.torso_origin[0], float(q[layout.q_z]) + layout.torso_origin[1])
-        hip_x, hip_z = landing.hip_position(torso, float(q[layout.q_pitch]))
-        mid, half = float(m["feet_mid"][0]), 0.5 * float(m["spread"][0])
-        rising = float(s[layout.s_com_vel + 2]) > 0.0
+        m = self.mem
+        (hip_x, hip_z), ahead = self._hip_and_feet_ahead(data, layout)
+        rising = float(data.sensordata[layout.s_com_vel + 2]) > 0.0
         reach = (m["flight_length"][0],) * 2 if rising else (m["land_l"][0], m["land_r"][0])
-        return [(hip_x + mid + half, hip_z - float(reach[0])), (hip_x + mid - half, hip_z - float(reach[1]))]
+        return [(hip_x + a, hip_z - float(r)) for a, r in zip(ahead, reach, strict=True)]
 
     def field(self, name: str) -> np.ndarray:
         """A live view (shape (1,)) of one field of the kernel's memory, e.g. for a recorder."""
