@@ -44,9 +44,14 @@ STANCE_PITCH_WN, STANCE_PITCH_ZETA = 8.0, 1.0  # rad/s, torso pitch
 STANCE_PITCH_INERTIA = 0.5  # kg m^2, I_locked - I_w (PHYSICS.md)
 LANDING_DAMPING = 6.0  # 1/s, vertical velocity damping while absorbing the impact
 PUSH_X_GAIN = 6.0  # 1/s, horizontal velocity tracking during the push
-PUSH_X_ACCEL_G = 1.85  # g, cap on the horizontal push acceleration (3 m/s^2 on the Moon)
 PUSH_ACCEL_G = 4.9  # g, cap on the vertical push acceleration (8 m/s^2 on the Moon) ...
 LEG_MARGIN = 0.5  # ... and never more than this fraction of the legs' strength, nor the landing
+# The horizontal push acceleration is this share of the vertical one (1.85 g of 4.9 g on the Moon):
+# the push's force keeps its direction, from the rear foot through the CoM and inside the friction
+# cone, where the legs' strength caps the vertical push (a horizontal cap of its own in g asked
+# Earth's legs for 18 m/s^2 forward while they could give 5 up: the push ran the body forward
+# over a straightening leg and never lifted it).
+PUSH_X_SHARE = 1.85 / PUSH_ACCEL_G
 SETTLED_SPEED = 0.08  # m/s on the Moon: the stance is settled below this
 CONTACT_ON_WEIGHT = 0.075  # of the robot's weight: a foot touches above this (1 N on the Moon) ...
 CONTACT_OFF_WEIGHT = 0.015  # ... and leaves below this (0.2 N), hysteresis
@@ -65,6 +70,12 @@ HOLD_WN, HOLD_ZETA = 20.0, 1.0  # rad/s
 # Feet land so that the capture point falls inside the front half of the support: the stance
 # can then stop the CoM over the feet with the ground force alone, without a moment.
 CAPTURE_MARGIN = 0.5  # of the half spread, behind the front foot
+# ... but never further from the CoM than the ground can push through it: a landing force from
+# the feet to the CoM must stay inside the friction cone, with this share of it to spare. A fast
+# robot (after a 6 N s push) whose feet reach for the whole capture point lands with its legs
+# near flat, and the braking force, passing far below the CoM, pitches it over backwards past
+# what the wheel holds; it takes two hops to stop instead of one.
+PLACEMENT_CONE = 0.5
 # Phase times on the Moon, s.
 LANDING_MIN_S, STANCE_MAX_S, CROUCH_MIN_S, CROUCH_MAX_S, PUSH_MAX_S = 0.1, 2.0, 0.15, 1.2, 1.0
 
@@ -125,6 +136,7 @@ class Gait:
     forward_speed: float  # m/s at liftoff
     capture_time: float  # s, 1 / w0: the capture point is vx * capture_time ahead of the CoM
     capture_margin: float  # m, how far inside the front foot the capture point may land
+    reach_limit: float  # m, the farthest the feet's midpoint lands from the CoM, either way
 
     def record(self) -> dict[str, float]:
         return dataclasses.asdict(self)
@@ -155,7 +167,7 @@ def derive(gravity: float, gait: GaitParams) -> Gait:
         apex=apex,
         push_accel=min(PUSH_ACCEL_G * g, LEG_MARGIN * strength),
         push_x_gain=PUSH_X_GAIN * r,
-        push_x_accel=PUSH_X_ACCEL_G * g,
+        push_x_accel=PUSH_X_SHARE * min(PUSH_ACCEL_G * g, LEG_MARGIN * strength),
         kz=wn_z**2,
         dz=2 * STANCE_HEIGHT_ZETA * wn_z,
         kx=wn_x**2,
@@ -181,4 +193,5 @@ def derive(gravity: float, gait: GaitParams) -> Gait:
         forward_speed=gait.forward_speed * r,
         capture_time=1.0 / (r * math.sqrt(MOON_GRAVITY / z)),
         capture_margin=CAPTURE_MARGIN * gait.foot_spread / 2,
+        reach_limit=PLACEMENT_CONE * gait.friction * z,
     )

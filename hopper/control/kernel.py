@@ -27,6 +27,10 @@ BOUNCE_CONFIRM_S = 0.08  # s both feet off in any other ground phase before it i
 CAPTURE_SLACK = 0.03  # m beyond the outer foot that the capture point may be before a recovery hop
 ASCENT_FRACTION = 0.3  # of the liftoff speed: a contact while rising faster than this is a graze
 LIMP_DAMPING = 0.5  # N m s/rad on each leg joint between the end of the push and the liftoff
+# A leg that starts a push within this of its push length (stretched down a crater wall) cannot
+# push: it sits the push out and the other leg pushes alone. Ending the push when that leg is
+# "done" would end it at once and leave the body on limp legs.
+PUSH_MIN_STROKE = 0.03  # m
 # A leg sweep runs at constant speed between ramps of this share of its time: a steady reaction on
 # the torso, its momentum above the wheel's capacity for most of the sweep (a minimum-jerk path
 # peaks briefly and gives a sharper, shorter excursion for the same peak deviation).
@@ -134,6 +138,8 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
         height, px = 0.0, 0.0
     if contact:
         m.last_contact = time
+    if on_l and on_r:
+        m.last_both = time
     offset_x = com_dx - (lean + px)
 
     # -- phase transitions --
@@ -167,9 +173,15 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
                 m.sweep_from_l, m.sweep_from_r = leg_angle(left), leg_angle(right)  # a sweep starts here
                 m.sweep_len_l, m.sweep_len_r = math.hypot(left.px, left.pz), math.hypot(right.px, right.pz)
                 events |= EV_LIFTOFF
-        elif phase in (STANCE, CROUCH) and on_l and on_r and not captured(m, vx, hip_x, left, right):
-            # A push carried the capture point off the feet: hop to catch it (Raibert's recovery;
-            # in low gravity a step is a hop anyway). The landing places the feet around it.
+        elif (
+            phase in (STANCE, CROUCH)
+            and (on_l and on_r or time - m.last_both > m.landing_min)
+            and not captured(m, vx, hip_x, left, right)
+        ):
+            # A push carried the capture point off the feet, or the robot stands on one foot (the
+            # other, given a landing's time to find the ground, is over a crater) and topples off
+            # it: hop to catch it (Raibert's recovery; in low gravity a step is a hop anyway).
+            # The landing places the feet around it.
             enter(m, PUSH, time)
             m.recovering = True
         elif phase == LANDING:
@@ -192,11 +204,18 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
             elif elapsed > m.crouch_max:
                 enter(m, STANCE, time)
         elif phase == PUSH and (
-            elapsed > m.push_max or (on_l != on_r and not m.push_done and not m.recovering and vz < 0.5 * m.vz_liftoff)
+            elapsed > m.push_max
+            or (on_l != on_r and not m.push_done and not m.recovering and vz < 0.5 * m.vz_liftoff)
+            or (m.push_done and vz < 0.0)
         ):
             # The feet never left, or one lost the ground early in the push (a rim crumbling
-            # under it): stand and try again rather than leave spinning off one foot.
+            # under it): stand and try again rather than leave spinning off one foot. A push that
+            # ran out of leg with the body sinking (a leg already long over a crater floor) has
+            # failed too: limp legs would let the body fall onto the feet.
             enter(m, STANCE, time)
+    if m.phase == PUSH and phase != PUSH:
+        m.push_skip_l = left.on and math.hypot(left.px, left.pz) > m.push - PUSH_MIN_STROKE
+        m.push_skip_r = right.on and math.hypot(right.px, right.pz) > m.push - PUSH_MIN_STROKE
     phase = m.phase
 
     # -- actuation --
@@ -207,6 +226,7 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
         # pendulum), measured from the hip.
         capture = vx * m.capture_time
         mid = capture - min(max(capture, -m.capture_margin), m.capture_margin)
+        mid = min(max(mid, -m.reach_limit), m.reach_limit)
         mid += com_dx - lean
         m.feet_mid = mid  # the landing planner reads where the swing puts the feet
         half = 0.5 * m.spread
@@ -242,7 +262,17 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
         wheel = wheel_torque_bound(wheel_speed, m.hold_kp * pitch + m.hold_kd * rate)
     else:
         body = Body(pitch, rate, vx, vz, wheel_speed, height, offset_x, sensors[m.s_angmom], hip_x, hip_z)
-        wheel, hl, kl, hr, kr = stance(m, phase, body, left, right)
+        skip_l, skip_r = phase == PUSH and m.push_skip_l, phase == PUSH and m.push_skip_r
+        if skip_l != skip_r:  # the other leg pushes alone; the stretched one rests on the ground, limp
+            rest_l = Leg(left.px, left.pz, left.jx, left.jz, left.knee, left.hip_rate, left.knee_rate, False)
+            rest_r = Leg(right.px, right.pz, right.jx, right.jz, right.knee, right.hip_rate, right.knee_rate, False)
+            wheel, hl, kl, hr, kr = stance(m, phase, body, left if skip_r else rest_l, right if skip_l else rest_r)
+            if skip_l:
+                hl, kl = -LIMP_DAMPING * left.hip_rate, -LIMP_DAMPING * left.knee_rate
+            else:
+                hr, kr = -LIMP_DAMPING * right.hip_rate, -LIMP_DAMPING * right.knee_rate
+        else:
+            wheel, hl, kl, hr, kr = stance(m, phase, body, left, right)
     ctrl[m.a_hip_l], ctrl[m.a_knee_l], ctrl[m.a_hip_r], ctrl[m.a_knee_r] = hl, kl, hr, kr
     if not m.wheel_on:
         wheel = 0.0

@@ -69,6 +69,9 @@ _STATE = [
     ("phase_start", "f8"),  # s
     ("push_done", "?"),  # the push reached its speed or length; the legs now swing
     ("recovering", "?"),  # this push is a recovery hop (the capture point left the feet)
+    ("last_both", "f8"),  # s, when both feet last touched the ground
+    ("push_skip_l", "?"),  # the leg began this push with no stroke left (hopper.control.kernel)
+    ("push_skip_r", "?"),
     ("sweep_from_l", "f8"),  # rad, each virtual leg's world angle at liftoff (where a sweep starts)
     ("sweep_from_r", "f8"),
     ("sweep_len_l", "f8"),  # m, each virtual leg's length at liftoff (held through a sweep)

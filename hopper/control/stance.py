@@ -18,6 +18,7 @@ LANDING, STANCE, CROUCH, PUSH = int(Phase.LANDING), int(Phase.STANCE), int(Phase
 MIN_SUPPORT = 0.4  # fraction of the weight the stance legs always carry
 BALANCE_MOMENT = 8.0  # N m, of the wheel's 29.5: the most the feet may stray from the momentum's wish
 SUPPORT_MARGIN = 0.05  # least share of the vertical force on either of two feet: both stay loaded
+CONTACT_LOAD = 2.0  # x the contact threshold: the least force either of two feet is asked for
 REACH_FORCE = 0.2  # fraction of the weight a free leg may push with while it reaches for the ground
 
 
@@ -116,8 +117,11 @@ def stance(m, phase: int, body: Body, left: Leg, right: Leg) -> tuple[float, flo
         want = feet / fz
         c0, c1 = rzb * k - rbx, (rza - rzb) * k - (rax - rbx)
         s = (want - c0) / c1
-        if not SUPPORT_MARGIN <= s <= 1.0 - SUPPORT_MARGIN:
-            s = min(max(s, SUPPORT_MARGIN), 1.0 - SUPPORT_MARGIN)
+        # Each foot keeps well above the contact threshold too: a foot unloaded to near it in a
+        # light crouch chattered on and off, each "off" swinging its leg as a free one.
+        low = min(max(SUPPORT_MARGIN, CONTACT_LOAD * m.contact_on / fz), 0.5)
+        if not low <= s <= 1.0 - low:
+            s = min(max(s, low), 1.0 - low)
             if balance:  # keep the force the CoM needs, within `stray` of the moment wanted
                 want = min(max(c0 + s * c1, want - stray / fz), want + stray / fz)
             k = clamp((want + rbx + s * (rax - rbx)) / (rzb + s * (rza - rzb)), mu)
