@@ -60,7 +60,7 @@ def test_refly_repeats_a_scheduled_kick():
     sim = Simulation(SimConfig(terrain="flat"))
     history = History()
     sim.listeners.append(history)
-    sim.set_schedule(KickSchedule("pitch_kick", 0.3, 0.15))
+    sim.set_schedule(KickSchedule("pitch_kick", 1.0, 0.15))  # N m s: shows above 0.5 deg with the legs' share
     kicks = []
     sim.listeners.append(_Kicks(kicks))
     while len(sim.hops) < 2:

@@ -76,6 +76,12 @@ CAPTURE_MARGIN = 0.5  # of the half spread, behind the front foot
 # near flat, and the braking force, passing far below the CoM, pitches it over backwards past
 # what the wheel holds; it takes two hops to stop instead of one.
 PLACEMENT_CONE = 0.5
+# Flight attitude beyond the wheel (hopper.control.kernel.share_attitude); geometry, not g.
+LEG_SHARE = 3.0  # the legs' world angle follows this times the torso's pitch error ...
+LANDING_POSE_TOLERANCE = math.radians(15.0)  # ... up to this offset (rad) from the landing pose
+# A torso turning back from beyond WAIT_FROM holds its legs WAIT_GAIN m/rad shorter (up to
+# WAIT_MAX): each 10 ms of the touchdown's wait closes about a degree after a hard kick.
+WAIT_FROM, WAIT_GAIN, WAIT_MAX = math.radians(1.0), 2.0, 0.06  # rad, m/rad, m
 # Phase times on the Moon, s.
 LANDING_MIN_S, STANCE_MAX_S, CROUCH_MIN_S, CROUCH_MAX_S, PUSH_MAX_S = 0.1, 2.0, 0.15, 1.2, 1.0
 
@@ -137,6 +143,11 @@ class Gait:
     capture_time: float  # s, 1 / w0: the capture point is vx * capture_time ahead of the CoM
     capture_margin: float  # m, how far inside the front foot the capture point may land
     reach_limit: float  # m, the farthest the feet's midpoint lands from the CoM, either way
+    leg_share: float  # the legs' share of the torso's attitude error in flight
+    share_max: float  # rad
+    wait_gain: float  # m/rad
+    wait_from: float  # rad
+    wait_max: float  # m
 
     def record(self) -> dict[str, float]:
         return dataclasses.asdict(self)
@@ -194,4 +205,9 @@ def derive(gravity: float, gait: GaitParams) -> Gait:
         capture_time=1.0 / (r * math.sqrt(MOON_GRAVITY / z)),
         capture_margin=CAPTURE_MARGIN * gait.foot_spread / 2,
         reach_limit=PLACEMENT_CONE * gait.friction * z,
+        leg_share=LEG_SHARE,
+        share_max=LANDING_POSE_TOLERANCE,
+        wait_gain=WAIT_GAIN,
+        wait_from=WAIT_FROM,
+        wait_max=WAIT_MAX,
     )

@@ -85,6 +85,30 @@ def captured(m, vx: float, hip_x: float, left: Leg, right: Leg) -> bool:  # noqa
 
 
 @njit(cache=True)
+def share_attitude(m, pitch: float, rate: float) -> tuple[float, float, float]:  # noqa: ANN001
+    """The legs' part in the flight attitude: (offset of their world angle, rad; of its rate, rad/s;
+    how much shorter they reach for the landing, m).
+
+    The legs are the other reaction mass (1.2 kg up to 1 m from the hip, twice the torso's
+    inertia about the CoM). Their world angle follows leg_share times the torso's pitch error
+    (and its rate): the hips turn them with the error, and their reaction turns the torso back,
+    momentum-free, while the wheel takes the momentum; a kick's momentum goes into torso and legs
+    together instead of the light torso alone. Beyond share_max the legs go back to holding the
+    landing pose. A torso already turning back holds its legs shorter: the touchdown waits
+    (a few tens of ms) for the error to close, instead of landing mid-correction.
+    """
+    share = m.leg_share * pitch
+    if abs(share) >= m.share_max:
+        return clamp(share, m.share_max), 0.0, 0.0
+    wait = 0.0
+    if pitch * rate < 0.0:
+        wait = min(m.wait_gain * max(abs(pitch) - m.wait_from, 0.0), m.wait_max)
+    # The swing servo already damps the hips' rate, i.e. holds the legs' world rate to the
+    # torso's: a share of c adds (c - 1) times the torso's rate.
+    return share, (m.leg_share - 1.0) * rate, wait
+
+
+@njit(cache=True)
 def respond(m, time: float, torque: float, wheel_speed: float) -> None:  # noqa: ANN001 (a MEMORY record)
     """Accumulate one flight tick of the pitch response (hopper.metrics.ResponseMetrics defines it)."""
     pitch = m.pitch_true
@@ -250,8 +274,12 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
                 hl, kl = swing_to_angle(left, m.land_l, held_l + (land_l - held_l) * s, scale)
                 hr, kr = swing_to_angle(right, m.land_r, held_r + (land_r - held_r) * s, scale)
         else:
-            hl, kl = swing_torques(left, m.tuck_length if tucked else m.land_l, mid + half, m.swing_scale)
-            hr, kr = swing_torques(right, m.tuck_length if tucked else m.land_r, mid - half, m.swing_scale)
+            share, share_rate, wait = 0.0, 0.0, 0.0
+            if phase == FLIGHT:
+                share, share_rate, wait = share_attitude(m, pitch, rate)
+            len_l, len_r = (m.tuck_length, m.tuck_length) if tucked else (m.land_l - wait, m.land_r - wait)
+            hl, kl = swing_torques(left, len_l, mid + half, m.swing_scale, share, share_rate)
+            hr, kr = swing_torques(right, len_r, mid - half, m.swing_scale, share, share_rate)
         if phase == FLIGHT:
             wheel = wheel_pid(m, pitch, rate, wheel_speed)
     elif m.push_done:

@@ -59,7 +59,13 @@ def push_torques(leg: Leg, fx: float, fz: float) -> tuple[float, float]:
 
 @njit(cache=True)
 def swing_torques(
-    leg: Leg, length: float, foot_x: float, scale: float = 1.0, max_knee_torque: float = LEG_TORQUE_LIMIT
+    leg: Leg,
+    length: float,
+    foot_x: float,
+    scale: float = 1.0,
+    offset: float = 0.0,
+    rate: float = 0.0,
+    max_knee_torque: float = LEG_TORQUE_LIMIT,
 ) -> tuple[float, float]:
     """PD toward a foot `foot_x` ahead of the hip, `length` from it (a swing, not a support).
 
@@ -68,10 +74,12 @@ def swing_torques(
     joint space: length = 2 L cos(knee / 2) has no gradient at a straight knee, where a
     Cartesian length servo would lock the leg straight. Damping acts on the joint rates so the
     legs do not fight the torso's rotation. `scale` (>= 1) multiplies the natural frequency for
-    short flights; `max_knee_torque` caps the length servo (N m).
+    short flights; `offset` (rad) shifts the world angle and `rate` (rad/s) the world rate the
+    damping holds, relative to the torso's (hopper.control.kernel.share_attitude);
+    `max_knee_torque` caps the length servo (N m).
     """
-    angle = -math.asin(clamp(foot_x / length, 0.9))  # world angle, + = foot behind the hip
-    return swing_to_angle(leg, length, angle, scale, max_knee_torque)
+    angle = -math.asin(clamp(foot_x / length, 0.9)) + offset  # world angle, + = foot behind the hip
+    return swing_to_angle(leg, length, angle, scale, max_knee_torque, rate)
 
 
 @njit(cache=True)
@@ -82,12 +90,17 @@ def leg_angle(leg: Leg) -> float:
 
 @njit(cache=True)
 def swing_to_angle(
-    leg: Leg, length: float, angle: float, scale: float = 1.0, max_knee_torque: float = LEG_TORQUE_LIMIT
+    leg: Leg,
+    length: float,
+    angle: float,
+    scale: float = 1.0,
+    max_knee_torque: float = LEG_TORQUE_LIMIT,
+    rate: float = 0.0,
 ) -> tuple[float, float]:
     """PD of the virtual leg toward world `angle` (rad, + = foot behind the hip) and `length` (m);
     see swing_torques."""
     k, d = scale * scale, scale
-    torque = k * SWING_K * (angle - leg_angle(leg)) - d * SWING_D * (leg.hip_rate + leg.knee_rate / 2)
+    torque = k * SWING_K * (angle - leg_angle(leg)) - d * SWING_D * (leg.hip_rate + leg.knee_rate / 2 - rate)
     knee_target = -2.0 * math.acos(min(length / (L1 + L2), 0.999))
     bend = clamp(k * KNEE_K * (knee_target - leg.knee) - d * KNEE_D * leg.knee_rate, max_knee_torque)
     return clamp(torque, LEG_TORQUE_LIMIT), clamp(torque / 2 + bend, LEG_TORQUE_LIMIT)

@@ -146,8 +146,8 @@ def stance(m, phase: int, body: Body, left: Leg, right: Leg) -> tuple[float, flo
     gentle = REACH_FORCE * TOTAL_MASS * m.gravity * 0.5 * L2  # knee torque, ~0.5 L2 lever
     if left.on:
         hl, kl = push_torques(left, fx, fz)
-        hr, kr = swing_torques(right, m.push, -half, 1.0, gentle)
+        hr, kr = swing_torques(right, m.push, -half, 1.0, max_knee_torque=gentle)
     else:
         hr, kr = push_torques(right, fx, fz)
-        hl, kl = swing_torques(left, m.push, half, 1.0, gentle)
+        hl, kl = swing_torques(left, m.push, half, 1.0, max_knee_torque=gentle)
     return wheel, hl, kl, hr, kr
