@@ -15,7 +15,7 @@ from hopper.config import GRAVITY_PRESETS, SimConfig
 from hopper.control import Phase
 from hopper.control.gait import momentum_capacity
 from hopper.events import EventKind
-from hopper.sim import Simulation
+from hopper.sim import TORQUE_PULSE_S, Simulation
 
 LANDING_LIMIT_DEG = 3.5  # paper: landing attitude error within 3.5 deg
 Group = Literal["terrain", "gravity", "ground", "flight"]
@@ -110,14 +110,17 @@ def battery(*, seeds: int = 100, gravity_seeds: int = 5, quick: bool = False) ->
             for delay in moments:
                 name = f"{kind} {size:+g} at {phase.label} +{delay:g} s"
                 cases.append(Case("ground", name, flat, 4, Schedule(kind, size, phase, delay)))
-    kick = 0.7 * momentum_capacity()  # N m s
+    kick = 0.7 * momentum_capacity()  # N m s, as a kick or as a torque pulse of that impulse
     fractions = (0.2, 0.8) if quick else (0.05, 0.2, 0.4, 0.6, 0.8)
     flight = 2.0 * math.sqrt(2.0 * flat.gravity * flat.gait.apex_height) / flat.gravity  # s, nominal
+    pulse = kick / TORQUE_PULSE_S  # N m over the pulse: the same angular impulse, spread
     for sign in (1.0, -1.0):
         for fraction in fractions:
             delay = fraction * flight
             name = f"pitch kick {sign * kick:+.2f} N m s at {fraction:.0%} of flight"
             cases.append(Case("flight", name, flat, 4, Schedule("pitch_kick", sign * kick, Phase.FLIGHT, delay)))
+            name = f"torque pulse {sign * pulse:+.1f} N m for {TORQUE_PULSE_S:g} s at {fraction:.0%} of flight"
+            cases.append(Case("flight", name, flat, 4, Schedule("torque_pulse", sign * pulse, Phase.FLIGHT, delay)))
     return cases
 
 

@@ -14,6 +14,7 @@ import pytest
 from hopper.config import GRAVITY_PRESETS, SimConfig
 from hopper.control import Phase
 from hopper.control.gait import momentum_capacity
+from hopper.sim import TORQUE_PULSE_S
 from hopper.stress import Case, Schedule, battery, run_case
 
 FLAT = SimConfig(terrain="flat")
@@ -28,8 +29,15 @@ def test_the_battery_holds_the_issues_cases() -> None:
     assert set(GRAVITY_PRESETS.values()) <= gravities
     sizes = {(c.disturbance.kind, c.disturbance.magnitude) for c in groups["ground"]}
     assert {("push_forward", 6.0), ("push_backward", 6.0), ("pitch_kick", 1.5), ("pitch_kick", -1.5)} <= sizes
-    kicks = sorted({c.disturbance.magnitude for c in groups["flight"]})
-    assert kicks == pytest.approx([-0.7 * momentum_capacity(), 0.7 * momentum_capacity()])
+    impulses = {}
+    for c in groups["flight"]:
+        d = c.disturbance
+        impulse = d.magnitude * (TORQUE_PULSE_S if d.kind == "torque_pulse" else 1.0)  # N m s
+        impulses.setdefault(d.kind, set()).add(round(impulse, 9))
+    capacity = 0.7 * momentum_capacity()
+    assert sorted(impulses) == ["pitch_kick", "torque_pulse"]
+    for kind in impulses:
+        assert sorted(impulses[kind]) == pytest.approx([-capacity, capacity])
 
 
 def test_a_schedule_waits_for_its_phase_and_hop() -> None:
@@ -55,10 +63,13 @@ def test_ground_disturbances_of_the_issues_size_are_survived(kind: str, size: fl
     assert outcome.applied and outcome.passed, outcome
 
 
-def test_a_flight_kick_of_seven_tenths_of_the_wheels_capacity_lands_upright() -> None:
+@pytest.mark.parametrize("delay", [0.2, 0.9])  # s after liftoff: early, and 0.1 s before the touchdown
+def test_a_flight_kick_of_seven_tenths_of_the_wheels_capacity_lands_upright(delay: float) -> None:
+    # Late in the flight the wheel alone landed these at 4 to 6 deg (its torque falls with its
+    # speed); the legs' share of the attitude and the waiting touchdown bring them inside 3.5.
     kick = 0.7 * momentum_capacity()
     for sign in (1.0, -1.0):
-        outcome = run_case(Case("flight", "kick", FLAT, 3, Schedule("pitch_kick", sign * kick, Phase.FLIGHT, 0.2)))
+        outcome = run_case(Case("flight", "kick", FLAT, 3, Schedule("pitch_kick", sign * kick, Phase.FLIGHT, delay)))
         assert outcome.applied and outcome.passed, outcome
         assert outcome.worst_landing_deg <= 3.5
 
