@@ -231,6 +231,22 @@ def parser() -> Parser:
     stress.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
     stress.add_argument("--json", type=writable_file, metavar="PATH", help="write every case's outcome as JSON")
 
+    envelope = commands.add_parser(
+        "envelope",
+        help="pitch kicks of every size, direction and moment in flight against the physical limit: table and figure",
+        epilog=EXIT_STATUSES,
+    )
+    envelope.add_argument(
+        "--sizes", type=float_list, default="0.25:5:0.25", metavar="LIST|START:STOP:STEP",
+        help="kick sizes, N m s, each flown both ways (default 0.25:5:0.25)",
+    )  # fmt: skip
+    envelope.add_argument(
+        "--moments", type=float_list, default="0.1,0.3,0.5,0.7,0.9", metavar="LIST",
+        help="moments of the kick as fractions of the undisturbed flight (default 0.1,0.3,0.5,0.7,0.9)",
+    )  # fmt: skip
+    envelope.add_argument("--out", type=Path, metavar="DIR", help="write envelope.png, .pdf and .json here")
+    envelope.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
+
     from hopper.app.sweep_cli import add_commands  # sweep and tune
 
     add_commands(commands)
@@ -567,6 +583,66 @@ def command_stress(args: argparse.Namespace) -> int:
     return EXIT_OK if all(o.passed for o in outcomes) else EXIT_FELL
 
 
+def float_list(text: str) -> list[float]:
+    """'a,b,c' or 'start:stop:step' (stop included) as a list of finite floats."""
+    try:
+        if ":" in text:
+            start, stop, step = (float(v) for v in text.split(":"))
+            if not step > 0 or stop < start:
+                raise ValueError
+            values = [round(start + i * step, 9) for i in range(int((stop - start) / step + 1e-9) + 1)]
+        else:
+            values = [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: give numbers a,b,c or start:stop:step") from None
+    if not values or not all(math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(f"{text!r}: give finite numbers")
+    return values
+
+
+def command_envelope(args: argparse.Namespace) -> int:
+    """Fly the envelope's grid on all cores; print its table, write the figure and JSON if asked."""
+    from tqdm import tqdm
+
+    from hopper import envelope
+    from hopper.sim import DISTURBANCE_LIMITS
+    from hopper.stress import LANDING_LIMIT_DEG, run_case
+
+    top = DISTURBANCE_LIMITS["pitch_kick"][0]
+    if not all(0 < v <= top for v in args.sizes):
+        fail(f"--sizes must lie in (0, {top:g}] N m s")
+    if not all(0 < v < 1 for v in args.moments):
+        fail("--moments are fractions of the flight, between 0 and 1")
+    config = SimConfig(terrain="flat")
+    moments = envelope.flight_moments(config)
+    flight = moments[-1].t + moments[-1].to_go
+    sizes = [s * v for v in args.sizes for s in (1.0, -1.0)]
+    cases = envelope.envelope_cases(config, sizes, args.moments, flight)
+    workers = max(1, min(args.workers, len(cases)))
+    with multiprocessing.get_context("spawn").Pool(workers, initializer=_worker_ignores_interrupts) as pool:
+        runs = pool.imap(run_case, cases, chunksize=1)
+        outcomes = list(tqdm(runs, total=len(cases), desc="kicks", unit="case", file=sys.stderr))
+    rows = envelope.rows(outcomes, moments, args.moments, flight)
+    print(f"flat Moon, kicks in the second flight ({flight:.3f} s); landing limit {LANDING_LIMIT_DEG:g} deg")
+    print("\n".join(envelope.table(rows)))
+    if args.out:
+        from hopper.report.envelope import figure
+
+        args.out.mkdir(parents=True, exist_ok=True)
+        figure(outcomes, moments, args.out)
+        cases_json = [
+            {"size": o.case.disturbance.magnitude, "delay_s": o.case.disturbance.delay_s, "fell": o.fell,
+             "landing_deg": o.worst_landing_deg, "peak_deg": o.worst_peak_deg, "hops": o.hops}
+            for o in outcomes
+        ]  # fmt: skip
+        payload = {"version": version(), "flight_s": flight, "rows": [dataclasses.asdict(r) for r in rows],
+                   "cases": cases_json}  # fmt: skip
+        (args.out / "envelope.json").write_text(json.dumps(payload, indent=2))
+        print(f"wrote {args.out / 'envelope.png'}, .pdf and .json")
+    falls = sum(r.falls_below_limit for r in rows)
+    return EXIT_OK if falls == 0 else EXIT_FELL
+
+
 def check_counts(args: argparse.Namespace) -> None:
     """Refuse counts below one before any work (argparse's int accepts 0 and negatives)."""
     for name in ("hops", "seeds", "workers", "gravity_seeds"):
@@ -590,6 +666,8 @@ def main(argv: list[str] | None = None) -> int:
         check_counts(args)
         if args.command == "stress":
             return command_stress(args)
+        if args.command == "envelope":
+            return command_envelope(args)
         try:
             make_config(args, 0, True)  # validate gains and gravity before any work
             return command_run(args) if args.command == "run" else command_compare(args)

@@ -1,0 +1,188 @@
+"""The flight's recoverable envelope: pitch kicks of every size, direction and moment, against physics.
+
+A kick of angular impulse h (N m s) at `t` s into a flight with `T` s to go lands within
+LANDING_LIMIT_DEG only if two bounds allow it, both computed from the model at that moment:
+
+- Momentum. The wheel can take, in the time left, what its torque-speed envelope lets it
+  reach: (I_spin (w_max - s w0)) (1 - exp(-T / T_m)), T_m = I_spin w_max / tau_stall. What it
+  cannot take turns the torso and the legs for the rest of the flight: at touchdown the torso
+  may be LANDING_LIMIT_DEG off and the legs LANDING_POSE_TOLERANCE off their landing pose, so
+  the rest is at most (I_torso limit + I_legs tolerance) / T.
+- Torque. The kick is an impulse: it sets the torso alone (legs free, I_torso) turning at h /
+  I_torso, and only finite torques stop it: the wheel's envelope plus both hips at their limit.
+  The torso swings out by h^2 / (2 I_torso tau) before it stops and needs as long again (at best)
+  to come back; a touchdown before then lands at that error.
+
+`physical_limit` is the largest h both allow; `run_envelope` flies the grid; hopper.report's
+envelope figure draws it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from hopper.config import (
+    LEG_TORQUE_LIMIT,
+    WHEEL_ARMATURE,
+    WHEEL_INERTIA,
+    WHEEL_NO_LOAD_SPEED,
+    WHEEL_TORQUE_LIMIT,
+    SimConfig,
+)
+from hopper.control import Phase
+from hopper.control.gait import LANDING_POSE_TOLERANCE
+from hopper.loop import pitch_inertia
+from hopper.sim import Simulation
+from hopper.stress import LANDING_LIMIT_DEG, Case, Outcome, Schedule
+
+KICKED_HOP = 2  # the kick comes in the second flight (the first starts from the standing pose)
+I_SPIN = WHEEL_INERTIA + WHEEL_ARMATURE  # kg m^2
+
+
+@dataclasses.dataclass(frozen=True)
+class Moment:
+    """One instant of the undisturbed flight: what the physical limit needs of it."""
+
+    t: float  # s since liftoff
+    to_go: float  # s until the touchdown
+    wheel_speed: float  # rad/s, relative to the torso
+    locked: float  # kg m^2, the whole robot with the wheel locked
+    torso: float  # kg m^2, the torso with the legs free (what an impulse turns)
+
+
+def flight_moments(config: SimConfig, every_s: float = 0.01) -> list[Moment]:
+    """The undisturbed second flight of `config`, sampled every `every_s` s."""
+    sim = Simulation(config)
+    while len(sim.hops) < KICKED_HOP - 1 or sim.phase is not Phase.FLIGHT:
+        sim.step()
+        if sim.fallen or sim.time > 60.0:
+            raise RuntimeError("the undisturbed run never reached its second flight")
+    start, samples, every = sim.time, [], max(round(every_s / config.timestep), 1)
+    tick = 0
+    while sim.phase is Phase.FLIGHT:
+        if tick % every == 0:
+            inertia = pitch_inertia(sim.model, sim.data)
+            samples.append((sim.time - start, sim.state().wheel_speed, inertia.locked, inertia.torso))
+        sim.step()
+        tick += 1
+    end = sim.time
+    return [Moment(t, end - start - t, w, locked, torso) for t, w, locked, torso in samples]
+
+
+def wheel_reach(moment: Moment, sign: float) -> float:
+    """Momentum (N m s) the wheel can take in direction `sign` before the touchdown."""
+    headroom = I_SPIN * (WHEEL_NO_LOAD_SPEED - sign * moment.wheel_speed)
+    time_constant = I_SPIN * WHEEL_NO_LOAD_SPEED / WHEEL_TORQUE_LIMIT
+    return max(headroom, 0.0) * (1.0 - math.exp(-moment.to_go / time_constant))
+
+
+def momentum_limit(moment: Moment, sign: float) -> float:
+    """Largest kick (N m s) the wheel and a legs' reorientation can leave within the landing limit."""
+    # What the wheel leaves turns torso and legs: by touchdown the torso may be LANDING_LIMIT_DEG
+    # off and the legs LANDING_POSE_TOLERANCE, so they hold at most this much momentum x time.
+    legs = moment.locked - moment.torso
+    turned = moment.torso * math.radians(LANDING_LIMIT_DEG) + legs * LANDING_POSE_TOLERANCE
+    return wheel_reach(moment, sign) + turned / max(moment.to_go, 1e-3)
+
+
+def torque_allows(moment: Moment, sign: float, kick: float) -> bool:
+    """Whether the actuators' torque can stop a kick of `kick` N m s and bring the torso back in time."""
+    stall = WHEEL_TORQUE_LIMIT * (1.0 - sign * moment.wheel_speed / WHEEL_NO_LOAD_SPEED)
+    torque = max(stall, 0.0) + 2.0 * LEG_TORQUE_LIMIT  # N m on the torso: wheel and both hips
+    limit, i, t = math.radians(LANDING_LIMIT_DEG), moment.torso, moment.to_go
+    stop = kick / torque  # s until the torso stops
+    if t <= stop:  # the touchdown comes while it still swings out
+        return kick * t / i - torque * t * t / (2.0 * i) <= limit
+    peak = kick * kick / (2.0 * i * torque)
+    back = 2.0 * math.sqrt(max(peak - limit, 0.0) * i / torque)  # bang-bang return to the limit
+    return t >= stop + back
+
+
+def physical_limit(moment: Moment, sign: float) -> float:
+    """The largest kick (N m s) in direction `sign` that physics lets land within the limit."""
+    high = momentum_limit(moment, sign)
+    if torque_allows(moment, sign, high):
+        return high
+    low = 0.0
+    for _ in range(40):  # torque_allows is monotonic in the kick: bisect
+        mid = 0.5 * (low + high)
+        low, high = (mid, high) if torque_allows(moment, sign, mid) else (low, mid)
+    return low
+
+
+def envelope_cases(config: SimConfig, sizes: list[float], fractions: list[float], flight_s: float) -> list[Case]:
+    """A pitch kick of every size (N m s, signed) at every fraction of the undisturbed flight."""
+    return [
+        Case(
+            "flight",
+            f"pitch kick {size:+.2f} N m s at {fraction:.0%} of flight",
+            config,
+            KICKED_HOP + 1,
+            Schedule("pitch_kick", size, Phase.FLIGHT, fraction * flight_s, hop=KICKED_HOP),
+        )
+        for fraction in fractions
+        for size in sizes
+    ]
+
+
+@dataclasses.dataclass(frozen=True)
+class Row:
+    """One moment and direction of the envelope: measured boundary against the physical limit."""
+
+    sign: float
+    fraction: float
+    t: float  # s since liftoff
+    limit: float  # N m s, physical_limit
+    recovered: float  # N m s, the largest kick below which every kick landed within the limit
+    falls_below_limit: int  # kicks under the limit that ended in a fall
+    worst_below_limit_deg: float  # worst landing of those under the limit
+
+
+def rows(outcomes: list[Outcome], moments: list[Moment], fractions: list[float], flight_s: float) -> list[Row]:
+    """The table: for each direction and moment, the boundary the simulation found and the limit."""
+    out = []
+    times = np.array([m.t for m in moments])
+    for sign in (1.0, -1.0):
+        for fraction in fractions:
+            moment = moments[int(np.argmin(abs(times - fraction * flight_s)))]
+            limit = physical_limit(moment, sign)
+            here = sorted(
+                (o for o in outcomes if o.case.disturbance is not None
+                 and math.isclose(o.case.disturbance.delay_s, fraction * flight_s)
+                 and o.case.disturbance.magnitude * sign > 0),
+                key=lambda o: abs(o.case.disturbance.magnitude),  # type: ignore[union-attr]
+            )  # fmt: skip
+            recovered = 0.0
+            for o in here:
+                if o.fell or o.worst_landing_deg > LANDING_LIMIT_DEG:
+                    break
+                recovered = abs(o.case.disturbance.magnitude)  # type: ignore[union-attr]
+            below = [o for o in here if abs(o.case.disturbance.magnitude) <= limit]  # type: ignore[union-attr]
+            out.append(
+                Row(
+                    sign,
+                    fraction,
+                    moment.t,
+                    limit,
+                    recovered,
+                    sum(o.fell for o in below),
+                    max((o.worst_landing_deg for o in below), default=0.0),
+                )
+            )
+    return out
+
+
+def table(rows_: list[Row]) -> list[str]:
+    """The envelope as text: one line per direction and moment."""
+    lines = [f"{'kick':<5} {'moment':>7} {'t':>6} {'limit':>8} {'recovered':>10} {'ratio':>6} {'falls<limit':>11}"]
+    for r in rows_:
+        ratio = r.recovered / r.limit if r.limit > 0 else float("nan")
+        sign = "+" if r.sign > 0 else "-"
+        lines.append(
+            f"{sign:<5} {r.fraction:>7.0%} {r.t:>5.2f}s {r.limit:>6.2f}Nms {r.recovered:>8.2f}Nms "
+            f"{ratio:>6.2f} {r.falls_below_limit:>11d}"
+        )
+    return lines

@@ -1,0 +1,83 @@
+"""The flight envelope: the physical limit from the model, and flown kicks on either side of it."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from hopper import envelope
+from hopper.config import SimConfig
+from hopper.control.gait import momentum_capacity
+from hopper.stress import LANDING_LIMIT_DEG, run_case
+
+FLAT = SimConfig(terrain="flat")
+
+
+@pytest.fixture(scope="module")
+def moments() -> list[envelope.Moment]:
+    return envelope.flight_moments(FLAT, every_s=0.05)
+
+
+def test_the_flight_is_sampled_from_liftoff_to_touchdown(moments: list[envelope.Moment]) -> None:
+    flight = moments[0].to_go
+    assert 0.8 < flight < 1.2  # a lunar hop of 0.25 m: about 1 s
+    assert all(math.isclose(m.t + m.to_go, flight, abs_tol=1e-9) for m in moments)
+    assert all(0.4 < m.locked < 0.6 and 0.1 < m.torso < 0.13 for m in moments)  # kg m^2, PHYSICS.md
+
+
+def test_the_limit_is_the_wheels_headroom_early_and_grows_as_the_touchdown_nears(moments) -> None:  # noqa: ANN001
+    early, late = moments[2], moments[-3]
+    for sign in (1.0, -1.0):
+        assert envelope.wheel_reach(early, sign) <= envelope.physical_limit(early, sign)
+        assert envelope.physical_limit(early, sign) < 1.3 * momentum_capacity()  # the wheel sets it
+        assert envelope.physical_limit(late, sign) > envelope.physical_limit(early, sign)
+
+
+def test_the_torque_bound_is_an_impulses_swing_before_the_actuators_stop_it(moments) -> None:  # noqa: ANN001
+    # 0.05 s before the touchdown a kick of 4 N m s swings the torso out by about 20 deg before
+    # 90 N m stop it, and a torso that turns at 35 rad/s cannot be brought back in 0.05 s.
+    late = min(moments, key=lambda m: abs(m.to_go - 0.05))
+    assert not envelope.torque_allows(late, 1.0, 4.0)
+    assert envelope.torque_allows(late, 1.0, 0.1)
+    assert envelope.physical_limit(late, 1.0) < envelope.momentum_limit(late, 1.0)
+
+
+def test_kicks_under_the_limit_land_and_over_it_do_not(moments) -> None:  # noqa: ANN001
+    flight = moments[0].to_go
+    moment = min(moments, key=lambda m: abs(m.t - 0.3 * flight))
+    limit = envelope.physical_limit(moment, 1.0)
+    cases = envelope.envelope_cases(FLAT, [0.5 * limit, 1.4 * limit], [0.3], flight)
+    under, over = (run_case(c) for c in cases)
+    assert not under.fell and under.worst_landing_deg <= LANDING_LIMIT_DEG, under
+    assert over.fell or over.worst_landing_deg > LANDING_LIMIT_DEG, over
+    rows = envelope.rows([under, over], moments, [0.3], flight)
+    plus = next(r for r in rows if r.sign > 0)
+    assert plus.recovered == pytest.approx(0.5 * limit) and plus.falls_below_limit == 0
+
+
+def test_hopper_sim_envelope_writes_its_table_figure_and_json(tmp_path: Path) -> None:
+    out = tmp_path / "env"
+    result = subprocess.run(
+        [sys.executable, "-m", "hopper.app.sim_cli", "envelope", "--sizes", "0.5,3", "--moments", "0.5",
+         "--out", str(out), "--workers", "2"],
+        capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert result.returncode in (0, 1), result.stderr
+    lines = result.stdout.splitlines()
+    assert lines[1].split()[:4] == ["kick", "moment", "t", "limit"] and len([x for x in lines if "50%" in x]) == 2
+    data = json.loads((out / "envelope.json").read_text())
+    assert len(data["cases"]) == 4 and len(data["rows"]) == 2
+    assert (out / "envelope.png").stat().st_size > 10_000 and (out / "envelope.pdf").exists()
+
+
+@pytest.mark.parametrize("flags", [["--sizes", "0,1"], ["--sizes", "x"], ["--moments", "1.5"], ["--sizes", "9"]])
+def test_hopper_sim_envelope_refuses_bad_input_in_one_line(flags: list[str]) -> None:
+    result = subprocess.run([sys.executable, "-m", "hopper.app.sim_cli", "envelope", *flags], capture_output=True,
+                            text=True, timeout=120)  # fmt: skip
+    assert result.returncode == 2 and len(result.stderr.strip().splitlines()) <= 2, result.stderr
+    assert "Traceback" not in result.stderr
