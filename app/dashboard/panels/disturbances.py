@@ -19,7 +19,7 @@ KINDS = {
     "Pitch kick": ("pitch_kick", "Kick", 1.0),
     "Push ▶": ("push_forward", "Push ▶", 4.0),
     "Push ◀": ("push_backward", "Push ◀", 4.0),
-    "Torque pulse": ("torque_pulse", "Pulse", 15.0),
+    "Torque pulse": ("torque_pulse", "Pulse", 10.0),  # 1 N m s over 0.1 s: inside the flight envelope
 }
 SCHEDULE_DEFAULTS = ("Pitch kick", 0.3, DEFAULT_DELAY_S * 1000, 1)  # kind label, magnitude, delay ms, every
 SCHEDULE_OFF = "Schedule off: each hop runs undisturbed."
