@@ -68,7 +68,7 @@ def test_a_schedule_set_in_the_page_kicks_every_second_flight_and_fills_the_resp
         assert cells[0] == "150" and hop.index % 2 == 0  # the kick, 150 ms after this flight's liftoff
         before = rows.get(str(hop.index - 1))
         assert before is None or before[0] == "–"  # the odd hop in between: from liftoff
-        assert cells[1] == f"{hop.response_peak_deg:.1f}" and hop.response_peak_deg > 1.0
+        assert cells[1] == f"{hop.response_peak_deg:.1f}" and hop.response_peak_deg > 0.5  # unkicked: ~0.23
         assert cells[2] == f"{hop.overshoot_deg:.2f}"
         assert cells[3] == (f"{hop.settling_time_s:.2f}" if hop.settled else f">{hop.settling_time_s:.2f}")
         assert cells[4] == f"{hop.peak_wheel_torque_nm:.1f}" and cells[5] == f"{hop.peak_momentum_pct:.0f}"

@@ -173,7 +173,8 @@ def test_the_kick_lands_on_the_tick_delay_after_each_liftoff_and_the_metrics_fol
         assert hop.overshoot_deg == pytest.approx(math.degrees(np.max(-sign * p[crossing:])))
         assert hop.overshoot_deg > 1.0  # the low damping shows
         assert hop.settling_time_s == pytest.approx(times[window][np.abs(p) > math.radians(1.0)][-1] + DT - kick.time)
-        assert 95.0 < hop.peak_momentum_pct <= 100.0 and hop.peak_wheel_torque_nm == pytest.approx(29.5, abs=0.1)
+        # The kick (62 % of the capacity) and the under-damped swing fill most of the wheel.
+        assert 85.0 < hop.peak_momentum_pct <= 100.0 and hop.peak_wheel_torque_nm == pytest.approx(29.5, abs=0.1)
 
 
 def test_every_third_hop_is_kicked_and_clearing_stops_it() -> None:
