@@ -136,13 +136,15 @@ class Row:
     fraction: float
     t: float  # s since liftoff
     limit: float  # N m s, physical_limit
-    recovered: float  # N m s, the largest kick below which every kick landed within the limit
+    recovered: float  # N m s, the largest kick up to which every kick landed within the limit
+    stood: float  # N m s, the largest kick up to which no kick fell
     falls_below_limit: int  # kicks under the limit that ended in a fall
     worst_below_limit_deg: float  # worst landing of those under the limit
 
 
 def rows(outcomes: list[Outcome], moments: list[Moment], fractions: list[float], flight_s: float) -> list[Row]:
-    """The table: for each direction and moment, the boundary the simulation found and the limit."""
+    """The table: for each direction and moment, the physical limit and the boundaries flown: every
+    kick up to `recovered` landed within the limit, every kick up to `stood` did not fall."""
     out = []
     times = np.array([m.t for m in moments])
     for sign in (1.0, -1.0):
@@ -155,11 +157,13 @@ def rows(outcomes: list[Outcome], moments: list[Moment], fractions: list[float],
                  and o.case.disturbance.magnitude * sign > 0),
                 key=lambda o: abs(o.case.disturbance.magnitude),  # type: ignore[union-attr]
             )  # fmt: skip
-            recovered = 0.0
+            recovered, stood, landing = 0.0, 0.0, True
             for o in here:
-                if o.fell or o.worst_landing_deg > LANDING_LIMIT_DEG:
+                if o.fell:
                     break
-                recovered = abs(o.case.disturbance.magnitude)  # type: ignore[union-attr]
+                size = abs(o.case.disturbance.magnitude)  # type: ignore[union-attr]
+                landing = landing and o.worst_landing_deg <= LANDING_LIMIT_DEG
+                recovered, stood = (size if landing else recovered), size
             below = [o for o in here if abs(o.case.disturbance.magnitude) <= limit]  # type: ignore[union-attr]
             out.append(
                 Row(
@@ -168,6 +172,7 @@ def rows(outcomes: list[Outcome], moments: list[Moment], fractions: list[float],
                     moment.t,
                     limit,
                     recovered,
+                    stood,
                     sum(o.fell for o in below),
                     max((o.worst_landing_deg for o in below), default=0.0),
                 )
@@ -177,12 +182,14 @@ def rows(outcomes: list[Outcome], moments: list[Moment], fractions: list[float],
 
 def table(rows_: list[Row]) -> list[str]:
     """The envelope as text: one line per direction and moment."""
-    lines = [f"{'kick':<5} {'moment':>7} {'t':>6} {'limit':>8} {'recovered':>10} {'ratio':>6} {'falls<limit':>11}"]
+    lines = [
+        f"{'kick':<5} {'moment':>7} {'t':>6} {'limit':>8} {'landed':>8} {'ratio':>6} {'stood':>8} {'ratio':>6} "
+        f"{'falls<limit':>11}"
+    ]
     for r in rows_:
-        ratio = r.recovered / r.limit if r.limit > 0 else float("nan")
-        sign = "+" if r.sign > 0 else "-"
+        sign, limit = ("+" if r.sign > 0 else "-"), max(r.limit, 1e-9)
         lines.append(
-            f"{sign:<5} {r.fraction:>7.0%} {r.t:>5.2f}s {r.limit:>6.2f}Nms {r.recovered:>8.2f}Nms "
-            f"{ratio:>6.2f} {r.falls_below_limit:>11d}"
+            f"{sign:<5} {r.fraction:>7.0%} {r.t:>5.2f}s {r.limit:>5.2f}Nms {r.recovered:>5.2f}Nms "
+            f"{r.recovered / limit:>6.2f} {r.stood:>5.2f}Nms {r.stood / limit:>6.2f} {r.falls_below_limit:>11d}"
         )
     return lines

@@ -58,6 +58,7 @@ def test_kicks_under_the_limit_land_and_over_it_do_not(moments) -> None:  # noqa
     rows = envelope.rows([under, over], moments, [0.3], flight)
     plus = next(r for r in rows if r.sign > 0)
     assert plus.recovered == pytest.approx(0.5 * limit) and plus.falls_below_limit == 0
+    assert plus.stood == (plus.recovered if over.fell else pytest.approx(1.4 * limit))
 
 
 def test_hopper_sim_envelope_writes_its_table_figure_and_json(tmp_path: Path) -> None:
@@ -69,7 +70,10 @@ def test_hopper_sim_envelope_writes_its_table_figure_and_json(tmp_path: Path) ->
     )  # fmt: skip
     assert result.returncode in (0, 1), result.stderr
     lines = result.stdout.splitlines()
-    assert lines[1].split()[:4] == ["kick", "moment", "t", "limit"] and len([x for x in lines if "50%" in x]) == 2
+    assert (
+        lines[1].split()[:6] == ["kick", "moment", "t", "limit", "landed", "ratio"]
+        and len([x for x in lines if "50%" in x]) == 2
+    )
     data = json.loads((out / "envelope.json").read_text())
     assert len(data["cases"]) == 4 and len(data["rows"]) == 2
     assert (out / "envelope.png").stat().st_size > 10_000 and (out / "envelope.pdf").exists()

@@ -12,7 +12,7 @@ import math
 import numpy as np
 from numba import njit
 
-from hopper.config import HIP_OFFSET_Z
+from hopper.config import HIP_OFFSET_Z, WHEEL_NO_LOAD_SPEED
 from hopper.control.contact import debounce
 from hopper.control.legs import Leg, clamp, leg_angle, leg_state, swing_to_angle, swing_torques
 from hopper.control.phases import FALL_HIP_HEIGHT, FALL_PITCH, FallCause, Phase
@@ -35,6 +35,7 @@ PUSH_MIN_STROKE = 0.03  # m
 # the torso, its momentum above the wheel's capacity for most of the sweep (a minimum-jerk path
 # peaks briefly and gives a sharper, shorter excursion for the same peak deviation).
 SWEEP_RAMP = 0.25
+WHEEL_FULL = 0.9  # of the no-load speed: the wheel has next to no torque left that way
 # Event bits returned by the kernel.
 EV_LIFTOFF, EV_TOUCHDOWN, EV_FALL, EV_APEX = 1, 2, 4, 8
 RESPONSE_THRESHOLD = math.radians(0.25)  # rad: a smaller pitch starts no excursion (hopper.metrics)
@@ -85,7 +86,7 @@ def captured(m, vx: float, hip_x: float, left: Leg, right: Leg) -> bool:  # noqa
 
 
 @njit(cache=True)
-def share_attitude(m, pitch: float, rate: float) -> tuple[float, float, float]:  # noqa: ANN001
+def share_attitude(m, pitch: float, rate: float, wheel_speed: float) -> tuple[float, float, float]:  # noqa: ANN001
     """The legs' part in the flight attitude: (offset of their world angle, rad; of its rate, rad/s;
     how much shorter they reach for the landing, m).
 
@@ -95,14 +96,20 @@ def share_attitude(m, pitch: float, rate: float) -> tuple[float, float, float]: 
     momentum-free, while the wheel takes the momentum; a kick's momentum goes into torso and legs
     together instead of the light torso alone. Beyond share_max the legs go back to holding the
     landing pose. A torso already turning back holds its legs shorter: the touchdown waits
-    (a few tens of ms) for the error to close, instead of landing mid-correction.
+    (a few tens of ms) for the error to close, instead of landing mid-correction. A torso still
+    turning away with the wheel full reaches longer instead (a negative wait): the ground comes
+    sooner, and the stance takes the momentum the wheel cannot.
     """
     share = m.leg_share * pitch
-    if abs(share) >= m.share_max:
-        return clamp(share, m.share_max), 0.0, 0.0
     wait = 0.0
     if pitch * rate < 0.0:
         wait = min(m.wait_gain * max(abs(pitch) - m.wait_from, 0.0), m.wait_max)
+    elif abs(wheel_speed) > WHEEL_FULL * WHEEL_NO_LOAD_SPEED:
+        # The wheel is full and the torso still turns away: reach for the ground, which can take
+        # the momentum, rather than turn on to the fall limit in the air.
+        wait = -min(m.wait_gain * max(abs(pitch) - m.wait_from, 0.0), m.push - m.flight_length)
+    if abs(share) >= m.share_max:
+        return clamp(share, m.share_max), 0.0, min(wait, 0.0)
     # The swing servo already damps the hips' rate, i.e. holds the legs' world rate to the
     # torso's: a share of c adds (c - 1) times the torso's rate.
     return share, (m.leg_share - 1.0) * rate, wait
@@ -276,7 +283,7 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
         else:
             share, share_rate, wait = 0.0, 0.0, 0.0
             if phase == FLIGHT:
-                share, share_rate, wait = share_attitude(m, pitch, rate)
+                share, share_rate, wait = share_attitude(m, pitch, rate, wheel_speed)
             len_l, len_r = (m.tuck_length, m.tuck_length) if tucked else (m.land_l - wait, m.land_r - wait)
             hl, kl = swing_torques(left, len_l, mid + half, m.swing_scale, share, share_rate)
             hr, kr = swing_torques(right, len_r, mid - half, m.swing_scale, share, share_rate)
