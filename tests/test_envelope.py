@@ -11,8 +11,10 @@ from pathlib import Path
 import pytest
 
 from hopper import envelope
-from hopper.config import SimConfig
-from hopper.control.gait import momentum_capacity
+from hopper.config import LEG_TORQUE_LIMIT, WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT, SimConfig
+from hopper.control import Phase
+from hopper.control.gait import LEG_SHARE, momentum_capacity
+from hopper.sim import Simulation
 from hopper.stress import LANDING_LIMIT_DEG, run_case
 
 FLAT = SimConfig(terrain="flat")
@@ -85,3 +87,33 @@ def test_hopper_sim_envelope_refuses_bad_input_in_one_line(flags: list[str]) -> 
                             text=True, timeout=120)  # fmt: skip
     assert result.returncode == 2 and len(result.stderr.strip().splitlines()) <= 2, result.stderr
     assert "Traceback" not in result.stderr
+
+
+def _kicked_peak(share: float, kick: float, delay: float) -> float:
+    """Peak |pitch| (deg) of the second flight after `kick` N m s `delay` s into it, legs' share `share`."""
+    sim = Simulation(FLAT)
+    sim.controller.mem["leg_share"] = share
+    while len(sim.hops) < 1 or sim.phase is not Phase.FLIGHT:
+        sim.step()
+    start = sim.time
+    while sim.time - start < delay:
+        sim.step()
+    sim.disturb("pitch_kick", kick)
+    peak = 0.0
+    while sim.phase is Phase.FLIGHT:
+        sim.step()
+        peak = max(peak, abs(sim.state().pitch))
+    return math.degrees(peak)
+
+
+def test_the_legs_take_a_kick_down_to_near_the_floor_the_actuators_set(moments) -> None:  # noqa: ANN001
+    """A 0.7-capacity kick: its swing, against h^2 / (2 I_torso tau) with the wheel and both hips at
+    their torque limits (the least any controller can do), and against the wheel alone."""
+    kick, delay = 0.7 * momentum_capacity(), 0.3
+    moment = min(moments, key=lambda m: abs(m.t - delay))
+    stall = WHEEL_TORQUE_LIMIT * (1.0 - abs(moment.wheel_speed) / WHEEL_NO_LOAD_SPEED)
+    floor = math.degrees(kick**2 / (2.0 * moment.torso * (stall + 2.0 * LEG_TORQUE_LIMIT)))
+    shared = _kicked_peak(LEG_SHARE, kick, delay)
+    alone = _kicked_peak(0.0, kick, delay)
+    assert floor < shared < 1.15 * floor, (floor, shared)
+    assert alone > 2.5 * shared, (alone, shared)  # the wheel alone: about 13 deg
