@@ -7,7 +7,7 @@ from typing import NamedTuple
 
 from numba import njit
 
-from hopper.config import TOTAL_MASS
+from hopper.config import LEG_TORQUE_LIMIT, TOTAL_MASS
 from hopper.control.legs import L2, Leg, clamp, push_torques, swing_torques
 from hopper.control.phases import Phase
 from hopper.control.wheel import wheel_torque_bound
@@ -38,6 +38,15 @@ class Body(NamedTuple):
     momentum: float
     hip_x: float
     hip_z: float
+
+
+@njit(cache=True)
+def leg_capacity(leg: Leg, k: float) -> float:
+    """Largest vertical force (N) the foot can push with, the horizontal one k times it, before a
+    hip or knee motor reaches its limit (push_torques' tau = -J^T f)."""
+    hip = abs(leg.px - leg.pz * k)
+    knee = abs(leg.jx * k + leg.jz)
+    return LEG_TORQUE_LIMIT / max(hip, knee, 1e-6)
 
 
 @njit(cache=True)
@@ -120,8 +129,14 @@ def stance(m, phase: int, body: Body, left: Leg, right: Leg) -> tuple[float, flo
         # Each foot keeps well above the contact threshold too: a foot unloaded to near it in a
         # light crouch chattered on and off, each "off" swinging its leg as a free one.
         low = min(max(SUPPORT_MARGIN, CONTACT_LOAD * m.contact_on / fz), 0.5)
-        if not low <= s <= 1.0 - low:
-            s = min(max(s, low), 1.0 - low)
+        # Nor more on a foot than its leg's motors can push: a leg bent deep (its foot high on a
+        # crater wall) saturates its knee, and the force asked of it never reaches the ground.
+        top_l, top_r = leg_capacity(left, k) / fz, leg_capacity(right, k) / fz
+        lo, hi = max(low, 1.0 - top_r), min(1.0 - low, top_l)
+        if lo > hi:  # the legs together cannot carry fz: each carries its share of what they can
+            lo = hi = min(max(top_l / (top_l + top_r), low), 1.0 - low)
+        if not lo <= s <= hi:
+            s = min(max(s, lo), hi)
             if balance:  # keep the force the CoM needs, within `stray` of the moment wanted
                 want = min(max(c0 + s * c1, want - stray / fz), want + stray / fz)
             k = clamp((want + rbx + s * (rax - rbx)) / (rzb + s * (rza - rzb)), mu)
