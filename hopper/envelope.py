@@ -3,8 +3,9 @@
 A kick of angular impulse h (N m s) at `t` s into a flight with `T` s to go lands within
 LANDING_LIMIT_DEG only if two bounds allow it, both computed from the model at that moment:
 
-- Momentum. The wheel can take, in the time left, what its torque-speed envelope lets it
-  reach: (I_spin (w_max - s w0)) (1 - exp(-T / T_m)), T_m = I_spin w_max / tau_stall. What it
+- Momentum. The wheel can hold its capacity I_spin w_max less the robot's momentum H that way,
+  as far as its torque-speed envelope reaches in the time left: (I_spin w_max - s H)
+  (1 - exp(-T / T_m)), T_m = I_spin w_max / tau_stall. What it
   cannot take turns the torso and the legs for the rest of the flight: at touchdown the torso
   may be LANDING_LIMIT_DEG off and the legs LANDING_POSE_TOLERANCE off their landing pose, so
   the rest is at most (I_torso limit + I_legs tolerance) / T.
@@ -36,6 +37,7 @@ from hopper.control import Phase
 from hopper.control.gait import LANDING_POSE_TOLERANCE
 from hopper.loop import pitch_inertia
 from hopper.sim import Simulation
+from hopper.state import angular_momentum
 from hopper.stress import LANDING_LIMIT_DEG, Case, Outcome, Schedule
 
 KICKED_HOP = 2  # the kick comes in the second flight (the first starts from the standing pose)
@@ -49,6 +51,7 @@ class Moment:
     t: float  # s since liftoff
     to_go: float  # s until the touchdown
     wheel_speed: float  # rad/s, relative to the torso
+    momentum: float  # N m s, the whole robot's pitch angular momentum about its CoM
     locked: float  # kg m^2, the whole robot with the wheel locked
     torso: float  # kg m^2, the torso with the legs free (what an impulse turns)
 
@@ -65,16 +68,22 @@ def flight_moments(config: SimConfig, every_s: float = 0.01) -> list[Moment]:
     while sim.phase is Phase.FLIGHT:
         if tick % every == 0:
             inertia = pitch_inertia(sim.model, sim.data)
-            samples.append((sim.time - start, sim.state().wheel_speed, inertia.locked, inertia.torso))
+            momentum = angular_momentum(sim.model, sim.data, sim.layout)
+            samples.append((sim.time - start, sim.state().wheel_speed, momentum, inertia.locked, inertia.torso))
         sim.step()
         tick += 1
     end = sim.time
-    return [Moment(t, end - start - t, w, locked, torso) for t, w, locked, torso in samples]
+    return [Moment(t, end - start - t, *rest) for t, *rest in samples]
 
 
 def wheel_reach(moment: Moment, sign: float) -> float:
-    """Momentum (N m s) the wheel can take in direction `sign` before the touchdown."""
-    headroom = I_SPIN * (WHEEL_NO_LOAD_SPEED - sign * moment.wheel_speed)
+    """Momentum (N m s) of a kick in direction `sign` the wheel can hold by the touchdown.
+
+    Once torso and legs are still the wheel holds the whole robot's momentum, so its headroom is
+    its capacity less the robot's momentum that way (not less what it spins with now: early in a
+    flight the legs' tuck and the torso's own motion hold some of it).
+    """
+    headroom = I_SPIN * WHEEL_NO_LOAD_SPEED - sign * moment.momentum
     time_constant = I_SPIN * WHEEL_NO_LOAD_SPEED / WHEEL_TORQUE_LIMIT
     return max(headroom, 0.0) * (1.0 - math.exp(-moment.to_go / time_constant))
 
