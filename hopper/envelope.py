@@ -14,8 +14,8 @@ LANDING_LIMIT_DEG only if two bounds allow it, both computed from the model at t
   The torso swings out by h^2 / (2 I_torso tau) before it stops and needs as long again (at best)
   to come back; a touchdown before then lands at that error.
 
-`physical_limit` is the largest h both allow; `run_envelope` flies the grid; hopper.report's
-envelope figure draws it.
+`physical_limit` is the largest h both allow; `envelope_cases` makes the grid that
+`hopper-sim envelope` flies; hopper.report.envelope draws it.
 """
 
 from __future__ import annotations
@@ -25,23 +25,16 @@ import math
 
 import numpy as np
 
-from hopper.config import (
-    LEG_TORQUE_LIMIT,
-    WHEEL_ARMATURE,
-    WHEEL_INERTIA,
-    WHEEL_NO_LOAD_SPEED,
-    WHEEL_TORQUE_LIMIT,
-    SimConfig,
-)
+from hopper.config import LEG_TORQUE_LIMIT, WHEEL_TORQUE_LIMIT, SimConfig
 from hopper.control import Phase
-from hopper.control.gait import LANDING_POSE_TOLERANCE
+from hopper.control.gait import LANDING_POSE_TOLERANCE, momentum_capacity
+from hopper.control.wheel import wheel_torque_bound
 from hopper.loop import pitch_inertia
 from hopper.sim import Simulation
 from hopper.state import angular_momentum
 from hopper.stress import LANDING_LIMIT_DEG, Case, Outcome, Schedule
 
 KICKED_HOP = 2  # the kick comes in the second flight (the first starts from the standing pose)
-I_SPIN = WHEEL_INERTIA + WHEEL_ARMATURE  # kg m^2
 
 
 @dataclasses.dataclass(frozen=True)
@@ -83,8 +76,9 @@ def wheel_reach(moment: Moment, sign: float) -> float:
     its capacity less the robot's momentum that way (not less what it spins with now: early in a
     flight the legs' tuck and the torso's own motion hold some of it).
     """
-    headroom = I_SPIN * WHEEL_NO_LOAD_SPEED - sign * moment.momentum
-    time_constant = I_SPIN * WHEEL_NO_LOAD_SPEED / WHEEL_TORQUE_LIMIT
+    capacity = momentum_capacity()
+    headroom = capacity - sign * moment.momentum
+    time_constant = capacity / WHEEL_TORQUE_LIMIT
     return max(headroom, 0.0) * (1.0 - math.exp(-moment.to_go / time_constant))
 
 
@@ -99,8 +93,8 @@ def momentum_limit(moment: Moment, sign: float) -> float:
 
 def torque_allows(moment: Moment, sign: float, kick: float) -> bool:
     """Whether the actuators' torque can stop a kick of `kick` N m s and bring the torso back in time."""
-    stall = WHEEL_TORQUE_LIMIT * (1.0 - sign * moment.wheel_speed / WHEEL_NO_LOAD_SPEED)
-    torque = max(stall, 0.0) + 2.0 * LEG_TORQUE_LIMIT  # N m on the torso: wheel and both hips
+    wheel = abs(wheel_torque_bound(moment.wheel_speed, sign * WHEEL_TORQUE_LIMIT))  # its envelope that way
+    torque = wheel + 2.0 * LEG_TORQUE_LIMIT  # N m on the torso: wheel and both hips
     limit, i, t = math.radians(LANDING_LIMIT_DEG), moment.torso, moment.to_go
     stop = kick / torque  # s until the torso stops
     if t <= stop:  # the touchdown comes while it still swings out

@@ -101,13 +101,15 @@ def share_attitude(m, pitch: float, rate: float, wheel_speed: float) -> tuple[fl
     sooner, and the stance takes the momentum the wheel cannot.
     """
     share = m.leg_share * pitch
-    wait = 0.0
+    wait = m.wait_gain * max(abs(pitch) - m.wait_from, 0.0)  # m
     if pitch * rate < 0.0:
-        wait = min(m.wait_gain * max(abs(pitch) - m.wait_from, 0.0), m.wait_max)
+        wait = min(wait, m.wait_max)
     elif abs(wheel_speed) > WHEEL_FULL * WHEEL_NO_LOAD_SPEED:
         # The wheel is full and the torso still turns away: reach for the ground, which can take
         # the momentum, rather than turn on to the fall limit in the air.
-        wait = -min(m.wait_gain * max(abs(pitch) - m.wait_from, 0.0), m.push - m.flight_length)
+        wait = -min(wait, m.push - m.flight_length)
+    else:
+        wait = 0.0
     if abs(share) >= m.share_max:
         return clamp(share, m.share_max), 0.0, min(wait, 0.0)
     # The swing servo already damps the hips' rate, i.e. holds the legs' world rate to the

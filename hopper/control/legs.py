@@ -79,7 +79,7 @@ def swing_torques(
     `max_knee_torque` caps the length servo (N m).
     """
     angle = -math.asin(clamp(foot_x / length, 0.9)) + offset  # world angle, + = foot behind the hip
-    return swing_to_angle(leg, length, angle, scale, max_knee_torque, rate)
+    return swing_to_angle(leg, length, angle, scale, rate, max_knee_torque)
 
 
 @njit(cache=True)
@@ -94,8 +94,8 @@ def swing_to_angle(
     length: float,
     angle: float,
     scale: float = 1.0,
-    max_knee_torque: float = LEG_TORQUE_LIMIT,
     rate: float = 0.0,
+    max_knee_torque: float = LEG_TORQUE_LIMIT,
 ) -> tuple[float, float]:
     """PD of the virtual leg toward world `angle` (rad, + = foot behind the hip) and `length` (m);
     see swing_torques."""

@@ -43,10 +43,9 @@ class Body(NamedTuple):
 @njit(cache=True)
 def leg_capacity(leg: Leg, k: float) -> float:
     """Largest vertical force (N) the foot can push with, the horizontal one k times it, before a
-    hip or knee motor reaches its limit (push_torques' tau = -J^T f)."""
-    hip = abs(leg.px - leg.pz * k)
-    knee = abs(leg.jx * k + leg.jz)
-    return LEG_TORQUE_LIMIT / max(hip, knee, 1e-6)
+    hip or knee motor reaches its limit (push_torques' tau = -J^T f, here per newton)."""
+    hip, knee = push_torques(leg, k, 1.0)
+    return LEG_TORQUE_LIMIT / max(abs(hip), abs(knee), 1e-6)
 
 
 @njit(cache=True)
