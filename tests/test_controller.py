@@ -9,7 +9,7 @@ import pytest
 from hopper.config import WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT, Gains, InvalidConfig, SimConfig
 from hopper.control import HopController, control_tick
 from hopper.control.contact import debounce
-from hopper.control.legs import leg_state
+from hopper.control.legs import RIGID_KNEE, leg_state
 from hopper.control.memory import MEMORY
 from hopper.control.wheel import WHEEL_DAMPING, wheel_ctrl, wheel_pid
 from hopper.layout import ModelLayout
@@ -75,6 +75,24 @@ def test_leg_jacobian_matches_finite_differences() -> None:
     assert (by_hip.pz - leg.pz) / eps == pytest.approx(-leg.px, abs=1e-5)
     assert (by_knee.px - leg.px) / eps == pytest.approx(leg.jx, abs=1e-5)
     assert (by_knee.pz - leg.pz) / eps == pytest.approx(leg.jz, abs=1e-5)
+
+
+def test_the_knees_rigid_share_of_a_leg_turn_matches_mujocos_inertia() -> None:
+    # The hip and knee torques that turn a leg as one body (knee acceleration zero) with the torso
+    # free, from the model's joint-space inertia at the landing pose's knee bends.
+    model = build_model(SimConfig(terrain="flat"))
+    data = mujoco.MjData(model)
+    hip, knee = (model.jnt_dofadr[model.joint(name).id] for name in ("hip_L", "knee_L"))
+    for bend in (0.0, -0.3, -0.6):
+        data.qpos[model.jnt_qposadr[model.joint("knee_L").id]] = bend
+        data.qpos[model.jnt_qposadr[model.joint("hip_L").id]] = -bend / 2
+        mujoco.mj_forward(model, data)
+        inertia = np.zeros((model.nv, model.nv))
+        mujoco.mj_fullM(model, data, inertia)
+        inverse = np.linalg.inv(inertia)
+        ratio = -inverse[knee, hip] / inverse[knee, knee]
+        assert ratio == pytest.approx(RIGID_KNEE, abs=0.035)
+        assert abs(ratio - 0.5) > 0.15  # the bisection's half is not it
 
 
 def test_the_kernel_finds_its_sensors_by_name_in_any_order() -> None:

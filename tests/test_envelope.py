@@ -108,12 +108,14 @@ def _kicked_peak(share: float, kick: float, delay: float) -> float:
 
 def test_the_legs_take_a_kick_down_to_near_the_floor_the_actuators_set(moments) -> None:  # noqa: ANN001
     """A 0.7-capacity kick: its swing, against h^2 / (2 I_torso tau) with the wheel and both hips at
-    their torque limits (the least any controller can do), and against the wheel alone."""
+    their torque limits, and against the wheel alone. That estimate takes the torso alone; its
+    hips sit 0.18 m below its CoM, so a kicked torso drags the legs along and can swing a little
+    less (3.34 against 3.47 deg, with the hips braking at their limit and rigid legs)."""
     kick, delay = 0.7 * momentum_capacity(), 0.3
     moment = min(moments, key=lambda m: abs(m.t - delay))
     stall = WHEEL_TORQUE_LIMIT * (1.0 - abs(moment.wheel_speed) / WHEEL_NO_LOAD_SPEED)
     floor = math.degrees(kick**2 / (2.0 * moment.torso * (stall + 2.0 * LEG_TORQUE_LIMIT)))
     shared = _kicked_peak(LEG_SHARE, kick, delay)
     alone = _kicked_peak(0.0, kick, delay)
-    assert floor < shared < 1.15 * floor, (floor, shared)
+    assert 0.9 * floor < shared < 1.1 * floor, (floor, shared)
     assert alone > 2.5 * shared, (alone, shared)  # the wheel alone: about 13 deg

@@ -85,6 +85,16 @@ def captured(m, vx: float, hip_x: float, left: Leg, right: Leg) -> bool:  # noqa
     return back - CAPTURE_SLACK <= capture <= front + CAPTURE_SLACK
 
 
+# A torso turning faster than this has been kicked: the wheel alone (about 20 N m) would let it
+# turn a degree further before it stopped (sqrt(2 tau theta / I_torso), I_torso 0.116 kg m^2).
+KICK_RATE = 2.5  # rad/s
+# While a kicked torso still turns away, the legs' rate follows this times the share of its rate:
+# the hips stay at their limit and stop it sooner. On the 0.7-capacity map 1.5 to 2 land every
+# moment within 3.5 deg; 3 and more drive the legs to their stroke, and braking them there
+# turns the torso back out.
+KICK_BRAKE = 2.0
+
+
 @njit(cache=True)
 def share_attitude(m, pitch: float, rate: float, wheel_speed: float) -> tuple[float, float, float]:  # noqa: ANN001
     """The legs' part in the flight attitude: (offset of their world angle, rad; of its rate, rad/s;
@@ -114,7 +124,8 @@ def share_attitude(m, pitch: float, rate: float, wheel_speed: float) -> tuple[fl
         return clamp(share, m.share_max), 0.0, min(wait, 0.0)
     # The swing servo already damps the hips' rate, i.e. holds the legs' world rate to the
     # torso's: a share of c adds (c - 1) times the torso's rate.
-    return share, (m.leg_share - 1.0) * rate, wait
+    gain = m.leg_share * (KICK_BRAKE if pitch * rate > 0.0 and abs(rate) > KICK_RATE else 1.0)
+    return share, (gain - 1.0) * rate, wait
 
 
 @njit(cache=True)
@@ -287,8 +298,9 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
             if phase == FLIGHT:
                 share, share_rate, wait = share_attitude(m, pitch, rate, wheel_speed)
             len_l, len_r = (m.tuck_length, m.tuck_length) if tucked else (m.land_l - wait, m.land_r - wait)
-            hl, kl = swing_torques(left, len_l, mid + half, m.swing_scale, share, share_rate)
-            hr, kr = swing_torques(right, len_r, mid - half, m.swing_scale, share, share_rate)
+            kicked = abs(rate) > KICK_RATE
+            hl, kl = swing_torques(left, len_l, mid + half, m.swing_scale, share, share_rate, rigid=kicked)
+            hr, kr = swing_torques(right, len_r, mid - half, m.swing_scale, share, share_rate, rigid=kicked)
         if phase == FLIGHT:
             wheel = wheel_pid(m, pitch, rate, wheel_speed)
     elif m.push_done:

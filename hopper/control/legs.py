@@ -13,6 +13,10 @@ L1, L2 = THIGH_LENGTH, SHANK_LENGTH
 # Flight: the legs swing as a virtual leg (length, angle) with PD gains about the hip.
 SWING_K, SWING_D = 15.0, 2.5  # N m/rad, N m s/rad  (wn ~ 10 rad/s for ~0.15 kg m^2)
 KNEE_K, KNEE_D = 20.0, 1.5  # N m/rad, N m s/rad (wn ~ 10 rad/s for the shank about the knee)
+# The knee's part of the hip torque that turns a leg as one rigid body: 0.30-0.33 from MuJoCo's
+# joint-space inertia of the model at the landing pose (tests/test_controller.py). The
+# bisection's half overdrives the shank in a hard turn, and the foot swings down to the ground.
+RIGID_KNEE = 0.3
 
 
 class Leg(NamedTuple):
@@ -66,6 +70,7 @@ def swing_torques(
     offset: float = 0.0,
     rate: float = 0.0,
     max_knee_torque: float = LEG_TORQUE_LIMIT,
+    rigid: bool = False,
 ) -> tuple[float, float]:
     """PD toward a foot `foot_x` ahead of the hip, `length` from it (a swing, not a support).
 
@@ -76,10 +81,11 @@ def swing_torques(
     legs do not fight the torso's rotation. `scale` (>= 1) multiplies the natural frequency for
     short flights; `offset` (rad) shifts the world angle and `rate` (rad/s) the world rate the
     damping holds, relative to the torso's (hopper.control.kernel.share_attitude);
-    `max_knee_torque` caps the length servo (N m).
+    `max_knee_torque` caps the length servo (N m). `rigid`: the knee takes RIGID_KNEE, not half,
+    of the hip's torque, so a hard turn moves each leg as one body and its foot keeps its height.
     """
     angle = -math.asin(clamp(foot_x / length, 0.9)) + offset  # world angle, + = foot behind the hip
-    return swing_to_angle(leg, length, angle, scale, rate, max_knee_torque)
+    return swing_to_angle(leg, length, angle, scale, rate, max_knee_torque, rigid)
 
 
 @njit(cache=True)
@@ -96,6 +102,7 @@ def swing_to_angle(
     scale: float = 1.0,
     rate: float = 0.0,
     max_knee_torque: float = LEG_TORQUE_LIMIT,
+    rigid: bool = False,
 ) -> tuple[float, float]:
     """PD of the virtual leg toward world `angle` (rad, + = foot behind the hip) and `length` (m);
     see swing_torques."""
@@ -103,4 +110,6 @@ def swing_to_angle(
     torque = k * SWING_K * (angle - leg_angle(leg)) - d * SWING_D * (leg.hip_rate + leg.knee_rate / 2 - rate)
     knee_target = -2.0 * math.acos(min(length / (L1 + L2), 0.999))
     bend = clamp(k * KNEE_K * (knee_target - leg.knee) - d * KNEE_D * leg.knee_rate, max_knee_torque)
-    return clamp(torque, LEG_TORQUE_LIMIT), clamp(torque / 2 + bend, LEG_TORQUE_LIMIT)
+    hip = clamp(torque, LEG_TORQUE_LIMIT)
+    follow = RIGID_KNEE * hip if rigid else torque / 2  # the knee's part of the turn
+    return hip, clamp(follow + bend, LEG_TORQUE_LIMIT)
