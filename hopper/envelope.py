@@ -3,9 +3,11 @@
 A kick of angular impulse h (N m s) at `t` s into a flight with `T` s to go lands within
 LANDING_LIMIT_DEG only if two bounds allow it, both computed from the model at that moment:
 
-- Momentum. The wheel can hold its capacity I_spin w_max less the robot's momentum H that way,
-  as far as its torque-speed envelope reaches in the time left: (I_spin w_max - s H)
-  (1 - exp(-T / T_m)), T_m = I_spin w_max / tau_stall. What it
+- Momentum. The wheel can take from the torso I_w w_max less the robot's momentum H that way,
+  as far as its torque-speed envelope reaches in the time left: (I_w w_max - s H)
+  (1 - exp(-T / T_m)), T_m = I_spin w_max / tau_stall. I_w is the wheel's own spin inertia:
+  MuJoCo's mass matrix couples pitch and wheel by it alone, since the armature (the rotor's
+  reflected inertia, in I_spin) is the wheel joint's own and only slows the spin-up. What it
   cannot take turns the torso and the legs for the rest of the flight: at touchdown the torso
   may be LANDING_LIMIT_DEG off and the legs LANDING_POSE_TOLERANCE off their landing pose, so
   the rest is at most (I_torso limit + I_legs tolerance) / T.
@@ -25,7 +27,7 @@ import math
 
 import numpy as np
 
-from hopper.config import LEG_TORQUE_LIMIT, WHEEL_TORQUE_LIMIT, SimConfig
+from hopper.config import LEG_TORQUE_LIMIT, WHEEL_INERTIA, WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT, SimConfig
 from hopper.control import Phase
 from hopper.control.gait import LANDING_POSE_TOLERANCE, momentum_capacity
 from hopper.control.wheel import wheel_torque_bound
@@ -70,15 +72,16 @@ def flight_moments(config: SimConfig, every_s: float = 0.01) -> list[Moment]:
 
 
 def wheel_reach(moment: Moment, sign: float) -> float:
-    """Momentum (N m s) of a kick in direction `sign` the wheel can hold by the touchdown.
+    """Momentum (N m s) of a kick in direction `sign` the wheel can take from the torso by the touchdown.
 
-    Once torso and legs are still the wheel holds the whole robot's momentum, so its headroom is
-    its capacity less the robot's momentum that way (not less what it spins with now: early in a
-    flight the legs' tuck and the torso's own motion hold some of it).
+    At its speed limit the wheel holds I_w w_max (1.41 N m s; momentum_capacity()'s 1.60 counts
+    the armature, which holds none of the robot's momentum). Once torso and legs are still the
+    wheel holds the whole robot's momentum, so its headroom is that less the robot's momentum
+    that way (not less what it spins with now: early in a flight the legs' tuck and the torso's
+    own motion hold some of it).
     """
-    capacity = momentum_capacity()
-    headroom = capacity - sign * moment.momentum
-    time_constant = capacity / WHEEL_TORQUE_LIMIT
+    headroom = WHEEL_INERTIA * WHEEL_NO_LOAD_SPEED - sign * moment.momentum
+    time_constant = momentum_capacity() / WHEEL_TORQUE_LIMIT  # the armature slows the spin-up
     return max(headroom, 0.0) * (1.0 - math.exp(-moment.to_go / time_constant))
 
 

@@ -8,12 +8,22 @@ import subprocess
 import sys
 from pathlib import Path
 
+import mujoco
+import numpy as np
 import pytest
 
 from hopper import envelope
-from hopper.config import LEG_TORQUE_LIMIT, WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT, SimConfig
+from hopper.config import (
+    LEG_TORQUE_LIMIT,
+    WHEEL_ARMATURE,
+    WHEEL_INERTIA,
+    WHEEL_NO_LOAD_SPEED,
+    WHEEL_TORQUE_LIMIT,
+    SimConfig,
+)
 from hopper.control import Phase
 from hopper.control.gait import LEG_SHARE, momentum_capacity
+from hopper.model import build_model
 from hopper.sim import Simulation
 from hopper.stress import LANDING_LIMIT_DEG, run_case
 
@@ -30,6 +40,22 @@ def test_the_flight_is_sampled_from_liftoff_to_touchdown(moments: list[envelope.
     assert 0.8 < flight < 1.2  # a lunar hop of 0.25 m: about 1 s
     assert all(math.isclose(m.t + m.to_go, flight, abs_tol=1e-9) for m in moments)
     assert all(0.4 < m.locked < 0.6 and 0.1 < m.torso < 0.13 for m in moments)  # kg m^2, PHYSICS.md
+
+
+def test_the_wheel_takes_the_torsos_momentum_through_its_own_inertia_not_the_armature() -> None:
+    # MuJoCo couples pitch and wheel by the wheel body's spin inertia alone; the armature is the
+    # wheel joint's own. So a kick saturates the wheel at I_w w_max (1.41 N m s), not 1.60.
+    model = build_model(FLAT)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    inertia = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, inertia)
+    pitch, wheel = (model.jnt_dofadr[model.joint(name).id] for name in ("pitch", "wheel"))
+    assert inertia[pitch, wheel] == pytest.approx(WHEEL_INERTIA)
+    assert inertia[wheel, wheel] == pytest.approx(WHEEL_INERTIA + WHEEL_ARMATURE)
+    still = envelope.Moment(t=0.0, to_go=10.0, wheel_speed=0.0, momentum=0.0, locked=0.5, torso=0.12)
+    assert envelope.wheel_reach(still, 1.0) == pytest.approx(WHEEL_INERTIA * WHEEL_NO_LOAD_SPEED, rel=1e-6)
+    assert envelope.wheel_reach(still, 1.0) < 0.9 * momentum_capacity()
 
 
 def test_the_limit_is_the_wheels_headroom_early_and_grows_as_the_touchdown_nears(moments) -> None:  # noqa: ANN001
