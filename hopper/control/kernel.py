@@ -96,7 +96,7 @@ KICK_BRAKE = 2.0
 
 
 @njit(cache=True)
-def share_attitude(m, pitch: float, rate: float, wheel_speed: float) -> tuple[float, float, float]:  # noqa: ANN001
+def share_attitude(m, pitch: float, rate: float, wheel_speed: float, kicked: bool) -> tuple[float, float, float]:  # noqa: ANN001
     """The legs' part in the flight attitude: (offset of their world angle, rad; of its rate, rad/s;
     how much shorter they reach for the landing, m).
 
@@ -108,7 +108,8 @@ def share_attitude(m, pitch: float, rate: float, wheel_speed: float) -> tuple[fl
     landing pose. A torso already turning back holds its legs shorter: the touchdown waits
     (a few tens of ms) for the error to close, instead of landing mid-correction. A torso still
     turning away with the wheel full reaches longer instead (a negative wait): the ground comes
-    sooner, and the stance takes the momentum the wheel cannot.
+    sooner, and the stance takes the momentum the wheel cannot. A `kicked` torso (turning faster
+    than KICK_RATE) still turning away is braked harder (KICK_BRAKE).
     """
     share = m.leg_share * pitch
     wait = m.wait_gain * max(abs(pitch) - m.wait_from, 0.0)  # m
@@ -124,7 +125,7 @@ def share_attitude(m, pitch: float, rate: float, wheel_speed: float) -> tuple[fl
         return clamp(share, m.share_max), 0.0, min(wait, 0.0)
     # The swing servo already damps the hips' rate, i.e. holds the legs' world rate to the
     # torso's: a share of c adds (c - 1) times the torso's rate.
-    gain = m.leg_share * (KICK_BRAKE if pitch * rate > 0.0 and abs(rate) > KICK_RATE else 1.0)
+    gain = m.leg_share * (KICK_BRAKE if kicked and pitch * rate > 0.0 else 1.0)
     return share, (gain - 1.0) * rate, wait
 
 
@@ -294,11 +295,11 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
                 hl, kl = swing_to_angle(left, m.land_l, held_l + (land_l - held_l) * s, scale)
                 hr, kr = swing_to_angle(right, m.land_r, held_r + (land_r - held_r) * s, scale)
         else:
+            kicked = abs(rate) > KICK_RATE
             share, share_rate, wait = 0.0, 0.0, 0.0
             if phase == FLIGHT:
-                share, share_rate, wait = share_attitude(m, pitch, rate, wheel_speed)
+                share, share_rate, wait = share_attitude(m, pitch, rate, wheel_speed, kicked)
             len_l, len_r = (m.tuck_length, m.tuck_length) if tucked else (m.land_l - wait, m.land_r - wait)
-            kicked = abs(rate) > KICK_RATE
             hl, kl = swing_torques(left, len_l, mid + half, m.swing_scale, share, share_rate, rigid=kicked)
             hr, kr = swing_torques(right, len_r, mid - half, m.swing_scale, share, share_rate, rigid=kicked)
         if phase == FLIGHT:
