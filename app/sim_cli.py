@@ -12,20 +12,22 @@ import os
 import signal
 import statistics
 import sys
-import threading
 import time
 import typing
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, NoReturn, TypeVar
+from typing import TYPE_CHECKING, Any, NoReturn, TypeVar
 
 import numpy as np
 from hopper.app import report_cli
-from hopper.app.signals import raise_if_stop_requested, stop_like_ctrl_c
 
 from hopper.config import GRAVITY_PRESETS, Gains, GaitParams, InvalidConfig, SimConfig
+from hopper.interrupts import held, raise_if_stop_requested, stop_like_ctrl_c, stop_requested, wait_for_stop
 from hopper.scenarios import SCENARIOS, scenario
 from hopper.schedule import KickSchedule, parse
+
+if TYPE_CHECKING:
+    from hopper.sim import Simulation
 
 T = TypeVar("T")
 
@@ -52,10 +54,11 @@ RESPONSE_COLUMNS = {
 }
 
 
-EXIT_OK, EXIT_FELL, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+EXIT_OK, EXIT_FELL, EXIT_USAGE, EXIT_SHORT, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 EXIT_STATUSES = (
     "exit status: 0 success, 1 the robot fell (run) or a case failed (stress), 2 bad arguments, "
-    "130 interrupted (Ctrl-C or SIGTERM). compare exits 0 once it has finished: with the wheel off the "
+    "3 the run stopped short of the hops asked without a fall (run; it says why), 130 interrupted "
+    "(Ctrl-C or SIGTERM). compare exits 0 once it has finished: with the wheel off the "
     "robot is expected to fall."
 )
 
@@ -331,51 +334,71 @@ def simulate(
     if recorder is not None:
         sim.listeners.append(recorder)
     telemetry, url = None, None
-    if rrd is not None or viewer != "off":
-        from hopper.app.rerun_viewer import ViewerError, open_viewer
-
-        from hopper.telemetry import Telemetry
-
+    # Held for the whole run: a stop signal ends it between two bursts of ticks (sim.run's stop)
+    # and is raised once the recording is closed, so no moment of it can leave a file unfinished.
+    with held():
         try:
-            live = open_viewer(viewer)
-        except ViewerError as exc:
-            fail(str(exc))
-        telemetry = Telemetry(  # attaches itself to sim
-            sim, path=rrd, sinks=live.sinks, on_close=live.close, on_stop=_recording_stopped, **(rrd_options or {})
-        )
-        url = live.url
-        if url:
-            print(f"rerun web viewer: {url}", file=sys.stderr)
-    start = time.perf_counter()
-    try:
-        raise_if_stop_requested()  # a signal while the recording started may have been swallowed
-        if kicks is not None:
-            sim.set_schedule(kicks)  # after the recorder attached: the recording has the event
-        sim.run(hops)
-        raise_if_stop_requested()
-        result = {
-            "settings": {**settings(config, hops), "schedule": kicks.spec() if kicks else None},
-            "seed": config.seed,
-            "wheel": config.wheel,
-            "fell": sim.fallen,
-            "sim_time_s": sim.time,
-            "wall_time_s": time.perf_counter() - start,
-            "hops": [hop.as_dict() for hop in sim.hops],
-        }
-        if recorder is not None:
-            result["trace"] = recorder.as_dict()
-        if telemetry is not None and rrd_options and any(v is not None for v in rrd_options.values()):
-            result["rrd_parts"] = [str(p) for p in telemetry.parts]  # only with rollover: the numbered files
-        if report is not None:
-            report(result)
-        if telemetry is not None and url:  # the server lives in this process
-            telemetry.flush()
-            print("serving the recording until Ctrl-C", file=sys.stderr)
-            threading.Event().wait()
-    finally:  # Ctrl-C or SIGTERM still leave a valid recording
-        if telemetry is not None:
-            telemetry.close()
+            if rrd is not None or viewer != "off":
+                from hopper.app.rerun_viewer import ViewerError, open_viewer
+
+                from hopper.telemetry import Telemetry
+
+                try:
+                    live = open_viewer(viewer)
+                except ViewerError as exc:
+                    fail(str(exc))
+                telemetry = Telemetry(  # attaches itself to sim
+                    sim,
+                    path=rrd,
+                    sinks=live.sinks,
+                    on_close=live.close,
+                    on_stop=_recording_stopped,
+                    **(rrd_options or {}),
+                )
+                url = live.url
+                if url:
+                    print(f"rerun web viewer: {url}", file=sys.stderr)
+            start = time.perf_counter()
+            if kicks is not None:
+                sim.set_schedule(kicks)  # after the recorder attached: the recording has the event
+            sim.run(hops, stop=stop_requested)
+            raise_if_stop_requested()
+            result = {
+                "settings": {**settings(config, hops), "schedule": kicks.spec() if kicks else None},
+                "seed": config.seed,
+                "wheel": config.wheel,
+                "fell": sim.fallen,
+                "sim_time_s": sim.time,
+                "wall_time_s": time.perf_counter() - start,
+                "hops": [hop.as_dict() for hop in sim.hops],
+                "short": shortfall(sim, hops),
+            }
+            if recorder is not None:
+                result["trace"] = recorder.as_dict()
+            if telemetry is not None and rrd_options and any(v is not None for v in rrd_options.values()):
+                result["rrd_parts"] = [str(p) for p in telemetry.parts]  # only with rollover: the numbered files
+            if report is not None:
+                report(result)
+            if telemetry is not None and url:  # the server lives in this process
+                telemetry.flush()
+                print("serving the recording until Ctrl-C", file=sys.stderr)
+                wait_for_stop()
+        finally:  # Ctrl-C or SIGTERM still leave a valid recording
+            if telemetry is not None:
+                telemetry.close()
     return result
+
+
+def shortfall(sim: Simulation, hops: int) -> str | None:
+    """Why a run that neither fell nor did its `hops` hops stopped, in one line; None if it did."""
+    done = sum(h.completed for h in sim.hops)
+    if sim.fallen or done >= hops:
+        return None
+    x, end = sim.state().x, sim.config.craters.x0 + sim.config.craters.length
+    where = f"the torso at x = {x:.2f} m"
+    if sim.config.terrain == "crater" and x > end:
+        where += f", past the end of the crater strip at x = {end:.2f} m"
+    return f"{done} of {hops} hops done when the run's limit of {sim.time:.0f} s simulated ran out ({where})"
 
 
 def _recording_stopped(message: str) -> None:
@@ -465,6 +488,9 @@ def command_run(args: argparse.Namespace) -> int:
     }
     config = make_config(args, args.seed, wheel=not args.no_wheel)
     result = simulate(config, args.hops, args.rrd, args.rerun_viewer, report, rrd_options=options, kicks=args.schedule)
+    if result["short"] is not None:
+        print(f"hopper-sim: error: {result['short']}", file=sys.stderr)
+        return EXIT_SHORT
     return EXIT_FELL if result["fell"] else EXIT_OK
 
 

@@ -10,6 +10,7 @@ import collections
 import dataclasses
 import logging
 import math
+from collections.abc import Callable
 from typing import Literal, Protocol
 
 import mujoco
@@ -58,6 +59,7 @@ DISTURBANCE_LIMITS: dict[str, tuple[float, str]] = {  # largest magnitude, unit
 TORQUE_PULSE_S = 0.1  # s
 TORQUE_PULSE_DELAY_S = 0.15  # s after liftoff, when armed on the ground
 HEALTH_CHECK_TICKS = 50  # ticks between checks for a diverged state
+STOP_POLL_TICKS = 100  # ticks between two asks of run()'s stop(): a Ctrl-C ends a run within 0.1 s simulated
 
 
 class Listener(Protocol):
@@ -145,18 +147,28 @@ class Simulation:
             listener.tick(self)
         return events
 
-    def run(self, hops: int, max_time: float | None = None) -> list[HopMetrics]:
-        """Step until `hops` hops are done, the robot falls, or `max_time` (s) of simulation."""
+    def time_limit(self, hops: int) -> float:
+        """Simulated seconds a run of `hops` hops may take (twice the slowest hop the gait allows, and 5 s)."""
+        return 5.0 + 2.0 * hops * self.controller.gait.hop_time_bound(self.config.gravity)
+
+    def run(self, hops: int, max_time: float | None = None, stop: Callable[[], bool] | None = None) -> list[HopMetrics]:
+        """Step until `hops` hops are done, the robot falls, `max_time` (s) of simulation (by default
+        time_limit(hops)) or `stop()` is true (asked every STOP_POLL_TICKS ticks)."""
         if max_time is None:
-            max_time = 5.0 + 2.0 * hops * self.controller.gait.hop_time_bound(self.config.gravity)
-        limit = self.time + max_time
-        ticks_left = round((limit - self.time) / self._dt)
+            max_time = self.time_limit(hops)
+        ticks_left = round((self.time + max_time - self.time) / self._dt)  # as the runs before this measured
         step, done = self.step, EV_TOUCHDOWN | EV_FALL
+        poll = STOP_POLL_TICKS if stop is not None else ticks_left
         while len(self.hops) < hops and not self.fallen and ticks_left > 0:
-            while ticks_left > 0:  # the stop conditions only change on a touchdown or a fall
-                ticks_left -= 1
+            if stop is not None and stop():
+                break
+            burst = min(ticks_left, poll)
+            ticks_left -= burst
+            while burst > 0:  # the stop conditions only change on a touchdown or a fall
+                burst -= 1
                 if step() & done:
                     break
+            ticks_left += burst  # what a touchdown left of the burst
         return self.hops
 
     def submit(self, command: Command) -> None:

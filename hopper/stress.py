@@ -67,7 +67,7 @@ def run_case(case: Case) -> Outcome:
     sim = Simulation(case.config)
     d, applied = case.disturbance, False
     mem = sim.controller.mem
-    limit = sim.time + 5.0 + 2.0 * case.hops * sim.controller.gait.hop_time_bound(case.config.gravity)
+    limit = sim.time + sim.time_limit(case.hops)
     while len(sim.hops) < case.hops and not sim.fallen and sim.time < limit:
         due = d is not None and not applied and len(sim.hops) == d.hop - 1 and sim.phase is d.phase
         if due and sim.time - float(mem["phase_start"][0]) >= d.delay_s - 1e-9:

@@ -141,7 +141,10 @@ def test_help_documents_the_exit_statuses() -> None:
         result = hopper_sim(*command, "--help")
         assert result.returncode == 0, result.stderr
         text = " ".join(result.stdout.split())
-        expected = "exit status: 0 success, 1 the robot fell (run) or a case failed (stress), 2 bad arguments, 130"
+        expected = (
+            "exit status: 0 success, 1 the robot fell (run) or a case failed (stress), 2 bad arguments, "
+            "3 the run stopped short of the hops asked without a fall (run; it says why), 130"
+        )
         assert expected in text, text
 
 
@@ -168,7 +171,7 @@ def size(path: Path) -> int:
 def test_a_stop_signal_whose_exception_was_swallowed_is_raised_again() -> None:
     script = (
         "import signal\n"
-        "from hopper.app.signals import raise_if_stop_requested, stop_like_ctrl_c\n"
+        "from hopper.interrupts import raise_if_stop_requested, stop_like_ctrl_c\n"
         "stop_like_ctrl_c()\n"
         "raise_if_stop_requested()  # nothing asked yet: returns\n"
         "try:\n"
@@ -184,8 +187,13 @@ def test_a_stop_signal_whose_exception_was_swallowed_is_raised_again() -> None:
     assert result.returncode == 0 and result.stdout == "raised again\n", result
 
 
-@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
-def test_a_signal_mid_run_exits_130_with_a_finalized_recording(tmp_path: Path, signum: int) -> None:
+@pytest.mark.parametrize(
+    ("signum", "after"),
+    [(signal.SIGTERM, 0.0), (signal.SIGTERM, 0.3), (signal.SIGTERM, 1.5), (signal.SIGINT, 0.0), (signal.SIGINT, 0.8)],
+    ids=["SIGTERM-first-byte", "SIGTERM-0.3s", "SIGTERM-1.5s", "SIGINT-first-byte", "SIGINT-0.8s"],
+)
+def test_a_signal_mid_run_exits_130_with_a_finalized_recording(tmp_path: Path, signum: int, after: float) -> None:
+    """Whatever the moment (here: `after` s past the file's first byte), the file verifies."""
     pytest.importorskip("hopper.telemetry")
     rrd = tmp_path / "run.rrd"
     process = subprocess.Popen(
@@ -195,17 +203,33 @@ def test_a_signal_mid_run_exits_130_with_a_finalized_recording(tmp_path: Path, s
         text=True,
     )
     try:
-        deadline = time.monotonic() + 60
+        deadline = time.monotonic() + 120
         while size(rrd) == 0 and time.monotonic() < deadline:  # the recording has begun
-            time.sleep(0.02)
+            time.sleep(0.01)
+        assert size(rrd) > 0, "the recording never began"
+        time.sleep(after)  # the moment of the signal: any moment must leave a valid file
         process.send_signal(signum)
-        out, err = process.communicate(timeout=60)
+        out, err = process.communicate(timeout=120)
     finally:
         if process.poll() is None:
             process.kill()
     assert process.returncode == 130, (process.returncode, out, err)
     assert err.strip().splitlines()[-1] == "hopper-sim: interrupted" and "Traceback" not in err
     verify(rrd)
+
+
+def test_a_run_that_stops_short_says_why_and_exits_3(monkeypatch, capsys, tmp_path: Path) -> None:
+    from hopper.app import sim_cli
+
+    from hopper.sim import Simulation
+
+    monkeypatch.setattr(Simulation, "time_limit", lambda self, hops: 1.0)  # 1 s simulated: not one hop
+    out = tmp_path / "run.json"
+    status = sim_cli.main(["run", "--hops", "3", "--terrain", "flat", "--json", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 3, err
+    assert err[-1].startswith("hopper-sim: error: 0 of 3 hops done when the run's limit of 1 s simulated ran out"), err
+    assert json.loads(out.read_text())["short"].startswith("0 of 3 hops"), "the JSON says it too"
 
 
 def test_ctrl_c_during_compare_exits_130_without_worker_tracebacks() -> None:

@@ -11,9 +11,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
 
 from hopper.app.dashboard.config import DashboardConfig, check_sessions_dir
-from hopper.app.signals import raise_if_stop_requested, stop_like_ctrl_c
 
 from hopper.config import GAIN_RANGES
+from hopper.interrupts import raise_if_stop_requested, stop_like_ctrl_c
 
 if TYPE_CHECKING:
     from hopper.app.dashboard.server import Dashboard
@@ -165,7 +165,7 @@ def open_dashboard(config: DashboardConfig) -> Dashboard:
 def serve(dashboard: Dashboard) -> None:
     """Run until Ctrl-C or SIGTERM (both raise KeyboardInterrupt), then stop: recording closed, port freed."""
     try:
-        raise_if_stop_requested()  # a signal during start-up may have been swallowed (app/signals.py)
+        raise_if_stop_requested()  # a signal during start-up may have been swallowed (hopper/interrupts.py)
         dashboard.start()
         # The token's one appearance: this line on stdout, for whoever started the server.
         print(f"{PROG}: serving {dashboard.page_url}  (Ctrl-C to stop)", flush=True)

@@ -80,7 +80,7 @@ class Worker:
         start = time.perf_counter()
         sim = self._prepare(episode.config())
         hops, schedule = episode.hops_target, episode.disturbance
-        max_time = 5.0 + 2.0 * hops * sim.controller.gait.hop_time_bound(sim.config.gravity)
+        max_time = sim.time_limit(hops)
         applied = schedule is None or _disturb_when_due(sim, schedule, hops, max_time)
         if not sim.fallen and len(sim.hops) < hops:
             sim.run(hops, max_time=max_time - sim.time)

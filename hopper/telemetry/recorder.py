@@ -24,6 +24,7 @@ import rerun_bindings as bindings
 from hopper.config import WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT
 from hopper.control import Phase
 from hopper.events import EventKind
+from hopper.interrupts import held
 from hopper.layout import LEG_JOINTS
 from hopper.meshes import body_meshes
 from hopper.metrics import RAD_S_TO_RPM
@@ -42,7 +43,6 @@ from hopper.telemetry.columns import (
     vectors,
 )
 from hopper.telemetry.files import check_writable, part_path
-from hopper.telemetry.interrupts import deferred_signals
 from hopper.telemetry.scene import log_robot, log_terrain
 from hopper.telemetry.schema import APPLICATION_ID, SIGNALS, SIGNALS_F32, hop_values
 from hopper.telemetry.writer import FOOTER_BYTES_PER_CHUNK, MIN_RESERVE, PipedFile, Reserve, reserve_path
@@ -149,15 +149,16 @@ class Telemetry:
         self._on_part, self._on_stop = on_part, on_stop
         self._file: PipedFile | None = None
         self._reserve: Reserve | None = None
+        self.rec: rr.RecordingStream | None = None
+        self._ready = False  # every part of _setup done: close() can finish the file
         try:
-            self._limits(path, sinks, max_bytes, max_seconds, flush_s)
-            self._setup(sim, path, sinks, recording_name, batch_ticks)
+            # Held: a stop signal during set-up is raised once the file is open and whole, and
+            # then closes it below, since the caller never gets the object to close.
+            with held():
+                self._limits(path, sinks, max_bytes, max_seconds, flush_s)
+                self._setup(sim, path, sinks, recording_name, batch_ticks)
         except BaseException:
-            if self._file is not None:
-                self._file.join(timeout=1.0)
-            if self._reserve is not None:
-                self._reserve.discard()
-            self._closed_callback()
+            self._abandon()
             raise
 
     # -- setup -----------------------------------------------------------------------------
@@ -257,6 +258,7 @@ class Telemetry:
         self._open_part()
         sim.listeners.append(self)
         _open.add(self)
+        self._ready = True
 
     def _open_part(self) -> None:
         """Attach the next file (replacing the previous one, which gets its footer) and send what
@@ -437,7 +439,7 @@ class Telemetry:
         self._flush(wait)
 
     def _flush(self, wait: bool, check_clock: bool = True) -> None:
-        with self._lock, deferred_signals():
+        with held(), self._lock:
             if self._closed:
                 return
             self._send(check_clock)
@@ -593,7 +595,7 @@ class Telemetry:
     # -- closing ---------------------------------------------------------------------------
     def close(self) -> None:
         """Send what is buffered, finalise the file (its footer), then run `on_close`; idempotent."""
-        with self._lock, deferred_signals():
+        with held(), self._lock:
             if self._closed:
                 return
             with contextlib.suppress(ValueError):
@@ -620,6 +622,22 @@ class Telemetry:
             self._reserve.discard()
         if self._file is not None and self._file.error is not None and self.failure is None:
             self.failure = self._file.error
+
+    def _abandon(self) -> None:
+        """Construction failed or was interrupted: finish whatever part of the file was opened."""
+        with held():
+            if self._ready:  # set up: the usual close, footer and all
+                self.close()
+                return
+            if self.rec is not None:
+                self.rec.disconnect()  # the footer of whatever the sink wrote
+            if getattr(self, "_blueprints", None) is not None:
+                self._blueprints.close()
+            if self._file is not None and not self._file.join(timeout=10.0):
+                log.error("recording: %s was not finished in time", self._file.path.name)
+            if self._reserve is not None:
+                self._reserve.discard()
+            self._closed_callback()
 
     def _closed_callback(self) -> None:
         on_close, self._on_close = self._on_close, None

@@ -1,0 +1,110 @@
+"""Stop signals: SIGTERM and SIGINT raise KeyboardInterrupt in the main thread, except inside `held()`.
+
+One handler decides, so a signal is never lost between two handlers: `held()` blocks (a recording
+being opened, a batch sent, a file finalised) only mark it pending, and the outermost block raises
+it as it ends, once the code that owns the file can close it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import threading
+from collections.abc import Iterator
+
+STOP_SIGNALS = (signal.SIGTERM, signal.SIGINT)
+
+_held = 0  # depth of held() blocks in the main thread
+_pending: int | None = None  # the first signal that came inside a held() block, raised as it ends
+_requested = False  # a stop signal came at all (raise_if_stop_requested)
+_stopped = threading.Event()  # set with _requested, for a thread that only waits for a stop
+
+
+def _interrupt(signum: int, frame: object) -> None:
+    global _pending, _requested
+    _requested = True
+    _stopped.set()
+    if _held:
+        if _pending is None:
+            _pending = signum
+        return
+    raise KeyboardInterrupt
+
+
+def stop_like_ctrl_c() -> None:
+    """Make SIGTERM and SIGINT both raise KeyboardInterrupt in the main thread (outside held()).
+
+    Python's default SIGTERM kills the process without unwinding, which leaves recordings
+    unfinalized; raising KeyboardInterrupt instead runs every `with`/`finally` on the way out,
+    exactly as Ctrl-C does. SIGINT is set too because a shell starts background jobs with SIGINT
+    ignored, and Python then never installs its Ctrl-C handler. Call first thing, from the main
+    thread.
+    """
+    for signum in STOP_SIGNALS:
+        signal.signal(signum, _interrupt)
+
+
+def raise_if_stop_requested() -> None:
+    """Raise KeyboardInterrupt again if a stop signal came but its exception was swallowed.
+
+    Some C extensions clear whatever error a lazy import raises: pyarrow's `pa.scalar`, which
+    rerun calls when a recording starts, imports dateutil that way, so a signal landing there is
+    lost. Call where a stop must not be missed: after start-up, after a run.
+    """
+    if _requested:
+        raise KeyboardInterrupt
+
+
+def stop_requested() -> bool:
+    """A stop signal has come (held or not): a loop inside held() polls this to end early."""
+    return _requested
+
+
+def wait_for_stop() -> None:
+    """Block until a stop signal comes, then raise KeyboardInterrupt (inside held() or not)."""
+    _stopped.wait()
+    raise KeyboardInterrupt
+
+
+def clear() -> None:
+    """Forget a stop request that was handled, for a process that goes on after it (a test, a REPL)."""
+    global _pending, _requested
+    _pending, _requested = None, False
+    _stopped.clear()
+
+
+@contextlib.contextmanager
+def held() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM inside the block; the outermost block delivers the first at its end.
+
+    An interrupt in the middle of a send would lose or duplicate part of a batch, and one inside a
+    recording's set-up would leave a file that its owner never got to close. Only the main thread
+    receives signals; in other threads this does nothing. Where another handler than this
+    module's is installed (a library user's script), ours stands in for the outermost block and
+    the signal then goes to the user's handler.
+    """
+    global _held, _pending
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    saved = {s: signal.getsignal(s) for s in STOP_SIGNALS}
+    foreign = not _held and any(h is not _interrupt for h in saved.values())
+    try:
+        if foreign:
+            for s in STOP_SIGNALS:
+                signal.signal(s, _interrupt)
+        _held += 1  # a signal before this store raises here, outside the block: nothing to undo
+        try:
+            yield
+        finally:
+            _held -= 1
+    finally:
+        if foreign:
+            for s, handler in saved.items():
+                signal.signal(s, handler)
+        if not _held and _pending is not None:
+            signum, _pending = _pending, None
+            if foreign:
+                signal.raise_signal(signum)  # to the user's own handler, now restored
+            else:
+                raise KeyboardInterrupt

@@ -1,0 +1,78 @@
+"""A stop signal at any moment of a recorded run: KeyboardInterrupt, and every file verifies."""
+
+from __future__ import annotations
+
+import signal
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from hopper.app import sim_cli
+from rrd import verify
+
+from hopper import interrupts
+from hopper.config import SimConfig
+from hopper.telemetry import recorder, scene, writer
+
+# The code a stop can cut short with a file open: the CLI's run, the recorder, its writer.
+WATCHED = {m.__file__ for m in (sim_cli, interrupts, recorder, scene, writer)}
+
+
+@pytest.fixture
+def stop_handlers() -> Iterator[None]:
+    """The CLI's stop handlers for the test, the previous ones (and no stop request) after it."""
+    saved = {s: signal.getsignal(s) for s in interrupts.STOP_SIGNALS}
+    interrupts.stop_like_ctrl_c()
+    yield
+    for s, handler in saved.items():
+        signal.signal(s, handler)
+    interrupts.clear()
+
+
+def record(path: Path, names: list[str], at: int | None = None, **rrd_options: float) -> None:
+    """A recorded one-hop run that sends SIGTERM at its `at`-th line executed in WATCHED;
+    the function of each line executed is appended to `names`."""
+
+    def local(frame, event, arg):  # noqa: ANN001, ANN202 - sys.settrace's signature
+        if event == "line":
+            names.append(frame.f_code.co_name)
+            if len(names) == at:
+                signal.raise_signal(signal.SIGTERM)  # through the real handler, as a kill would
+        return local
+
+    def tracer(frame, event, arg):  # noqa: ANN001, ANN202
+        return local if frame.f_code.co_filename in WATCHED else None
+
+    sys.settrace(tracer)
+    try:
+        sim_cli.simulate(SimConfig(terrain="flat"), 1, path, trace=False, rrd_options=rrd_options or None)
+    finally:
+        sys.settrace(None)
+
+
+@pytest.mark.parametrize("rollover", [False, True], ids=["one-file", "rollover"])
+def test_a_stop_at_any_line_of_a_recorded_run_leaves_files_that_verify(
+    tmp_path: Path, stop_handlers: None, rollover: bool
+) -> None:
+    options = {"max_seconds": 0.4} if rollover else {}  # a 1.5 s hop in four parts: each switch is a moment
+    dry: list[str] = []
+    record(tmp_path / "dry.rrd", dry, **options)
+    assert len(dry) > 1000 and "_open_part" in dry, len(dry)
+    # Every 15th line of the set-up, the sends, the switches and the finalising; 20 of the ticks' hot path.
+    rare = [i for i, name in enumerate(dry, 1) if name != "tick"]
+    ticks = [i for i, name in enumerate(dry, 1) if name == "tick"]
+    moments = sorted(rare[::15] + ticks[:: len(ticks) // 20])
+    files: list[Path] = []
+    for i, at in enumerate(moments):
+        path = tmp_path / f"at-{i}.rrd"
+        names: list[str] = []
+        with pytest.raises(KeyboardInterrupt):
+            record(path, names, at, **options)
+        interrupts.clear()
+        made = sorted(tmp_path.glob(f"at-{i}*.rrd"))
+        # No file only if the stop came before the recording's set-up began (it waits out a set-up).
+        assert made or "_limits" not in names, f"a stop at line {at} ({dry[at - 1]}) left no file"
+        files += made
+    assert not list(tmp_path.glob(".*.reserve")), "a reserve file was left behind"
+    verify(*files)
