@@ -17,13 +17,15 @@ from urllib.parse import quote
 
 import rerun as rr
 
+from hopper.errors import HopperError
+
 ViewerKind = Literal["spawn", "serve", "off"]
 VIEWER_WAIT_S = 10.0  # s for a viewer process to start listening
 VIEWER_GRACE_S = 1.5  # s a spawned viewer must then stay alive (no display: it exits within ~0.5 s)
 STOP_WAIT_S = 5.0  # s the web viewer server gets to exit on SIGTERM before SIGKILL
 
 
-class ViewerError(RuntimeError):
+class ViewerError(HopperError, RuntimeError):
     """A viewer could not be started or reached."""
 
 

@@ -6,6 +6,7 @@ import dataclasses
 import math
 from typing import Literal, NamedTuple
 
+from hopper.errors import HopperError
 from hopper.terrain import CraterParams
 
 MOON_GRAVITY = 1.625  # m/s^2, paper Table I
@@ -51,7 +52,7 @@ GAIN_RANGES: dict[str, GainRange] = {
 }
 
 
-class InvalidConfig(ValueError):
+class InvalidConfig(HopperError, ValueError):
     """A configuration value outside its allowed range."""
 
 

@@ -20,6 +20,7 @@ import numpy as np
 from hopper.config import Gains, SimConfig
 from hopper.control import EV_FALL
 from hopper.control.memory import MEMORY
+from hopper.errors import HopperError
 from hopper.events import Event, EventKind
 from hopper.metrics import HopMetrics
 from hopper.schedule import KickSchedule
@@ -58,7 +59,7 @@ class Snapshot:
         return self.physics.nbytes + self.sensors.nbytes + self.memory.nbytes
 
 
-class SnapshotMismatch(ValueError):
+class SnapshotMismatch(HopperError, ValueError):
     """A snapshot that does not fit this model (another model size or controller memory layout)."""
 
 

@@ -18,6 +18,7 @@ import numpy as np
 
 from hopper.config import Gains, InvalidConfig
 from hopper.control.memory import MEMORY
+from hopper.errors import HopperError
 from hopper.history import METRICS_ATTRS, Snapshot, SnapshotMismatch, capture, check_fits, restore
 from hopper.schedule import KickSchedule
 from hopper.sim import Simulation
@@ -28,7 +29,7 @@ MAX_FILE_BYTES = 1_000_000  # a keyframe is ~4 KB; anything far larger is not on
 MAX_NAME = 60  # characters
 
 
-class KeyframeError(ValueError):
+class KeyframeError(HopperError, ValueError):
     """A keyframe file or name that cannot be used; the message says why, in one line."""
 
 

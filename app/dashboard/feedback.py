@@ -14,6 +14,8 @@ from typing import Any, Literal
 
 import viser
 
+from hopper.errors import HopperError
+
 log = logging.getLogger(__name__)
 
 Level = Literal["info", "warning", "error"]
@@ -30,7 +32,7 @@ _on_screen: weakref.WeakKeyDictionary[Any, dict[tuple[str, str], float]] = weakr
 _on_screen_lock = threading.Lock()
 
 
-class Refused(ValueError):
+class Refused(HopperError, ValueError):
     """A value from a browser that cannot be used at all (non-finite, wrong type)."""
 
 

@@ -40,6 +40,7 @@ from hopper.app.dashboard.wire import guard_gui_updates
 
 from hopper.config import WHEEL_NO_LOAD_SPEED
 from hopper.control.gait import momentum_capacity
+from hopper.errors import HopperError
 from hopper.events import Event, EventKind, Fall
 from hopper.history import History, Snapshot, restore
 from hopper.metrics import RAD_S_TO_RPM
@@ -57,7 +58,7 @@ FALL_RESET_S = 2.0  # s of (running) wall time a fallen robot stays down before 
 END_NOTICE_S = 30.0  # s of wall time between "end of the terrain" notices (the event log has every one)
 
 
-class PortInUse(OSError):
+class PortInUse(HopperError, OSError):
     """The requested port is taken (viser itself would silently pick the next one)."""
 
 

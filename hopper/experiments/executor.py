@@ -19,6 +19,7 @@ from collections.abc import Iterable, Iterator
 from typing import Literal, Protocol
 
 from hopper.config import MOON_GRAVITY
+from hopper.errors import HopperError
 from hopper.experiments.spec import Episode
 from hopper.experiments.worker import EpisodeResult, Worker
 
@@ -65,7 +66,7 @@ class Executor(Protocol):
     def close(self) -> None: ...
 
 
-class ExecutorError(RuntimeError):
+class ExecutorError(HopperError, RuntimeError):
     """An executor that cannot start (e.g. no Ray cluster at the address), in one line."""
 
 

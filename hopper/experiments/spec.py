@@ -39,6 +39,7 @@ import numpy as np
 
 from hopper.config import GAIN_RANGES, GRAVITY_PRESETS, Gains, GaitParams, InvalidConfig, SimConfig, require_finite
 from hopper.control.phases import Phase
+from hopper.errors import HopperError
 from hopper.sim import DISTURBANCE_LIMITS
 from hopper.stress import Schedule
 
@@ -48,7 +49,7 @@ MAX_EPISODES = 10_000_000  # a typo guard: 1e7 episodes is months of CPU
 MAX_HOPS = 1000
 
 
-class SpecError(ValueError):
+class SpecError(HopperError, ValueError):
     """A spec that cannot be run, with a one-line reason."""
 
 

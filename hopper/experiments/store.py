@@ -21,6 +21,7 @@ import pyarrow as pa
 import pyarrow.dataset as ds
 import pyarrow.parquet as pq
 
+from hopper.errors import HopperError
 from hopper.experiments.spec import SweepSpec
 from hopper.experiments.worker import EpisodeResult
 from hopper.metrics import HopMetrics
@@ -65,7 +66,7 @@ def schemas(spec: SweepSpec) -> tuple[pa.Schema, pa.Schema]:
     return pa.schema(settings + RESULT_COLUMNS), pa.schema(settings + [("hop", pa.int64())] + HOP_FIELDS)
 
 
-class SpecMismatch(ValueError):
+class SpecMismatch(HopperError, ValueError):
     """The output folder holds another sweep."""
 
 

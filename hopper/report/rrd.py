@@ -18,6 +18,7 @@ import numpy as np
 import pyarrow as pa
 from rerun.chunk import RrdReader
 
+from hopper.errors import HopperError
 from hopper.metrics import HopMetrics
 from hopper.report.runs import Run, wheel_label
 from hopper.trace import TRACE_HZ
@@ -26,7 +27,7 @@ SIGNAL_FIELDS = ("pitch_deg", "pitch_rate_deg_s", "wheel_rpm", "wheel_torque_nm"
 _TABLES = ("/signals", "/world/tf", "/phase", "/hops", "/__properties/config")
 
 
-class RecordingError(ValueError):
+class RecordingError(HopperError, ValueError):
     """A file that is not a hopper recording (or lacks what the figures need)."""
 
 
