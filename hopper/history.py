@@ -1,11 +1,7 @@
-"""Full-state snapshots: a ring of recent states, the state at every liftoff, and re-flying a flight.
+"""History: a ring of recent states, the state at every liftoff, and re-flying a flight.
 
-A snapshot holds everything the next tick reads: MuJoCo's integration state (mj_getState with
-mjSTATE_INTEGRATION: time, qpos, qvel, act, warm start, ctrl and applied forces), the sensor
-values the kernel reads before mj_step recomputes them, the control kernel's memory record (phase,
-PID integral, contact debounce, IMU noise RNG, motor delay line), the scheduled torque pulse and the
-metrics tracker's hop in progress. Restoring it and stepping repeats the original ticks bit for bit
-(the command queue is empty between ticks).
+The states are the Simulation's own snapshots (hopper.snapshot: Simulation.snapshot / restore):
+restoring one and stepping repeats the original ticks bit for bit.
 """
 
 from __future__ import annotations
@@ -14,126 +10,19 @@ import collections
 import dataclasses
 import math
 
-import mujoco
 import numpy as np
 
-from hopper.config import Gains, SimConfig
+from hopper.config import Gains
 from hopper.control import EV_FALL
-from hopper.control.memory import MEMORY
-from hopper.errors import HopperError
 from hopper.events import Event, EventKind
 from hopper.metrics import HopMetrics
-from hopper.schedule import KickSchedule
 from hopper.sim import Simulation
+from hopper.snapshot import Snapshot
 
-STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 RING_PERIOD_S = 0.1  # s of simulation between ring snapshots
 RING_SPAN_S = 40.0  # s of simulation the ring covers (the scrubber shows 30 s or more)
 MAX_FLIGHT_TICKS = 20_000  # 20 s at 1 kHz: bounds a recorded or re-flown flight (a lunar hop is ~1 s)
 GHOST_EVERY = 10  # ticks between the ghost's stored poses (100 Hz)
-METRICS_ATTRS = ("_last_touchdown_x", "_ground_start", "_liftoff_time", "_liftoff_z", "_liftoff_momentum")
-
-
-@dataclasses.dataclass(frozen=True, eq=False)
-class Snapshot:
-    """The simulation between two ticks. Arrays are private copies; treat them as read-only."""
-
-    time: float  # s of simulation
-    physics: np.ndarray  # float64, mj_getState(STATE_SPEC)
-    sensors: np.ndarray  # float64, data.sensordata (what the next control tick reads)
-    memory: np.ndarray  # shape (1,), dtype MEMORY: the control kernel's record
-    pulse: tuple[float, float, float]  # armed magnitude (N m), running magnitude (N m), start/end time (s)
-    metrics: dict[str, float | None]  # the hop in progress (hopper.metrics.MetricsTracker)
-    hops: tuple[HopMetrics, ...] | None  # hops completed so far; None: keep the target's
-    config: SimConfig  # gains, gravity, terrain, sensing, ... at that moment
-    schedule: KickSchedule | None = None  # the repeatable test's kick (hopper.schedule)
-    kick: tuple[float, float] = (math.inf, 0.0)  # its pending time and the last liftoff's, s
-
-    @property
-    def gains(self) -> Gains:
-        return self.config.gains
-
-    @property
-    def nbytes(self) -> int:
-        """Bytes of array data held (the rest is a few small Python objects)."""
-        return self.physics.nbytes + self.sensors.nbytes + self.memory.nbytes
-
-
-class SnapshotMismatch(HopperError, ValueError):
-    """A snapshot that does not fit this model (another model size or controller memory layout)."""
-
-
-def capture(sim: Simulation, *, with_hops: bool = True) -> Snapshot:
-    """The simulation now (call between ticks, on its thread)."""
-    physics = np.empty(mujoco.mj_stateSize(sim.model, STATE_SPEC))
-    mujoco.mj_getState(sim.model, sim.data, physics, STATE_SPEC)
-    m = sim.metrics
-    return Snapshot(
-        time=float(sim.data.time),
-        physics=physics,
-        sensors=sim.data.sensordata.copy(),
-        memory=sim.controller.mem.copy(),
-        pulse=(sim._pulse_armed, sim._pulse_magnitude, sim._pulse_at),
-        metrics={name: getattr(m, name) for name in METRICS_ATTRS},
-        hops=tuple(m.hops) if with_hops else None,
-        config=sim.config,
-        schedule=sim.schedule,
-        kick=(sim._kick_at, sim._liftoff_at),
-    )
-
-
-def check_fits(sim: Simulation, snap: Snapshot) -> None:
-    """Raise SnapshotMismatch unless the snapshot's arrays fit this simulation's model and kernel."""
-    size = mujoco.mj_stateSize(sim.model, STATE_SPEC)
-    if snap.physics.shape != (size,):
-        raise SnapshotMismatch(f"state has {snap.physics.size} values, this model needs {size}")
-    if snap.sensors.shape != sim.data.sensordata.shape:
-        raise SnapshotMismatch(f"{snap.sensors.size} sensor values, this model has {sim.data.sensordata.size}")
-    if snap.memory.dtype != MEMORY or snap.memory.shape != (1,):
-        raise SnapshotMismatch("the controller memory has another layout")
-    for name in ("q_x", "q_pitch", "v_x", "s_gyro", "s_wheel_torque", "a_wheel"):
-        if snap.memory[name][0] != sim.controller.mem[name][0]:
-            raise SnapshotMismatch(f"controller memory indexes another model ({name})")
-
-
-def apply_config(sim: Simulation, config: SimConfig) -> None:
-    """Bring the simulation's plant and gains to `config` through its own setters (each emits its event)."""
-    c = sim.config
-    if (c.terrain, c.seed) != (config.terrain, config.seed):
-        sim.set_terrain(config.terrain, config.seed)
-    if c.gravity != config.gravity:
-        sim.set_gravity(config.gravity)
-    if c.wheel != config.wheel:
-        sim.set_wheel(config.wheel)
-    if c.sensing != config.sensing:
-        sim.set_sensing(config.sensing)
-    if c.gains != config.gains:
-        sim.set_gains(config.gains, "restored")
-    sim.config = config  # the rest (gait, sensor parameters) as recorded; the memory below carries them
-
-
-def restore(sim: Simulation, snap: Snapshot) -> None:
-    """Put the simulation back into `snap` exactly (call between ticks, on its thread).
-
-    The plant settings come first (a terrain change resets the robot), then the state. mj_forward
-    refreshes the poses for display; the sensor values are then put back, because the kernel reads
-    the ones mj_step computed before integrating, not those of the integrated state.
-    """
-    check_fits(sim, snap)
-    apply_config(sim, snap.config)
-    mujoco.mj_setState(sim.model, sim.data, snap.physics, STATE_SPEC)
-    mujoco.mj_forward(sim.model, sim.data)
-    sim.data.sensordata[:] = snap.sensors
-    sim.controller.mem[:] = snap.memory
-    sim._pulse_armed, sim._pulse_magnitude, sim._pulse_at = snap.pulse
-    if sim.schedule != snap.schedule:
-        sim.set_schedule(snap.schedule)
-    sim._kick_at, sim._liftoff_at = snap.kick
-    m = sim.metrics
-    for name, value in snap.metrics.items():
-        setattr(m, name, value)
-    if snap.hops is not None:
-        m.hops[:] = snap.hops
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -184,6 +73,8 @@ class History:
         self._n = 0
         self._rewound: Snapshot | None = None
         self._q_pitch = self._s_torque = 0  # the model's indices, set at the first liftoff
+        # Views of MjData's arrays, made at each liftoff (each access to data.qpos makes a new one).
+        self._qpos = self._sensors = np.empty(0)
         self._hop: HopMetrics | None = None
 
     # -- Listener --------------------------------------------------------------------------
@@ -195,18 +86,19 @@ class History:
             self._resume_from(self._rewound)
         if self._start is not None:
             if self._n < MAX_FLIGHT_TICKS:
-                self._pitch[self._n] = sim._qpos[self._q_pitch]
-                self._torque[self._n] = sim._sensors[self._s_torque]
+                self._pitch[self._n] = self._qpos[self._q_pitch]
+                self._torque[self._n] = self._sensors[self._s_torque]
                 self._n += 1
             if self._landing:
                 self._finish()
         if self._liftoff_due:
             self._liftoff_due = False
             self._q_pitch, self._s_torque = sim.layout.q_pitch, sim.layout.s_wheel_torque
-            self._start, self._n, self._landing, self._hop = capture(sim, with_hops=False), 0, False, None
+            self._qpos, self._sensors = sim.data.qpos, sim.data.sensordata
+            self._start, self._n, self._landing, self._hop = sim.snapshot(with_hops=False), 0, False, None
         if now >= self._next - 5e-4:  # half a tick early: the float clock drifts around the grid
             self._next = self._next + self.period if now - self._next < self.period else now + self.period
-            self.ring.append(capture(sim))
+            self.ring.append(sim.snapshot())
 
     def event(self, sim: Simulation, event: Event) -> None:
         kind = event.kind
@@ -268,7 +160,7 @@ def fly(start: Snapshot, gains: Gains | None = None, max_ticks: int = MAX_FLIGHT
     ones), step until the hop's touchdown or a fall. The live simulation is not touched."""
     config = start.config if gains is None else dataclasses.replace(start.config, gains=gains)
     sim = Simulation(dataclasses.replace(start.config))
-    restore(sim, start)
+    sim.restore(start)
     if gains is not None and gains != start.gains:
         sim.set_gains(gains, "re-fly")
     assert sim.config == config

@@ -19,12 +19,14 @@ import numpy as np
 from hopper.config import Gains, InvalidConfig
 from hopper.control.memory import MEMORY
 from hopper.errors import HopperError
-from hopper.history import METRICS_ATTRS, Snapshot, SnapshotMismatch, capture, check_fits, restore
+from hopper.metrics import HopInProgress
 from hopper.schedule import KickSchedule
 from hopper.sim import Simulation
+from hopper.snapshot import Pending, Snapshot, SnapshotMismatch
 
 FORMAT = "hopper-keyframe"
-VERSION = 1
+VERSION = 2  # 2: the loop's pending disturbances and the hop in progress as named fields
+READS = (1, 2)  # versions read (1: the same state as three lists, read into the named fields)
 MAX_FILE_BYTES = 1_000_000  # a keyframe is ~4 KB; anything far larger is not one
 MAX_NAME = 60  # characters
 
@@ -54,12 +56,12 @@ def check_name(name: str) -> str:
 
 def save(sim: Simulation, name: str) -> Keyframe:
     """The simulation now, named (call between ticks, on its thread)."""
-    return Keyframe(check_name(name), capture(sim))
+    return Keyframe(check_name(name), sim.snapshot())
 
 
 def apply(sim: Simulation, keyframe: Keyframe) -> None:
     """Restore the keyframe's world and state exactly (call between ticks, on its thread)."""
-    restore(sim, keyframe.snapshot)
+    sim.restore(keyframe.snapshot)
 
 
 def _b64(array: np.ndarray) -> str:
@@ -92,10 +94,9 @@ def to_json(keyframe: Keyframe) -> str:
             "wheel": c.wheel,
             "timestep": c.timestep,
         },
-        "pulse": list(s.pulse),  # inf (no pulse scheduled) as the JSON extension Infinity
+        "pending": dataclasses.asdict(s.pending),  # inf (nothing scheduled) as the JSON extension Infinity
         "schedule": dataclasses.asdict(s.schedule) if s.schedule else None,
-        "kick": list(s.kick),
-        "metrics": s.metrics,
+        "progress": dataclasses.asdict(s.progress),
         "state": {
             "physics": _b64(physics),
             "sensors": _b64(sensors),
@@ -123,6 +124,38 @@ def _array(text: object, what: str) -> bytes:
         raise KeyframeError(f"state field {what!r} is not valid base64 (the file is damaged)") from None
 
 
+V1_PROGRESS = ("last_touchdown_x", "ground_start", "liftoff_time", "liftoff_z", "liftoff_momentum")
+
+
+def _fields(value: object, cls: type, what: str) -> dict:
+    """`value` as the keyword arguments of dataclass `cls`: every field, each a number (or null)."""
+    names = [f.name for f in dataclasses.fields(cls)]
+    if not isinstance(value, dict) or set(value) != set(names):
+        raise KeyframeError(f"field {what!r} must hold {', '.join(names)}")
+    for name, v in value.items():
+        if not (v is None or (isinstance(v, (int, float)) and not isinstance(v, bool))):
+            raise KeyframeError(f"field {what}.{name} must be a number, got {v!r}")
+    return {k: (float(v) if v is not None else None) for k, v in value.items()}
+
+
+def _loop_state(doc: dict) -> tuple[Pending, HopInProgress]:
+    """The loop's pending disturbances and the hop in progress, from a version 2 or 1 file."""
+    if doc.get("version") == 2:
+        return Pending(**_fields(doc.get("pending"), Pending, "pending")), HopInProgress(
+            **_fields(doc.get("progress"), HopInProgress, "progress")
+        )
+    pulse, kick, metrics = doc.get("pulse"), doc.get("kick", [math.inf, 0.0]), doc.get("metrics")
+    if not (isinstance(pulse, list) and len(pulse) == 3 and all(isinstance(v, (int, float)) for v in pulse)):
+        raise KeyframeError("field 'pulse' must be three numbers")
+    if not (isinstance(kick, list) and len(kick) == 2 and all(isinstance(v, (int, float)) for v in kick)):
+        raise KeyframeError("field 'kick' must be two numbers")
+    if not isinstance(metrics, dict) or set(metrics) != {f"_{n}" for n in V1_PROGRESS}:
+        raise KeyframeError("field 'metrics' is missing or incomplete")
+    progress = _fields({n: metrics[f"_{n}"] for n in V1_PROGRESS} | {"response_start": None}, HopInProgress, "metrics")
+    armed, magnitude, at = map(float, pulse)
+    return Pending(armed, magnitude, at, float(kick[0]), float(kick[1])), HopInProgress(**progress)
+
+
 def from_json(text: str | bytes, sim: Simulation) -> Keyframe:
     """Parse and validate a keyframe file against `sim`'s model; raises KeyframeError, changes nothing.
 
@@ -136,8 +169,8 @@ def from_json(text: str | bytes, sim: Simulation) -> Keyframe:
         raise KeyframeError(f"not a keyframe file: invalid JSON ({exc})") from None
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise KeyframeError("not a keyframe file (no 'format': 'hopper-keyframe')")
-    if doc.get("version") != VERSION:
-        raise KeyframeError(f"keyframe version {doc.get('version')!r} is not supported (expected {VERSION})")
+    if doc.get("version") not in READS:
+        raise KeyframeError(f"keyframe version {doc.get('version')!r} is not supported (expected one of {READS})")
     name = check_name(str(_need(doc, "name", str)))
     time = float(_need(doc, "time", (int, float)))  # type: ignore[arg-type]
     cfg, state = _need(doc, "config", dict), _need(doc, "state", dict)
@@ -165,32 +198,25 @@ def from_json(text: str | bytes, sim: Simulation) -> Keyframe:
         raise KeyframeError("the controller memory has another layout (a keyframe from another version)")
     if len(physics) % 8 or len(sensors) % 8:
         raise KeyframeError("state arrays have a wrong length")
-    pulse, metrics = doc.get("pulse"), doc.get("metrics")
-    if not (isinstance(pulse, list) and len(pulse) == 3 and all(isinstance(v, (int, float)) for v in pulse)):
-        raise KeyframeError("field 'pulse' must be three numbers")
-    if not isinstance(metrics, dict) or set(metrics) != set(METRICS_ATTRS):
-        raise KeyframeError("field 'metrics' is missing or incomplete")
-    schedule, kick = doc.get("schedule"), doc.get("kick", [math.inf, 0.0])
+    pending, progress = _loop_state(doc)
+    schedule = doc.get("schedule")
     try:
         schedule = KickSchedule(**schedule) if schedule is not None else None
     except (TypeError, ValueError) as exc:
         raise KeyframeError(f"field 'schedule' is not a valid kick schedule: {exc}") from None
-    if not (isinstance(kick, list) and len(kick) == 2 and all(isinstance(v, (int, float)) for v in kick)):
-        raise KeyframeError("field 'kick' must be two numbers")
     snap = Snapshot(
         time=time,
         physics=np.frombuffer(physics, "<f8").astype(np.float64),
         sensors=np.frombuffer(sensors, "<f8").astype(np.float64),
         memory=np.frombuffer(memory, MEMORY).copy(),
-        pulse=(float(pulse[0]), float(pulse[1]), float(pulse[2])),
-        metrics=metrics,
+        pending=pending,
+        progress=progress,
         hops=None,
         config=config,
         schedule=schedule,
-        kick=(float(kick[0]), float(kick[1])),
     )
     try:
-        check_fits(sim, snap)
+        sim.check_fits(snap)
     except SnapshotMismatch as exc:
         raise KeyframeError(f"keyframe does not fit this model: {exc}") from None
     if not (np.isfinite(snap.physics).all() and math.isfinite(time) and snap.physics[0] == time):

@@ -74,6 +74,21 @@ class ResponseMetrics:
     BAND_DEG = math.degrees(SETTLE_BAND)
 
 
+@dataclasses.dataclass(slots=True)
+class HopInProgress:
+    """The tracker's own state between a hop's start and its touchdown (the kernel holds the rest).
+
+    Snapshots copy it whole (Simulation.snapshot), so a field added here is restored with no more code.
+    """
+
+    last_touchdown_x: float = 0.0  # m, world x of the last touchdown: the hop's distance starts there
+    ground_start: float = 0.0  # s, when this hop's ground phase began
+    liftoff_time: float | None = None  # s; None until the liftoff (or after a skip off a rim)
+    liftoff_z: float = 0.0  # m, CoM height at the liftoff
+    liftoff_momentum: float = 0.0  # N m s, the robot's angular momentum at the liftoff
+    response_start: float | None = None  # s, simulation time of the scheduled kick; None: from liftoff
+
+
 class MetricsTracker:
     """The hop in progress: the control kernel accumulates into the `acc_*` fields of its memory
     record every tick (cheap), and liftoff / touchdown turn them into a HopMetrics."""
@@ -82,35 +97,33 @@ class MetricsTracker:
         self.hops: list[HopMetrics] = []
         self.mem = mem  # the control kernel's MEMORY record, shared
         self.dt = float(mem["dt"][0])  # s, a control tick
+        self.progress = HopInProgress()
         self.reset(x0)
 
     def reset(self, x0: float, time: float = 0.0) -> None:
         self.hops.clear()
-        self._last_touchdown_x = x0
+        self.progress.last_touchdown_x = x0
         self._start_hop(time)
 
     def _start_hop(self, time: float) -> None:
         self._clear(ACC)
-        self._ground_start = time
-        self._liftoff_time: float | None = None
-        self._liftoff_z = 0.0
-        self._liftoff_momentum = 0.0
-        self._response_start: float | None = None  # s, simulation time of the scheduled kick
+        self.progress = HopInProgress(last_touchdown_x=self.progress.last_touchdown_x, ground_start=time)
 
     def _clear(self, fields: tuple[str, ...]) -> None:
         for name in fields:
             self.mem[name] = -math.inf if name in ("acc_apex_z", "acc_last_out") else 0.0
 
     def liftoff(self, time: float, z: float, momentum: float) -> None:
-        self._liftoff_time, self._liftoff_z, self._liftoff_momentum = time, z, momentum
-        self._response_start = None
+        p = self.progress
+        p.liftoff_time, p.liftoff_z, p.liftoff_momentum = time, z, momentum
+        p.response_start = None
         self._clear(RESPONSE_ACC)
         self.mem["acc_apex_z"] = z
 
     def kicked(self, time: float) -> None:
         """A scheduled disturbance hit now (s): the flight's response is measured from here."""
-        if self._liftoff_time is not None:
-            self._response_start = time
+        if self.progress.liftoff_time is not None:
+            self.progress.response_start = time
             self._clear(RESPONSE_ACC)
 
     def _acc(self, name: str) -> float:
@@ -118,37 +131,38 @@ class MetricsTracker:
 
     def touchdown(self, time: float, x: float, pitch: float, completed: bool = True) -> HopMetrics | None:
         """Close the hop at a touchdown (or a fall in flight); None if no liftoff preceded it."""
-        if self._liftoff_time is None:
+        p = self.progress
+        if p.liftoff_time is None:
             return None
-        if completed and time - self._liftoff_time < MIN_HOP_FLIGHT_S:
+        if completed and time - p.liftoff_time < MIN_HOP_FLIGHT_S:
             # A skip off a rim, not a hop: the hop goes on, and the skip's flight ticks must not
             # count toward the real flight's peak pitch and RMS rate.
-            self._liftoff_time = None
+            p.liftoff_time = None
             self._clear(FLIGHT_ACC)
             return None
         acc = self._acc
         ticks = max(acc("acc_flight_ticks"), 1.0)
-        kicked = self._response_start is not None
-        start = self._response_start if self._response_start is not None else self._liftoff_time
+        kicked = p.response_start is not None
+        start = p.response_start if p.response_start is not None else p.liftoff_time
         settled = abs(pitch) <= SETTLE_BAND
         last_out = acc("acc_last_out")
         settling = (last_out + self.dt - start if last_out > -math.inf else 0.0) if settled else time - start
         hop = HopMetrics(
             index=len(self.hops) + 1,
-            distance_m=x - self._last_touchdown_x,
-            apex_height_m=acc("acc_apex_z") - self._liftoff_z,
-            flight_time_s=time - self._liftoff_time,
-            stance_time_s=self._liftoff_time - self._ground_start,
+            distance_m=x - p.last_touchdown_x,
+            apex_height_m=acc("acc_apex_z") - p.liftoff_z,
+            flight_time_s=time - p.liftoff_time,
+            stance_time_s=p.liftoff_time - p.ground_start,
             peak_pitch_deg=math.degrees(acc("acc_peak_pitch")),
             rms_pitch_rate_deg_s=math.degrees(math.sqrt(acc("acc_rate_sq") / ticks)),
             landing_pitch_deg=math.degrees(abs(pitch)),
             saturation_time_s=acc("acc_saturation"),
             peak_wheel_rpm=acc("acc_peak_wheel") * RAD_S_TO_RPM,
-            liftoff_momentum=self._liftoff_momentum,
+            liftoff_momentum=p.liftoff_momentum,
             touchdown_time_s=time,
             completed=completed,
             kicked=kicked,
-            response_start_s=start - self._liftoff_time,
+            response_start_s=start - p.liftoff_time,
             response_peak_deg=math.degrees(acc("acc_first_peak")),
             overshoot_deg=math.degrees(acc("acc_overshoot")),
             settling_time_s=max(settling, 0.0),
@@ -158,6 +172,6 @@ class MetricsTracker:
             landing_error_deg=math.degrees(pitch),
         )
         self.hops.append(hop)
-        self._last_touchdown_x = x
+        p.last_touchdown_x = x
         self._start_hop(time)
         return hop

@@ -20,6 +20,7 @@ from hopper.commands import Command
 from hopper.config import FOOT_RADIUS, HIP_OFFSET_Z, THIGH_LENGTH, Gains, SimConfig, require_finite
 from hopper.control import EV_APEX, EV_FALL, EV_LIFTOFF, EV_TOUCHDOWN, HopController, Phase, control_tick
 from hopper.control.landing import FOOT_Y, ground_height
+from hopper.control.memory import MEMORY
 from hopper.events import (
     Apex,
     CommandFailed,
@@ -46,6 +47,7 @@ from hopper.metrics import HopMetrics, MetricsTracker
 from hopper.model import build_model, set_terrain, set_wheel_enabled, terrain_heights
 from hopper.perturb import Pull
 from hopper.schedule import KickSchedule
+from hopper.snapshot import STATE_SPEC, Pending, Snapshot, SnapshotMismatch
 from hopper.state import RobotState, angular_momentum, read_state
 
 log = logging.getLogger(__name__)
@@ -95,7 +97,7 @@ class Simulation:
         self._mem, self._dt = self.controller.mem, self.model.opt.timestep
         self.ticks = 0  # control ticks stepped since construction
         self.schedule: KickSchedule | None = None  # the repeatable test's kick (hopper.schedule)
-        self._kick_at, self._liftoff_at = math.inf, 0.0  # s: the scheduled kick's time, the last liftoff's
+        self.pending = Pending()  # the torque pulse and scheduled kick under way (hopper.snapshot)
         self.pull: Pull | None = None  # a mouse drag under way (hopper.perturb)
         self.reset(reason="start")
 
@@ -124,6 +126,73 @@ class Simulation:
         """The robot now (a snapshot; read it on the simulation's thread)."""
         return read_state(self.data, self.layout)
 
+    # -- state -----------------------------------------------------------------------------
+    def snapshot(self, *, with_hops: bool = True) -> Snapshot:
+        """The simulation now, whole (call between ticks, on its thread); restore() takes it back."""
+        physics = np.empty(mujoco.mj_stateSize(self.model, STATE_SPEC))
+        mujoco.mj_getState(self.model, self.data, physics, STATE_SPEC)
+        return Snapshot(
+            time=float(self.data.time),
+            physics=physics,
+            sensors=self.data.sensordata.copy(),
+            memory=self.controller.mem.copy(),
+            pending=dataclasses.replace(self.pending),
+            progress=dataclasses.replace(self.metrics.progress),
+            hops=tuple(self.metrics.hops) if with_hops else None,
+            config=self.config,
+            schedule=self.schedule,
+        )
+
+    def check_fits(self, snap: Snapshot) -> None:
+        """Raise SnapshotMismatch unless the snapshot's arrays fit this model and controller."""
+        size = mujoco.mj_stateSize(self.model, STATE_SPEC)
+        if snap.physics.shape != (size,):
+            raise SnapshotMismatch(f"state has {snap.physics.size} values, this model needs {size}")
+        if snap.sensors.shape != self.data.sensordata.shape:
+            raise SnapshotMismatch(f"{snap.sensors.size} sensor values, this model has {self.data.sensordata.size}")
+        if snap.memory.dtype != MEMORY or snap.memory.shape != (1,):
+            raise SnapshotMismatch("the controller memory has another layout")
+        for name in ("q_x", "q_pitch", "v_x", "s_gyro", "s_wheel_torque", "a_wheel"):
+            if snap.memory[name][0] != self.controller.mem[name][0]:
+                raise SnapshotMismatch(f"controller memory indexes another model ({name})")
+
+    def restore(self, snap: Snapshot) -> None:
+        """Put the simulation back into `snap` exactly (call between ticks, on its thread).
+
+        The plant settings come first (a terrain change resets the robot), then the state. mj_forward
+        refreshes the poses for display; the sensor values are then put back, because the kernel reads
+        the ones mj_step computed before integrating, not those of the integrated state.
+        """
+        self.check_fits(snap)
+        self.reconfigure(snap.config)
+        mujoco.mj_setState(self.model, self.data, snap.physics, STATE_SPEC)
+        mujoco.mj_forward(self.model, self.data)
+        self.data.sensordata[:] = snap.sensors
+        self.controller.mem[:] = snap.memory
+        if self.schedule != snap.schedule:
+            self.set_schedule(snap.schedule)
+        self.pending = dataclasses.replace(snap.pending)
+        self.metrics.progress = dataclasses.replace(snap.progress)
+        if snap.hops is not None:
+            self.metrics.hops[:] = snap.hops
+
+    def reconfigure(self, config: SimConfig) -> None:
+        """Bring the plant and gains to `config` through the setters (each emits its event); the
+        rest of it (gait, sensor parameters) is taken as it is."""
+        c = self.config
+        if (c.terrain, c.seed) != (config.terrain, config.seed):
+            self.set_terrain(config.terrain, config.seed)
+        if c.gravity != config.gravity:
+            self.set_gravity(config.gravity)
+        if c.wheel != config.wheel:
+            self.set_wheel(config.wheel)
+        if c.sensing != config.sensing:
+            self.set_sensing(config.sensing)
+        if c.gains != config.gains:
+            self.set_gains(config.gains, "restored")
+        self.config = config
+        self.controller.configure(config)
+
     # -- stepping --------------------------------------------------------------------------
     def step(self) -> int:
         """One control tick: apply queued commands, control (kernel), mj_step, notify listeners.
@@ -135,9 +204,10 @@ class Simulation:
         events = control_tick(self._qpos, self._qvel, self._sensors, self._ctrl, self._mem)
         if events:
             self._controller_events(events)
-        if self._pulse_at != math.inf and self._pulse_at <= self.data.time:
+        pending = self.pending
+        if pending.pulse_at != math.inf and pending.pulse_at <= self.data.time:
             self._pulse_event()
-        if self._kick_at != math.inf and self._kick_at <= self.data.time:
+        if pending.kick_at != math.inf and pending.kick_at <= self.data.time:
             self._scheduled_kick()
         mujoco.mj_step(self.model, self.data)
         self.ticks += 1
@@ -207,18 +277,18 @@ class Simulation:
             momentum = angular_momentum(self.model, self.data, self.layout)
             self.metrics.liftoff(s.time, s.z, momentum)
             self._emit(Liftoff(momentum))
-            if self._pulse_armed:
-                self._pulse_at, self._pulse_magnitude = s.time + TORQUE_PULSE_DELAY_S, self._pulse_armed
-                self._pulse_armed = 0.0
-            self._liftoff_at = s.time
+            p = self.pending
+            if p.pulse_armed:
+                p.pulse_at, p.pulse_magnitude, p.pulse_armed = s.time + TORQUE_PULSE_DELAY_S, p.pulse_armed, 0.0
+            p.liftoff_at = s.time
             if self.schedule is not None and self.schedule.due(len(self.hops) + 1):
                 # Half a tick early: the kick lands on the tick delay_s after the liftoff's, not the next.
-                self._kick_at = s.time + self.schedule.delay_s - 0.5 * self._dt
+                self.pending.kick_at = s.time + self.schedule.delay_s - 0.5 * self._dt
         if events & EV_APEX:
             self.controller.plan_landing(self.data, self.layout, self._ground)
             self._emit(Apex(s.z))
         if events & (EV_TOUCHDOWN | EV_FALL):
-            self._kick_at = math.inf  # a flight shorter than the delay goes unkicked
+            self.pending.kick_at = math.inf  # a flight shorter than the delay goes unkicked
         if events & EV_TOUCHDOWN:
             self._emit(Touchdown(self.metrics.touchdown(s.time, s.x, s.pitch)))
         if events & EV_FALL:
@@ -244,8 +314,7 @@ class Simulation:
         torso_z = self.model.body("torso").pos[2]
         self.data.joint("root_z").qpos = FOOT_RADIUS + stand - HIP_OFFSET_Z - torso_z
         mujoco.mj_forward(self.model, self.data)
-        self._pulse_armed, self._pulse_magnitude, self._pulse_at = 0.0, 0.0, math.inf
-        self._kick_at = math.inf
+        self.pending = Pending(liftoff_at=self.pending.liftoff_at)
         if self.pull is not None:  # mj_resetData cleared its force; the drag ends unrecorded
             self.listeners.remove(self.pull)
             self.pull = None
@@ -292,17 +361,17 @@ class Simulation:
         if schedule is not None and not isinstance(schedule, KickSchedule):
             raise TypeError(f"expected a KickSchedule or None, got {type(schedule).__name__}")
         self.schedule = schedule
-        self._kick_at = math.inf  # a flight under way is not kicked: each kick follows its own liftoff
+        self.pending.kick_at = math.inf  # a flight under way is not kicked: each kick follows its own liftoff
         self._emit(ScheduleChanged(schedule))
 
     def _scheduled_kick(self) -> None:
-        schedule, self._kick_at = self.schedule, math.inf
+        schedule, self.pending.kick_at = self.schedule, math.inf
         if schedule is None or self.controller.phase is not Phase.FLIGHT:
             return
-        after = self.time - self._liftoff_at
+        after = self.time - self.pending.liftoff_at
         self.metrics.kicked(self.time)
         if schedule.kind == "torque_pulse":
-            self._pulse_at, self._pulse_magnitude = self.time, schedule.magnitude
+            self.pending.pulse_at, self.pending.pulse_magnitude = self.time, schedule.magnitude
             self._pulse_event(after)
         else:
             self._impulse(schedule.kind, schedule.magnitude, after)  # type: ignore[arg-type]
@@ -315,9 +384,9 @@ class Simulation:
         require_finite(f"{kind} magnitude", magnitude, -limit, limit, unit)
         if kind == "torque_pulse":
             if self.controller.phase is Phase.FLIGHT:
-                self._pulse_at, self._pulse_magnitude = self.time, magnitude
+                self.pending.pulse_at, self.pending.pulse_magnitude = self.time, magnitude
             else:
-                self._pulse_armed = magnitude
+                self.pending.pulse_armed = magnitude
                 self._emit(DisturbanceArmed(kind, magnitude, unit))
             return
         self._impulse(kind, magnitude)
@@ -334,15 +403,15 @@ class Simulation:
 
     def _pulse_event(self, after_liftoff_s: float | None = None) -> None:
         """Start a pending torque pulse (in flight only), or end the running one."""
-        magnitude = self._pulse_magnitude
+        magnitude = self.pending.pulse_magnitude
         torso = self.layout.torso
         if magnitude and self.controller.phase is Phase.FLIGHT:
             self.data.xfrc_applied[torso, 4] = magnitude  # pitch torque about world y
-            self._pulse_at, self._pulse_magnitude = self.time + TORQUE_PULSE_S, 0.0
+            self.pending.pulse_at, self.pending.pulse_magnitude = self.time + TORQUE_PULSE_S, 0.0
             self._emit(Disturbance("torque_pulse", magnitude, "N m", TORQUE_PULSE_S, after_liftoff_s))
         else:
             self.data.xfrc_applied[torso, 4] = 0.0
-            self._pulse_at, self._pulse_magnitude = math.inf, 0.0
+            self.pending.pulse_at, self.pending.pulse_magnitude = math.inf, 0.0
 
     def grab(self, point: tuple[float, float]) -> None:
         """Grab the torso at world (x, z) `point` (m) with a spring (hopper.perturb), replacing any pull."""

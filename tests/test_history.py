@@ -12,7 +12,7 @@ import pytest
 from hopper import keyframes
 from hopper.config import Gains, SimConfig
 from hopper.control.memory import MEMORY
-from hopper.history import RING_PERIOD_S, RING_SPAN_S, History, fly, restore
+from hopper.history import RING_PERIOD_S, RING_SPAN_S, History, fly
 from hopper.schedule import KickSchedule
 from hopper.sim import Simulation
 
@@ -120,9 +120,9 @@ def test_restoring_a_ring_entry_resumes_exactly():
     snap = history.at(1.0)
     assert snap.time == pytest.approx(history.ring[-1].time - 1.0, abs=0.0015) and sim.time - snap.time < 1.11
     replay = Simulation(SimConfig(terrain="flat", sensing="realistic"))
-    restore(replay, snap)
+    replay.restore(snap)
     expected = _trace(replay, 1500)
-    restore(sim, snap)
+    sim.restore(snap)
     history.rewound(snap)
     assert _trace(sim, 1500) == expected
     assert history.ring[-1].time > snap.time and all(

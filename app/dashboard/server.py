@@ -42,9 +42,10 @@ from hopper.config import WHEEL_NO_LOAD_SPEED
 from hopper.control.gait import momentum_capacity
 from hopper.errors import HopperError
 from hopper.events import Event, EventKind, Fall
-from hopper.history import History, Snapshot, restore
+from hopper.history import History
 from hopper.metrics import RAD_S_TO_RPM
 from hopper.sim import Simulation
+from hopper.snapshot import Snapshot
 
 log = logging.getLogger(__name__)
 PLANT_CHANGES = (EventKind.GRAVITY, EventKind.TERRAIN, EventKind.SENSING)
@@ -225,7 +226,7 @@ class Dashboard:
         if snapshot is None:
             return False
         try:
-            restore(self.sim, snapshot)
+            self.sim.restore(snapshot)
         except Exception as exc:
             log.exception("restoring a snapshot failed")
             notify_all(self.server, "Restore failed", f"{type(exc).__name__}: {exc}", "error")

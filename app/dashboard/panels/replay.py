@@ -24,7 +24,8 @@ from hopper.app.dashboard.scene import GhostRobot
 
 from hopper import keyframes
 from hopper.config import Gains
-from hopper.history import GHOST_EVERY, RING_SPAN_S, Flight, History, Snapshot, fly
+from hopper.history import GHOST_EVERY, RING_SPAN_S, Flight, History, fly
+from hopper.snapshot import Snapshot
 
 if TYPE_CHECKING:
     from hopper.sim import Simulation
