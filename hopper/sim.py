@@ -17,7 +17,7 @@ import mujoco
 import numpy as np
 
 from hopper.commands import Command
-from hopper.config import FOOT_RADIUS, HIP_OFFSET_Z, THIGH_LENGTH, Gains, SimConfig, require_finite
+from hopper.config import FOOT_RADIUS, HIP_OFFSET_Z, THIGH_LENGTH, Gains, InvalidConfig, SimConfig, require_finite
 from hopper.control import EV_APEX, EV_FALL, EV_LIFTOFF, EV_TOUCHDOWN, HopController, Phase, control_tick
 from hopper.control.landing import FOOT_Y, ground_height
 from hopper.control.memory import MEMORY
@@ -192,6 +192,24 @@ class Simulation:
             self.set_gains(config.gains, "restored")
         self.config = config
         self.controller.configure(config)
+
+    def start_over(self, config: SimConfig) -> None:
+        """Become what Simulation(config) builds, without a recompile: same model size, timestep
+        and crater parameters (a new terrain or seed is written in place). A batch runs thousands
+        of episodes this way on one model; each begins with empty events and a fresh controller."""
+        c = self.config
+        if config.timestep != c.timestep or config.craters != c.craters:
+            raise InvalidConfig("episodes on one model share the timestep and crater parameters")
+        if (config.terrain, config.seed) != (c.terrain, c.seed):
+            self.heights = terrain_heights(config)
+            set_terrain(self.model, self.heights)
+        self.model.opt.gravity[2] = -config.gravity
+        set_wheel_enabled(self.model, config.wheel)
+        self.config = config
+        self.controller.start_over(config)
+        self.events.clear()
+        self.ticks = 0  # the health check's phase, as in a new Simulation
+        self.reset(reason="start")
 
     # -- stepping --------------------------------------------------------------------------
     def step(self) -> int:

@@ -21,8 +21,15 @@ class HopController:
     and gait into it (between ticks). The settings themselves live in Simulation.config."""
 
     def __init__(self, layout: ModelLayout, config: SimConfig) -> None:
+        self.layout = layout
         self.mem = new_memory(layout)  # passed to control_tick; everything in it has a name
-        (self.mem["x0"], self.mem["z0"]), self.mem["dt"] = layout.torso_origin, config.timestep
+        self.start_over(config)
+
+    def start_over(self, config: SimConfig) -> None:
+        """The memory as construction leaves it for `config`, in place (the kernel keeps its view):
+        nothing of an earlier episode survives."""
+        self.mem[0] = new_memory(self.layout)[0]
+        (self.mem["x0"], self.mem["z0"]), self.mem["dt"] = self.layout.torso_origin, config.timestep
         self.configure(config)
         self.reset()
 

@@ -11,13 +11,9 @@ import math
 import time
 from typing import Any
 
-import numpy as np
-
 from hopper.config import WHEEL_NO_LOAD_SPEED, SimConfig
-from hopper.control.memory import new_memory
 from hopper.experiments.spec import Episode
 from hopper.metrics import HopMetrics
-from hopper.model import set_terrain, set_wheel_enabled, terrain_heights
 from hopper.sim import Simulation
 from hopper.stress import Schedule
 
@@ -63,8 +59,6 @@ class Worker:
 
     def __init__(self) -> None:
         self.sim: Simulation | None = None
-        self._blank: np.ndarray | None = None  # the controller's memory as construction leaves it
-        self._terrain: tuple[str, int] | None = None
         self.built = 0  # models compiled (1 after the first episode, whatever follows)
 
     def warm(self) -> None:
@@ -101,30 +95,12 @@ class Worker:
 
     def _prepare(self, config: SimConfig) -> Simulation:
         """The simulation set to `config`, standing at the start, as Simulation(config) leaves it."""
-        sim = self.sim
-        if sim is None:
-            sim = self.sim = Simulation(config)
+        if self.sim is None:
+            self.sim = Simulation(config)
             self.built += 1
-            # HopController.__init__'s memory before configure(): the layout, torso origin and dt.
-            self._blank = new_memory(sim.layout)
-            (self._blank["x0"], self._blank["z0"]), self._blank["dt"] = sim.layout.torso_origin, config.timestep
-            self._terrain = (config.terrain, config.seed)
-            return sim
-        if config.timestep != sim.config.timestep or config.craters != sim.config.craters:
-            raise ValueError("a worker's episodes share the timestep and crater parameters")
-        if (config.terrain, config.seed) != self._terrain:
-            sim.heights = terrain_heights(config)
-            set_terrain(sim.model, sim.heights)
-            self._terrain = (config.terrain, config.seed)
-        sim.model.opt.gravity[2] = -config.gravity
-        set_wheel_enabled(sim.model, config.wheel)
-        sim.config = config
-        sim.controller.mem[0] = self._blank[0]  # no state of the last episode survives
-        sim.controller.configure(config)
-        sim.events.clear()  # a worker runs thousands of episodes: keep only this one's
-        sim.ticks = 0  # the health check's phase, as in a new Simulation
-        sim.reset(reason="start")
-        return sim
+        else:
+            self.sim.start_over(config)
+        return self.sim
 
 
 def _disturb_when_due(sim: Simulation, d: Schedule, hops: int, max_time: float) -> bool:
