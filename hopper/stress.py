@@ -62,18 +62,43 @@ class Outcome:
         return not self.fell and landed and self.hops >= self.case.hops and disturbed
 
 
+def run_episode(sim: Simulation, hops: int, disturbance: Schedule | None = None) -> bool:
+    """Step `sim` to `hops` hops, a fall or its time limit, applying `disturbance` when it is due.
+
+    The one episode runner of the battery and the sweep workers. True if the disturbance happened
+    (or there is none): its phase may never come in its hop.
+    """
+    limit = sim.time + sim.time_limit(hops)
+    applied = disturbance is None or _disturb_when_due(sim, disturbance, hops, limit)
+    if not sim.fallen and len(sim.hops) < hops:
+        sim.run(hops, max_time=limit - sim.time)
+    return applied
+
+
+def _disturb_when_due(sim: Simulation, d: Schedule, hops: int, limit: float) -> bool:
+    """Step until the schedule's moment (then disturb), the hops, a fall or `limit` (s).
+
+    The moment: `d.delay_s` after entering `d.phase` in hop `d.hop`.
+    """
+    mem = sim.controller.mem
+    while len(sim.hops) < hops and not sim.fallen and sim.time < limit:
+        if (
+            len(sim.hops) == d.hop - 1
+            and sim.phase is d.phase
+            and sim.time - float(mem["phase_start"][0]) >= (d.delay_s - 1e-9)
+        ):
+            sim.disturb(d.kind, d.magnitude)  # type: ignore[arg-type]
+            return True
+        if len(sim.hops) >= d.hop:
+            return False  # its hop is over: the phase never came
+        sim.step()
+    return False
+
+
 def run_case(case: Case) -> Outcome:
     """Simulate one case to its hops, a fall or the time limit."""
     sim = Simulation(case.config)
-    d, applied = case.disturbance, False
-    mem = sim.controller.mem
-    limit = sim.time + sim.time_limit(case.hops)
-    while len(sim.hops) < case.hops and not sim.fallen and sim.time < limit:
-        due = d is not None and not applied and len(sim.hops) == d.hop - 1 and sim.phase is d.phase
-        if due and sim.time - float(mem["phase_start"][0]) >= d.delay_s - 1e-9:
-            sim.disturb(d.kind, d.magnitude)  # type: ignore[arg-type, union-attr]
-            applied = True
-        sim.step()
+    applied = run_episode(sim, case.hops, case.disturbance)
     done = [h for h in sim.hops if h.completed]
     fall = next((e for e in reversed(sim.events) if e.kind is EventKind.FALL), None)
     return Outcome(

@@ -15,7 +15,7 @@ from hopper.config import WHEEL_NO_LOAD_SPEED, SimConfig
 from hopper.experiments.spec import Episode
 from hopper.metrics import HopMetrics
 from hopper.sim import Simulation
-from hopper.stress import Schedule
+from hopper.stress import run_episode
 
 
 @dataclasses.dataclass(frozen=True)
@@ -74,10 +74,7 @@ class Worker:
         start = time.perf_counter()
         sim = self._prepare(episode.config())
         hops, schedule = episode.hops_target, episode.disturbance
-        max_time = sim.time_limit(hops)
-        applied = schedule is None or _disturb_when_due(sim, schedule, hops, max_time)
-        if not sim.fallen and len(sim.hops) < hops:
-            sim.run(hops, max_time=max_time - sim.time)
+        applied = run_episode(sim, hops, schedule)
         mem = sim.controller.mem
         peak_wheel = max((h.peak_wheel_rpm * 2 * math.pi / 60 for h in sim.hops), default=0.0)
         peak_wheel = max(peak_wheel, float(mem["acc_peak_wheel"][0]))  # the unfinished hop's
@@ -101,23 +98,3 @@ class Worker:
         else:
             self.sim.start_over(config)
         return self.sim
-
-
-def _disturb_when_due(sim: Simulation, d: Schedule, hops: int, max_time: float) -> bool:
-    """Step until the schedule's moment (then disturb), the hops, a fall or the time limit.
-
-    The moment: `d.delay_s` after entering `d.phase` in hop `d.hop` (hopper.stress's convention).
-    """
-    mem, limit = sim.controller.mem, sim.time + max_time
-    while len(sim.hops) < hops and not sim.fallen and sim.time < limit:
-        if (
-            len(sim.hops) == d.hop - 1
-            and sim.phase is d.phase
-            and sim.time - float(mem["phase_start"][0]) >= (d.delay_s - 1e-9)
-        ):
-            sim.disturb(d.kind, d.magnitude)  # type: ignore[arg-type]
-            return True
-        if len(sim.hops) >= d.hop:
-            return False  # its hop is over: the phase never came
-        sim.step()
-    return False
