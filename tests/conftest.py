@@ -51,3 +51,19 @@ def client(dashboard: Dashboard):
     assert wait_until(lambda: len(dashboard.server.get_clients()) == 1), "the server never registered the probe"
     yield c
     c.close()
+
+
+# The suite in parts (README, "Tests"): `-m unit` runs in under two minutes; `integration` starts
+# servers, processes or pools; `browser` drives Chromium. A module or test says `integration`
+# itself (pytestmark); the browser files and the tests on a served dashboard are found here.
+SERVED = {"dashboard", "start", "client"}
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    for item in items:
+        if item.path.name.endswith("_e2e.py"):
+            item.add_marker(pytest.mark.browser)
+        elif SERVED & set(getattr(item, "fixturenames", ())):
+            item.add_marker(pytest.mark.integration)
+        if not any(item.get_closest_marker(m) for m in ("browser", "integration")):
+            item.add_marker(pytest.mark.unit)

@@ -26,6 +26,8 @@ from rrd import verify
 from benchmarks.probe import ProbeClient
 from hopper.config import InvalidConfig
 
+pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)
+
 REPO = Path(__file__).resolve().parents[1]
 TOKEN = "correct-horse-battery-staple-42"
 URL_TOKEN = re.compile(r"token=([A-Za-z0-9._~-]+)")

@@ -17,6 +17,8 @@ from hopper.app.dashboard.config import DashboardConfig, check_sessions_dir
 from net import free_port, port_is_free, wait_until
 from rrd import verify
 
+pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)
+
 REPO = Path(__file__).resolve().parent.parent
 
 

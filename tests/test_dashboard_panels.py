@@ -29,6 +29,8 @@ from hopper.events import Event
 from hopper.metrics import RAD_S_TO_RPM
 from hopper.sim import Simulation
 
+pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)
+
 
 def bodies(client: ProbeClient, title: str) -> list[str]:
     return [n.get("body", "") for n in client.notifications if n.get("title") == title]

@@ -24,6 +24,8 @@ from benchmarks.probe import ProbeClient
 from hopper.events import Disturbance, Event, EventKind, Liftoff
 from hopper.metrics import HopMetrics
 
+pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)
+
 
 def titles(client: ProbeClient) -> list[str]:
     return [n.get("title", "") for n in client.notifications]

@@ -30,6 +30,8 @@ from hopper.meshes import body_meshes, body_poses
 from hopper.metrics import RAD_S_TO_RPM
 from hopper.sim import Simulation
 
+pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)
+
 
 def _signal(rng: np.random.Generator, n: int) -> tuple[np.ndarray, np.ndarray]:
     """Times (s) 25 or 26 ms apart and a hopping-like trace: slow swings, a ringing kick, steps, noise."""

@@ -19,6 +19,8 @@ from rrd import signal_times, verify
 
 from benchmarks.probe import ProbeClient
 
+pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)
+
 SIZE = "2m"  # the terrain and robot take ~1.1 MB, the reserve 0.5 MB: a few seconds of data fit
 
 

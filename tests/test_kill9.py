@@ -22,6 +22,8 @@ from rrd import RERUN_BINARY, signal_times, verify
 
 from benchmarks.probe import ProbeClient
 
+pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)
+
 REPO = Path(__file__).resolve().parent.parent
 STATUS_TIME = re.compile(r"<td>time</td><td>\s*([0-9.]+) s</td>")
 

@@ -7,6 +7,7 @@ import random
 import time
 
 import msgspec
+import pytest
 import viser
 import websockets.sync.client as ws_client
 from hopper.app.dashboard.server import Dashboard
@@ -14,6 +15,8 @@ from net import wait_until
 
 from benchmarks.probe import ProbeClient
 from hopper.config import GAIN_RANGES
+
+pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)
 
 GARBAGE_FRAMES = 12  # connections that each send one random binary frame (bounded: loopback only)
 

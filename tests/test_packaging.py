@@ -14,6 +14,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)
+
 REPO = Path(__file__).resolve().parent.parent
 # Repository folder -> the subpackage it installs as (pyproject.toml's [tool.setuptools] package-dir).
 PACKAGE_DIRS = {"hopper": "hopper", "terrain": "hopper/terrain", "app": "hopper/app", "models": "hopper/models"}

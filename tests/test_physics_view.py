@@ -14,6 +14,8 @@ from hopper.config import SimConfig
 from hopper.control import Phase
 from hopper.sim import Simulation
 
+pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)
+
 
 @pytest.fixture
 def scene():

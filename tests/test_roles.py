@@ -17,6 +17,8 @@ from net import wait_until
 from benchmarks.probe import ProbeClient
 from hopper.events import EventKind, OperatorChanged
 
+pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)
+
 Start = Callable[..., Dashboard]
 
 

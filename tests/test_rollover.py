@@ -17,6 +17,8 @@ from hopper.config import SimConfig
 from hopper.sim import Simulation
 from hopper.telemetry import Telemetry, part_path
 
+pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)
+
 TICKS = 7000  # 7 s of simulation
 
 

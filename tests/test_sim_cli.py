@@ -15,6 +15,8 @@ from pathlib import Path
 import pytest
 from rrd import verify
 
+pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)
+
 HOP_KEYS = {
     "distance_m",
     "apex_height_m",

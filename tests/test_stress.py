@@ -17,6 +17,8 @@ from hopper.control.gait import momentum_capacity
 from hopper.sim import TORQUE_PULSE_S
 from hopper.stress import Case, Schedule, battery, run_case
 
+pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)
+
 FLAT = SimConfig(terrain="flat")
 
 

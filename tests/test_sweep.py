@@ -28,6 +28,8 @@ from hopper.metrics import HopMetrics
 from hopper.model import build_model, set_terrain, terrain_heights
 from hopper.stress import Case, Schedule, run_case
 
+pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)
+
 
 def hopper_sim(*args: str, cwd: Path | None = None, timeout: float = 120) -> subprocess.CompletedProcess[str]:
     return subprocess.run(

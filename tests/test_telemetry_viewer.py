@@ -18,6 +18,8 @@ from hopper.config import SimConfig
 from hopper.sim import Simulation
 from hopper.telemetry import Telemetry
 
+pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)
+
 RERUN = [sys.executable, "-m", "rerun_cli"]
 
 

@@ -15,6 +15,8 @@ from hopper.experiments.executor import InProcess
 from hopper.experiments.tune import TuneSetup, score, tune
 from hopper.experiments.worker import Worker
 
+pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)
+
 FLAGS = ["--trials", "5", "--seeds", "0:2", "--heldout", "7:8", "--gravity", "moon", "--hops", "1", "--workers", "1"]
 
 
