@@ -605,7 +605,7 @@ def command_envelope(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from hopper import envelope
-    from hopper.sim import DISTURBANCE_LIMITS
+    from hopper.disturbances import DISTURBANCE_LIMITS
     from hopper.stress import LANDING_LIMIT_DEG, run_case
 
     top = DISTURBANCE_LIMITS["pitch_kick"][0]

@@ -6,7 +6,7 @@ import dataclasses
 from typing import TYPE_CHECKING, Literal, Protocol
 
 from hopper.config import Gains
-from hopper.events import DisturbanceKind
+from hopper.disturbances import DisturbanceKind
 from hopper.schedule import KickSchedule
 
 if TYPE_CHECKING:
@@ -64,7 +64,7 @@ class SetTerrain:
 @dataclasses.dataclass(frozen=True)
 class Disturb:
     disturbance: DisturbanceKind
-    magnitude: float  # in the disturbance's unit (hopper.sim.DISTURBANCE_LIMITS)
+    magnitude: float  # in the disturbance's unit (hopper.disturbances.DISTURBANCE_LIMITS)
 
     def apply(self, sim: Simulation) -> None:
         sim.disturb(self.disturbance, self.magnitude)

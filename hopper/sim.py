@@ -19,12 +19,12 @@ from hopper.commands import Command
 from hopper.config import FOOT_RADIUS, HIP_OFFSET_Z, THIGH_LENGTH, Gains, SimConfig, require_finite
 from hopper.control import EV_APEX, EV_FALL, EV_LIFTOFF, EV_TOUCHDOWN, HopController, Phase, control_tick
 from hopper.control.landing import FOOT_Y, ground_height
+from hopper.disturbances import DISTURBANCE_LIMITS, DisturbanceKind
 from hopper.events import (
     Apex,
     CommandFailed,
     Disturbance,
     DisturbanceArmed,
-    DisturbanceKind,
     Diverged,
     Dragged,
     Event,
@@ -49,13 +49,7 @@ from hopper.state import RobotState, angular_momentum, read_state
 
 log = logging.getLogger(__name__)
 
-DISTURBANCE_LIMITS: dict[str, tuple[float, str]] = {  # largest magnitude, unit
-    "pitch_kick": (5.0, "N m s"),  # angular impulse on the torso
-    "push_forward": (20.0, "N s"),  # linear impulse on the torso
-    "push_backward": (20.0, "N s"),
-    "torque_pulse": (30.0, "N m"),  # pitch torque on the torso for TORQUE_PULSE_S, in flight
-}
-TORQUE_PULSE_S = 0.1  # s
+TORQUE_PULSE_S = 0.1  # s, how long a torque pulse (hopper.disturbances.DISTURBANCE_LIMITS) acts
 TORQUE_PULSE_DELAY_S = 0.15  # s after liftoff, when armed on the ground
 HEALTH_CHECK_TICKS = 50  # ticks between checks for a diverged state
 
