@@ -1,9 +1,12 @@
-"""Named commands: what other threads may ask of the simulation, applied by its loop between steps."""
+"""Named commands: what other threads may ask of the simulation, applied by its loop between steps.
+
+Each is a hopper.sim.Command: Simulation.submit() queues it, the loop calls its apply(sim).
+"""
 
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING, Literal, Protocol
+from typing import TYPE_CHECKING, Literal
 
 from hopper.config import Gains
 from hopper.disturbances import DisturbanceKind
@@ -11,12 +14,6 @@ from hopper.schedule import KickSchedule
 
 if TYPE_CHECKING:
     from hopper.sim import Simulation
-
-
-class Command(Protocol):
-    """Anything with apply(sim); Simulation.submit() queues it, the loop applies it."""
-
-    def apply(self, sim: Simulation) -> None: ...
 
 
 @dataclasses.dataclass(frozen=True)

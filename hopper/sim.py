@@ -1,7 +1,7 @@
 """The simulation: model, controller, phases and metrics stepped together at 1 kHz.
 
 The headless runner and the dashboard both drive this class. Only its `step()` touches MjData;
-other threads `submit()` named commands (hopper.commands) that the next step applies.
+other threads `submit()` commands (`Command`; hopper.commands names them) that the next step applies.
 """
 
 from __future__ import annotations
@@ -15,7 +15,6 @@ from typing import Literal, Protocol
 import mujoco
 import numpy as np
 
-from hopper.commands import Command
 from hopper.config import FOOT_RADIUS, HIP_OFFSET_Z, THIGH_LENGTH, Gains, SimConfig, require_finite
 from hopper.control import EV_APEX, EV_FALL, EV_LIFTOFF, EV_TOUCHDOWN, HopController, Phase, control_tick
 from hopper.control.landing import FOOT_Y, ground_height
@@ -52,6 +51,12 @@ log = logging.getLogger(__name__)
 TORQUE_PULSE_S = 0.1  # s, how long a torque pulse (hopper.disturbances.DISTURBANCE_LIMITS) acts
 TORQUE_PULSE_DELAY_S = 0.15  # s after liftoff, when armed on the ground
 HEALTH_CHECK_TICKS = 50  # ticks between checks for a diverged state
+
+
+class Command(Protocol):
+    """Anything with apply(sim): submit() queues it, the loop applies it (hopper.commands names the usual ones)."""
+
+    def apply(self, sim: Simulation) -> None: ...
 
 
 class Listener(Protocol):
