@@ -6,14 +6,13 @@ Each is a hopper.sim.Command: Simulation.submit() queues it, the loop calls its 
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING, Literal
+from typing import Literal
 
 from hopper.config import Gains
 from hopper.disturbances import DisturbanceKind
 from hopper.schedule import KickSchedule
-
-if TYPE_CHECKING:
-    from hopper.sim import Simulation
+from hopper.sim import Command as Command  # re-exported: it was defined here before
+from hopper.sim import Simulation
 
 
 @dataclasses.dataclass(frozen=True)
