@@ -15,6 +15,9 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from hopper.app.cli_common import EXIT_OK, fail
+from hopper.app.episode import sim_config, simulate
+
 KINDS = ("run JSON", "compare JSON", ".rrd recording", "sweep directory or Parquet")
 
 
@@ -61,8 +64,6 @@ def out_folder(path: Path) -> Path:
 
 def _simulated(settings: dict[str, Any], wheel: bool) -> dict[str, Any]:
     """The run `settings` describe, with the wheel on or off, simulated again (deterministic)."""
-    from hopper.app.sim_cli import sim_config, simulate
-
     config = dataclasses.replace(sim_config(settings), wheel=wheel)
     print(f"simulating seed {config.seed}, wheel {'on' if wheel else 'off'}, {settings['hops']} hops", file=sys.stderr)
     return simulate(config, int(settings["hops"]))
@@ -123,8 +124,6 @@ def _sweep_report(path: Path):  # noqa: ANN202
 
 
 def command_report(args: argparse.Namespace) -> int:
-    from hopper.app.sim_cli import EXIT_OK, fail
-
     try:
         what = kind(args.input)
         out = out_folder(args.out)

@@ -4,32 +4,38 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import importlib.metadata
 import json
 import math
 import multiprocessing
 import os
-import signal
 import statistics
 import sys
-import time
-import typing
-from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, NoReturn, TypeVar
+from typing import Any
 
 import numpy as np
-from hopper.app import report_cli
+from hopper.app import report_cli, sweep_cli
+from hopper.app.cli_common import (
+    EXIT_FELL,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    EXIT_SHORT,
+    EXIT_STATUSES,
+    Parser,
+    add_run_flags,
+    fail,
+    part_limit,
+    rrd_file,
+    schedule,
+    seed,
+    writable_file,
+)
+from hopper.app.episode import settings, simulate, version
+from hopper.app.episode import sim_config as sim_config  # re-exported: results' docs named it here first
 
-from hopper.config import GRAVITY_PRESETS, Gains, GaitParams, InvalidConfig, SimConfig
-from hopper.interrupts import held, raise_if_stop_requested, stop_like_ctrl_c, stop_requested, wait_for_stop
-from hopper.scenarios import SCENARIOS, scenario
-from hopper.schedule import KickSchedule, parse
-
-if TYPE_CHECKING:
-    from hopper.sim import Simulation
-
-T = TypeVar("T")
+from hopper.config import Gains, GaitParams, InvalidConfig, SimConfig
+from hopper.interrupts import children_ignore_ctrl_c, stop_like_ctrl_c
+from hopper.scenarios import scenario
 
 # The JSON keys of a hop, in table order, with their column headings.
 HOP_COLUMNS = {
@@ -54,141 +60,11 @@ RESPONSE_COLUMNS = {
 }
 
 
-EXIT_OK, EXIT_FELL, EXIT_USAGE, EXIT_SHORT, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
-EXIT_STATUSES = (
-    "exit status: 0 success, 1 the robot fell (run) or a case failed (stress), 2 bad arguments, "
-    "3 the run stopped short of the hops asked without a fall (run; it says why), 130 interrupted "
-    "(Ctrl-C or SIGTERM). compare exits 0 once it has finished: with the wheel off the "
-    "robot is expected to fall."
-)
-
-
-class Parser(argparse.ArgumentParser):
-    """argparse with errors on one line (no usage dump) and one prefix, subcommands included."""
-
-    def error(self, message: str) -> NoReturn:
-        fail(message)
-
-
-def fail(message: str) -> NoReturn:
-    print(f"hopper-sim: error: {message}", file=sys.stderr)
-    raise SystemExit(EXIT_USAGE)
-
-
-def writable_file(text: str) -> Path:
-    """An output path that can really be written (checked before any simulation).
-
-    It is opened for appending, as hopper.telemetry.check_writable does for .rrd: permission bits
-    say little for root, /proc, read-only mounts or ACLs. A file that did not exist is removed again.
-    """
-    path = Path(text)
-    folder = path.parent
-    if path.is_dir():
-        raise argparse.ArgumentTypeError(f"{text} is a directory")
-    if not folder.is_dir():
-        raise argparse.ArgumentTypeError(f"folder {folder} does not exist")
-    existed = path.exists()
-    try:
-        with open(path, "ab"):
-            pass
-    except OSError as exc:
-        raise argparse.ArgumentTypeError(f"cannot write {text}: {exc.strerror or exc}") from None
-    if not existed:
-        path.unlink(missing_ok=True)
-    return path
-
-
-def seed(text: str) -> int:
-    """A terrain seed, a non-negative integer (numpy's generators take no negative seed)."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"invalid int value: {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"seed must be a non-negative integer, got {value}")
-    return value
-
-
-def rrd_file(text: str) -> Path:
-    """A .rrd path that can really be written (hopper.telemetry.check_writable opens it)."""
-    from hopper.telemetry import check_writable
-
-    try:
-        return check_writable(text)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
-
-
-def part_limit(low: float, unit: str) -> Callable[[str], float]:
-    """A finite rollover limit of at least `low` (a part must hold the ~1.1 MB scene)."""
-
-    def check(text: str) -> float:
-        value = finite(text)
-        if value < low:
-            raise argparse.ArgumentTypeError(f"must be at least {low:g} {unit}, got {text}")
-        return value
-
-    return check
-
-
-def finite(text: str) -> float:
-    value = float(text)
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"{text} is not a finite number")
-    return value
-
-
-def gravity(text: str) -> float:
-    """A number in m/s^2 or a preset name (moon, mars, ceres, earth)."""
-    if text.lower() in GRAVITY_PRESETS:
-        return GRAVITY_PRESETS[text.lower()]
-    try:
-        return finite(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is neither m/s^2 nor one of {', '.join(GRAVITY_PRESETS)}") from None
-
-
-def schedule(text: str) -> KickSchedule:
-    """A repeatable test's kick, KIND:MAGNITUDE[@DELAYms][,every:N] (hopper.schedule.parse)."""
-    try:
-        return parse(text)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
-
-
 def parser() -> Parser:
     top = Parser(prog="hopper-sim", description=__doc__, epilog=EXIT_STATUSES)
     commands = top.add_subparsers(dest="command", required=True, parser_class=Parser)
-    defaults = Gains()
-
-    def common(p: argparse.ArgumentParser) -> None:
-        p.add_argument("--hops", type=int, default=7, help="hops to complete (default 7)")
-        p.add_argument("--terrain", choices=("crater", "flat"), default="crater")
-        p.add_argument(
-            "--gravity",
-            type=gravity,
-            default=GRAVITY_PRESETS["moon"],
-            help="m/s^2 or moon|mars|ceres|earth (default moon, 1.625)",
-        )
-        p.add_argument("--kp", type=finite, default=defaults.kp, help=f"N m/rad (default {defaults.kp:g})")
-        p.add_argument("--ki", type=finite, default=defaults.ki, help=f"N m/(rad s) (default {defaults.ki:g})")
-        p.add_argument("--kd", type=finite, default=defaults.kd, help=f"N m s/rad (default {defaults.kd:g})")
-        p.add_argument(
-            "--sensing",
-            choices=("ideal", "realistic"),
-            default="ideal",
-            help="what the controller reads: the true pitch, or a simulated IMU's estimate (default ideal)",
-        )
-        p.add_argument("--json", type=writable_file, metavar="PATH", help="write the results as JSON")
-        p.add_argument(
-            "--scenario",
-            choices=tuple(SCENARIOS),
-            default="default",
-            help="gait preset: default, or paper (the paper's backward leg sweep in flight; hopper/scenarios.py)",
-        )
-
     run = commands.add_parser("run", help="simulate one robot until N hops or a fall", epilog=EXIT_STATUSES)
-    common(run)
+    add_run_flags(run)
     run.add_argument("--seed", type=seed, default=0, help="terrain seed (default 0)")
     run.add_argument("--no-wheel", action="store_true", help="zero wheel torque, wheel free to spin")
     run.add_argument("--rrd", type=rrd_file, metavar="PATH", help="record a rerun .rrd session")
@@ -216,7 +92,7 @@ def parser() -> Parser:
     )
 
     compare = commands.add_parser("compare", help="wheel on vs off over seeds 0..K-1", epilog=EXIT_STATUSES)
-    common(compare)
+    add_run_flags(compare)
     compare.add_argument("--seeds", type=int, default=10, help="number of seeds (default 10)")
     compare.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
     compare.add_argument("--executor", choices=("auto", "local", "ray"), default="auto", help="as for sweep")
@@ -250,9 +126,7 @@ def parser() -> Parser:
     envelope.add_argument("--out", type=Path, metavar="DIR", help="write envelope.png, .pdf and .json here")
     envelope.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
 
-    from hopper.app.sweep_cli import add_commands  # sweep and tune
-
-    add_commands(commands)
+    sweep_cli.add_commands(commands)  # sweep and tune
     export = commands.add_parser(
         "terrain", help="export a crater field as a grayscale PNG (as the paper does)", epilog=EXIT_STATUSES
     )
@@ -260,41 +134,6 @@ def parser() -> Parser:
     export.add_argument("--png", type=writable_file, required=True, metavar="PATH", help="16-bit grayscale PNG")
     report_cli.add_parser(commands, EXIT_STATUSES)
     return top
-
-
-def version() -> str:
-    """The installed package's version, as recorded in every result."""
-    try:
-        return importlib.metadata.version("hopper-dashboard")
-    except importlib.metadata.PackageNotFoundError:  # run from a checkout that was never installed
-        return "unknown"
-
-
-def settings(config: SimConfig, hops: int) -> dict[str, Any]:
-    """Everything that reproduces a run, JSON-ready: version, hops asked and the whole SimConfig.
-
-    SI units as in SimConfig: gravity m/s^2, timestep s, gains N m/rad, N m/(rad s), N m s/rad.
-    """
-    return {"version": version(), "hops": hops, **dataclasses.asdict(config)}
-
-
-def _from_dict(cls: type[T], data: dict[str, Any]) -> T:
-    hints = typing.get_type_hints(cls)
-    kwargs = {}
-    for field in dataclasses.fields(cls):
-        if field.name in data:
-            value, kind = data[field.name], hints[field.name]
-            if dataclasses.is_dataclass(kind):
-                value = _from_dict(kind, value)
-            elif isinstance(value, list):  # JSON has no tuples
-                value = tuple(value)
-            kwargs[field.name] = value
-    return cls(**kwargs)
-
-
-def sim_config(settings: dict[str, Any]) -> SimConfig:
-    """The SimConfig a result's `settings` came from (other keys, such as version, are ignored)."""
-    return _from_dict(SimConfig, settings)
 
 
 def make_config(args: argparse.Namespace, seed: int, wheel: bool) -> SimConfig:
@@ -307,103 +146,6 @@ def make_config(args: argparse.Namespace, seed: int, wheel: bool) -> SimConfig:
         sensing=args.sensing,
         gait=scenario(args.scenario).gait,
     )
-
-
-def simulate(
-    config: SimConfig,
-    hops: int,
-    rrd: Path | None = None,
-    viewer: str = "off",
-    report: Callable[[dict[str, Any]], None] | None = None,
-    trace: bool = True,
-    rrd_options: dict[str, Any] | None = None,
-    kicks: KickSchedule | None = None,
-) -> dict[str, Any]:
-    """Run one episode (optionally recorded), `report` its JSON-ready result and return it.
-
-    With a served viewer the recording stays open, served, after the report until Ctrl-C.
-    `trace` adds the 100 Hz time series `hopper-sim report` draws (hopper.trace): a Python call
-    every tick, ~10 % of a run's wall time here; leave it out where only the metrics count.
-    `rrd_options` go to Telemetry (max_bytes, max_seconds: rollover into numbered parts).
-    """
-    from hopper.sim import Simulation  # keeps `--help` and argument errors fast
-    from hopper.trace import TraceRecorder
-
-    sim = Simulation(config)
-    recorder = TraceRecorder(config.timestep) if trace else None
-    if recorder is not None:
-        sim.listeners.append(recorder)
-    telemetry, url = None, None
-    # Held for the whole run: a stop signal ends it between two bursts of ticks (sim.run's stop)
-    # and is raised once the recording is closed, so no moment of it can leave a file unfinished.
-    with held():
-        try:
-            if rrd is not None or viewer != "off":
-                from hopper.app.rerun_viewer import ViewerError, open_viewer
-
-                from hopper.telemetry import Telemetry
-
-                try:
-                    live = open_viewer(viewer)
-                except ViewerError as exc:
-                    fail(str(exc))
-                telemetry = Telemetry(  # attaches itself to sim
-                    sim,
-                    path=rrd,
-                    sinks=live.sinks,
-                    on_close=live.close,
-                    on_stop=_recording_stopped,
-                    **(rrd_options or {}),
-                )
-                url = live.url
-                if url:
-                    print(f"rerun web viewer: {url}", file=sys.stderr)
-            start = time.perf_counter()
-            if kicks is not None:
-                sim.set_schedule(kicks)  # after the recorder attached: the recording has the event
-            sim.run(hops, stop=stop_requested)
-            raise_if_stop_requested()
-            result = {
-                "settings": {**settings(config, hops), "schedule": kicks.spec() if kicks else None},
-                "seed": config.seed,
-                "wheel": config.wheel,
-                "fell": sim.fallen,
-                "sim_time_s": sim.time,
-                "wall_time_s": time.perf_counter() - start,
-                "hops": [hop.as_dict() for hop in sim.hops],
-                "short": shortfall(sim, hops),
-            }
-            if recorder is not None:
-                result["trace"] = recorder.as_dict()
-            if telemetry is not None and rrd_options and any(v is not None for v in rrd_options.values()):
-                result["rrd_parts"] = [str(p) for p in telemetry.parts]  # only with rollover: the numbered files
-            if report is not None:
-                report(result)
-            if telemetry is not None and url:  # the server lives in this process
-                telemetry.flush()
-                print("serving the recording until Ctrl-C", file=sys.stderr)
-                wait_for_stop()
-        finally:  # Ctrl-C or SIGTERM still leave a valid recording
-            if telemetry is not None:
-                telemetry.close()
-    return result
-
-
-def shortfall(sim: Simulation, hops: int) -> str | None:
-    """Why a run that neither fell nor did its `hops` hops stopped, in one line; None if it did."""
-    done = sum(h.completed for h in sim.hops)
-    if sim.fallen or done >= hops:
-        return None
-    x, end = sim.state().x, sim.config.craters.x0 + sim.config.craters.length
-    where = f"the torso at x = {x:.2f} m"
-    if sim.config.terrain == "crater" and x > end:
-        where += f", past the end of the crater strip at x = {end:.2f} m"
-    return f"{done} of {hops} hops done when the run's limit of {sim.time:.0f} s simulated ran out ({where})"
-
-
-def _recording_stopped(message: str) -> None:
-    """A recording that stopped by itself (a full disk): the run goes on."""
-    print(f"hopper-sim: warning: {message}", file=sys.stderr)
 
 
 def hop_table(hops: list[dict[str, Any]]) -> str:
@@ -492,11 +234,6 @@ def command_run(args: argparse.Namespace) -> int:
         print(f"hopper-sim: error: {result['short']}", file=sys.stderr)
         return EXIT_SHORT
     return EXIT_FELL if result["fell"] else EXIT_OK
-
-
-def _worker_ignores_interrupts() -> None:
-    """Pool workers leave Ctrl-C to the parent, which stops them: no traceback from each worker."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def command_compare(args: argparse.Namespace) -> int:
@@ -594,7 +331,9 @@ def command_stress(args: argparse.Namespace) -> int:
     cases = battery(seeds=args.seeds, gravity_seeds=args.gravity_seeds, quick=args.quick)
     cases = [c for c in cases if c.group in args.groups]
     workers = max(1, min(args.workers, len(cases)))
-    with multiprocessing.get_context("spawn").Pool(workers, initializer=_worker_ignores_interrupts) as pool:
+    with children_ignore_ctrl_c():  # pool workers leave Ctrl-C to this process, which stops them
+        pool = multiprocessing.get_context("spawn").Pool(workers)
+    with pool:
         runs = pool.imap(run_case, cases, chunksize=1)
         outcomes = list(tqdm(runs, total=len(cases), desc="cases", unit="case", file=sys.stderr))
     print("\n".join(table(outcomes)))
@@ -631,7 +370,7 @@ def command_envelope(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from hopper import envelope
-    from hopper.sim import DISTURBANCE_LIMITS
+    from hopper.disturbances import DISTURBANCE_LIMITS
     from hopper.stress import LANDING_LIMIT_DEG, run_case
 
     top = DISTURBANCE_LIMITS["pitch_kick"][0]
@@ -645,7 +384,9 @@ def command_envelope(args: argparse.Namespace) -> int:
     sizes = [s * v for v in args.sizes for s in (1.0, -1.0)]
     cases = envelope.envelope_cases(config, sizes, args.moments, flight)
     workers = max(1, min(args.workers, len(cases)))
-    with multiprocessing.get_context("spawn").Pool(workers, initializer=_worker_ignores_interrupts) as pool:
+    with children_ignore_ctrl_c():  # pool workers leave Ctrl-C to this process, which stops them
+        pool = multiprocessing.get_context("spawn").Pool(workers)
+    with pool:
         runs = pool.imap(run_case, cases, chunksize=1)
         outcomes = list(tqdm(runs, total=len(cases), desc="kicks", unit="case", file=sys.stderr))
     rows = envelope.rows(outcomes, moments, args.moments, flight)
@@ -684,9 +425,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "terrain":
             return command_terrain(args)
         if args.command in ("sweep", "tune"):
-            from hopper.app.sweep_cli import run
-
-            return run(args)
+            return sweep_cli.run(args)
         if args.command == "report":
             return report_cli.command_report(args)
         check_counts(args)

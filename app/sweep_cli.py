@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from hopper.app.sim_cli import EXIT_OK, fail, writable_file
+from hopper.app.cli_common import EXIT_OK, fail, writable_file
 
 SWEEP_EPILOG = (
     "exit status: 0 finished (falls are results), 2 bad spec or arguments, 130 interrupted "

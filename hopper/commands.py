@@ -1,22 +1,18 @@
-"""Named commands: what other threads may ask of the simulation, applied by its loop between steps."""
+"""Named commands: what other threads may ask of the simulation, applied by its loop between steps.
+
+Each is a hopper.sim.Command: Simulation.submit() queues it, the loop calls its apply(sim).
+"""
 
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING, Literal, Protocol
+from typing import Literal
 
 from hopper.config import Gains
-from hopper.events import DisturbanceKind
+from hopper.disturbances import DisturbanceKind
 from hopper.schedule import KickSchedule
-
-if TYPE_CHECKING:
-    from hopper.sim import Simulation
-
-
-class Command(Protocol):
-    """Anything with apply(sim); Simulation.submit() queues it, the loop applies it."""
-
-    def apply(self, sim: Simulation) -> None: ...
+from hopper.sim import Command as Command  # re-exported: it was defined here before
+from hopper.sim import Simulation
 
 
 @dataclasses.dataclass(frozen=True)
@@ -64,7 +60,7 @@ class SetTerrain:
 @dataclasses.dataclass(frozen=True)
 class Disturb:
     disturbance: DisturbanceKind
-    magnitude: float  # in the disturbance's unit (hopper.sim.DISTURBANCE_LIMITS)
+    magnitude: float  # in the disturbance's unit (hopper.disturbances.DISTURBANCE_LIMITS)
 
     def apply(self, sim: Simulation) -> None:
         sim.disturb(self.disturbance, self.magnitude)

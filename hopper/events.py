@@ -9,6 +9,7 @@ from typing import ClassVar, Literal
 
 from hopper.config import Gains
 from hopper.control.phases import FallCause
+from hopper.disturbances import DISTURBANCE_NAMES, DisturbanceKind
 from hopper.metrics import HopMetrics
 from hopper.schedule import KickSchedule
 
@@ -31,15 +32,6 @@ class EventKind(enum.StrEnum):
     SENSING = "sensing"
     OPERATOR = "operator"
     SCHEDULE = "schedule"
-
-
-DisturbanceKind = Literal["pitch_kick", "push_forward", "push_backward", "torque_pulse"]
-DISTURBANCE_NAMES: dict[str, str] = {
-    "pitch_kick": "pitch kick",
-    "push_forward": "push ▶",
-    "push_backward": "push ◀",
-    "torque_pulse": "torque pulse",
-}
 
 
 def _hop_text(hop: HopMetrics) -> str:

@@ -108,3 +108,22 @@ def held() -> Iterator[None]:
                 signal.raise_signal(signum)  # to the user's own handler, now restored
             else:
                 raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def children_ignore_ctrl_c() -> Iterator[None]:
+    """Processes spawned inside the block ignore SIGINT from their first instruction on.
+
+    A terminal's Ctrl-C reaches every process of its group, and a spawned pool worker still
+    starting its interpreter (before any initializer can ignore it) dies with a traceback. An
+    ignored signal stays ignored across exec, so here this process ignores SIGINT while it spawns:
+    a Ctrl-C in those few milliseconds is lost (SIGTERM is not). Main thread only.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    saved = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, saved)

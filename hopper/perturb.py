@@ -10,16 +10,26 @@ force are what the disturbance event reports on release.
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import mujoco
 import numpy as np
 
-if TYPE_CHECKING:
-    from hopper.sim import Simulation
-
 PULL_OMEGA = 8.0  # rad/s, natural frequency of the robot on the spring (about 1.3 Hz: a hand's pull)
 PULL_MAX_ACCEL = 10.0  # m/s^2: the pull never exceeds this times the robot's mass
+
+
+class Physics(Protocol):
+    """What a pull needs of the simulation it listens to (a hopper.sim.Simulation): its model and data.
+
+    A Protocol, not hopper.sim's class: hopper.sim imports this module, which must not import it back.
+    """
+
+    @property
+    def model(self) -> mujoco.MjModel: ...
+
+    @property
+    def data(self) -> mujoco.MjData: ...
 
 
 @dataclasses.dataclass
@@ -79,8 +89,8 @@ class Pull:
         self._pending = np.zeros(2)
 
     # -- a Simulation listener while it acts: after each step, the force for the next ------------
-    def tick(self, sim: Simulation) -> None:
+    def tick(self, sim: Physics) -> None:
         self.apply(sim.model, sim.data)
 
-    def event(self, sim: Simulation, event: Any) -> None:
+    def event(self, sim: Physics, event: Any) -> None:
         pass

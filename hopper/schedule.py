@@ -13,6 +13,7 @@ import math
 import re
 
 from hopper.config import require_finite
+from hopper.disturbances import DISTURBANCE_LIMITS, DISTURBANCE_NAMES
 
 MAX_DELAY_S = 2.0  # s after liftoff; flights last ~0.4-1.3 s (Moon), longer only in very low gravity
 MAX_EVERY = 1000
@@ -21,7 +22,7 @@ DEFAULT_DELAY_S = 0.15  # s, as an armed torque pulse (hopper.sim.TORQUE_PULSE_D
 
 @dataclasses.dataclass(frozen=True)
 class KickSchedule:
-    """`kind` (a hopper.sim.DISTURBANCE_LIMITS key) of `magnitude` (its unit), `delay_s` after the
+    """`kind` (a hopper.disturbances.DISTURBANCE_LIMITS key) of `magnitude` (its unit), `delay_s` after the
     liftoff of every `every`-th hop (hops whose index, counted from 1 since the reset, divides by it)."""
 
     kind: str
@@ -30,8 +31,6 @@ class KickSchedule:
     every: int = 1
 
     def __post_init__(self) -> None:
-        from hopper.sim import DISTURBANCE_LIMITS  # the limits live with the code that applies them
-
         if self.kind not in DISTURBANCE_LIMITS:
             raise ValueError(f"unknown disturbance {self.kind!r}; choose from {', '.join(DISTURBANCE_LIMITS)}")
         limit, unit = DISTURBANCE_LIMITS[self.kind]
@@ -45,9 +44,6 @@ class KickSchedule:
         return hop_index % self.every == 0
 
     def describe(self) -> str:
-        from hopper.events import DISTURBANCE_NAMES
-        from hopper.sim import DISTURBANCE_LIMITS
-
         n = self.every
         which = "every liftoff" if n == 1 else f"the liftoff of hops {n}, {2 * n}, {3 * n}, …"
         unit = DISTURBANCE_LIMITS[self.kind][1]

@@ -1,7 +1,7 @@
 """The simulation: model, controller, phases and metrics stepped together at 1 kHz.
 
 The headless runner and the dashboard both drive this class. Only its `step()` touches MjData;
-other threads `submit()` named commands (hopper.commands) that the next step applies.
+other threads `submit()` commands (`Command`; hopper.commands names them) that the next step applies.
 """
 
 from __future__ import annotations
@@ -16,17 +16,16 @@ from typing import Literal, Protocol
 import mujoco
 import numpy as np
 
-from hopper.commands import Command
 from hopper.config import FOOT_RADIUS, HIP_OFFSET_Z, THIGH_LENGTH, Gains, InvalidConfig, SimConfig, require_finite
 from hopper.control import EV_APEX, EV_FALL, EV_LIFTOFF, EV_TOUCHDOWN, HopController, Phase, control_tick
 from hopper.control.landing import FOOT_Y, ground_height
 from hopper.control.memory import MEMORY
+from hopper.disturbances import DISTURBANCE_LIMITS, DisturbanceKind
 from hopper.events import (
     Apex,
     CommandFailed,
     Disturbance,
     DisturbanceArmed,
-    DisturbanceKind,
     Diverged,
     Dragged,
     Event,
@@ -52,16 +51,16 @@ from hopper.state import RobotState, angular_momentum, read_state
 
 log = logging.getLogger(__name__)
 
-DISTURBANCE_LIMITS: dict[str, tuple[float, str]] = {  # largest magnitude, unit
-    "pitch_kick": (5.0, "N m s"),  # angular impulse on the torso
-    "push_forward": (20.0, "N s"),  # linear impulse on the torso
-    "push_backward": (20.0, "N s"),
-    "torque_pulse": (30.0, "N m"),  # pitch torque on the torso for TORQUE_PULSE_S, in flight
-}
-TORQUE_PULSE_S = 0.1  # s
+TORQUE_PULSE_S = 0.1  # s, how long a torque pulse (hopper.disturbances.DISTURBANCE_LIMITS) acts
 TORQUE_PULSE_DELAY_S = 0.15  # s after liftoff, when armed on the ground
 HEALTH_CHECK_TICKS = 50  # ticks between checks for a diverged state
 STOP_POLL_TICKS = 100  # ticks between two asks of run()'s stop(): a Ctrl-C ends a run within 0.1 s simulated
+
+
+class Command(Protocol):
+    """Anything with apply(sim): submit() queues it, the loop applies it (hopper.commands names the usual ones)."""
+
+    def apply(self, sim: Simulation) -> None: ...
 
 
 class Listener(Protocol):

@@ -26,7 +26,7 @@ class Schedule:
     """Apply `kind` of `magnitude` when the robot has been `delay_s` in `phase` during hop `hop`
     (hops counted from 1: hop 1 is the ground before the first liftoff and the first flight)."""
 
-    kind: str  # a hopper.sim.DISTURBANCE_LIMITS key
+    kind: str  # a hopper.disturbances.DISTURBANCE_LIMITS key
     magnitude: float
     phase: Phase
     delay_s: float

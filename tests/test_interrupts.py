@@ -8,7 +8,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from hopper.app import sim_cli
+from hopper.app import episode
 from rrd import verify
 
 from hopper import interrupts
@@ -16,7 +16,7 @@ from hopper.config import SimConfig
 from hopper.telemetry import recorder, scene, writer
 
 # The code a stop can cut short with a file open: the CLI's run, the recorder, its writer.
-WATCHED = {m.__file__ for m in (sim_cli, interrupts, recorder, scene, writer)}
+WATCHED = {m.__file__ for m in (episode, interrupts, recorder, scene, writer)}
 
 
 @pytest.fixture
@@ -46,7 +46,7 @@ def record(path: Path, names: list[str], at: int | None = None, **rrd_options: f
 
     sys.settrace(tracer)
     try:
-        sim_cli.simulate(SimConfig(terrain="flat"), 1, path, trace=False, rrd_options=rrd_options or None)
+        episode.simulate(SimConfig(terrain="flat"), 1, path, trace=False, rrd_options=rrd_options or None)
     finally:
         sys.settrace(None)
 

@@ -19,10 +19,10 @@ import viser
 from hopper.app.dashboard.scene import WORLD, CameraFollow, RobotView
 
 from hopper.ballistics import Arc, Ground, predict
-from hopper.commands import Command, Grab, PullTo, Release
+from hopper.commands import Grab, PullTo, Release
 from hopper.control import Phase
 from hopper.control.landing import FOOT_Y
-from hopper.sim import Simulation
+from hopper.sim import Command, Simulation
 
 FORCE_COLOR = (88, 166, 255)  # blue: what the ground pushes
 ARC_COLOR = (120, 220, 255)  # cyan: apart from the orange trail

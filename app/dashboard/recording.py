@@ -9,9 +9,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Literal
 
-from hopper.commands import Command
 from hopper.events import Recording as RecordingEvent
-from hopper.sim import Simulation
+from hopper.sim import Command, Simulation
 
 log = logging.getLogger(__name__)
 

@@ -25,9 +25,8 @@ import viser._messages as messages
 from hopper.app.dashboard.access import Gatekeeper
 from hopper.app.dashboard.feedback import guarded, notify
 
-from hopper.commands import Command
 from hopper.events import OperatorChanged, OperatorReason
-from hopper.sim import Simulation
+from hopper.sim import Command, Simulation
 
 log = logging.getLogger(__name__)
 

@@ -22,6 +22,7 @@ from hopper.config import MOON_GRAVITY
 from hopper.errors import HopperError
 from hopper.experiments.spec import Episode
 from hopper.experiments.worker import EpisodeResult, Worker
+from hopper.interrupts import children_ignore_ctrl_c
 
 Kind = Literal["auto", "local", "ray"]
 Chunk = list[Episode]
@@ -90,9 +91,8 @@ _process_worker: Worker | None = None
 
 
 def _start_process_worker() -> None:
-    """Pool workers leave Ctrl-C to the parent, which stops them: no traceback from each worker."""
+    """Build the worker's simulation; it ignores Ctrl-C from its start (children_ignore_ctrl_c)."""
     global _process_worker
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
     _process_worker = Worker()
     _process_worker.warm()
 
@@ -110,7 +110,8 @@ class LocalPool:
     def __init__(self, workers: int) -> None:
         self.workers = workers
         context = multiprocessing.get_context("spawn")  # no fork of a process holding MuJoCo or threads
-        self.pool = context.Pool(workers, initializer=_start_process_worker)
+        with children_ignore_ctrl_c():
+            self.pool = context.Pool(workers, initializer=_start_process_worker)
 
     def map(self, chunks: Iterable[Chunk]) -> Iterator[list[EpisodeResult]]:
         yield from self.pool.imap_unordered(_run_in_process_worker, chunks)

@@ -16,7 +16,7 @@ The TOML keys (every one optional; a scalar is a one-value axis):
     [[disturbance]]                           # the disturbance axis, one entry per schedule
     kind = "none"                             # the undisturbed case
     [[disturbance]]
-    kind = "push_forward"                     # a hopper.sim.DISTURBANCE_LIMITS key
+    kind = "push_forward"                     # a hopper.disturbances.DISTURBANCE_LIMITS key
     size = [2.0, 4.0]                         # in the kind's unit (N s, N m s or N m)
     phase = "stance"                          # entered this long (s) before it acts ...
     delay = 0.1
@@ -39,8 +39,8 @@ import numpy as np
 
 from hopper.config import GAIN_RANGES, GRAVITY_PRESETS, Gains, GaitParams, InvalidConfig, SimConfig, require_finite
 from hopper.control.phases import Phase
+from hopper.disturbances import DISTURBANCE_LIMITS
 from hopper.errors import HopperError
-from hopper.sim import DISTURBANCE_LIMITS
 from hopper.stress import Schedule
 
 AXES = ("kp", "ki", "kd", "gravity", "seeds", "hops", "terrain", "wheel", "sensing")

@@ -8,7 +8,7 @@ from typing import Protocol
 
 import viser
 
-from hopper.commands import Command
+from hopper.sim import Command
 
 
 class LoopControls(Protocol):

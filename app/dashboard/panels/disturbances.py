@@ -11,8 +11,8 @@ from hopper.app.dashboard.panels import PanelContext
 from hopper.app.dashboard.panels.entry import NumberEntry
 
 from hopper.commands import Disturb, SetSchedule
+from hopper.disturbances import DISTURBANCE_LIMITS
 from hopper.schedule import DEFAULT_DELAY_S, MAX_DELAY_S, MAX_EVERY, KickSchedule
-from hopper.sim import DISTURBANCE_LIMITS
 
 # Button label -> (core kind, magnitude label, default magnitude). Defaults are visible but recoverable.
 KINDS = {
@@ -62,7 +62,7 @@ class DisturbancesPanel:
 
 
 def build_disturbances_panel(gui: viser.GuiApi, ctx: PanelContext) -> DisturbancesPanel:
-    """Magnitudes are typed, checked against hopper.sim.DISTURBANCE_LIMITS, and used when a button is pressed."""
+    """Magnitudes are typed, checked against hopper.disturbances.DISTURBANCE_LIMITS, used when a button is pressed."""
     magnitudes = {}
     for kind, label, default in KINDS.values():
         limit, unit = DISTURBANCE_LIMITS[kind]

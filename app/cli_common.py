@@ -1,0 +1,148 @@
+"""What hopper-sim's commands share: exit statuses, one-line errors, argument types, the run flags.
+
+Imported by hopper.app.sim_cli and by the commands it delegates to (report_cli, sweep_cli); it
+imports none of them, so hopper-sim's modules form no import cycle.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import NoReturn
+
+from hopper.config import GRAVITY_PRESETS, Gains
+from hopper.scenarios import SCENARIOS
+from hopper.schedule import KickSchedule, parse
+
+EXIT_OK, EXIT_FELL, EXIT_USAGE, EXIT_SHORT, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+EXIT_STATUSES = (
+    "exit status: 0 success, 1 the robot fell (run) or a case failed (stress), 2 bad arguments, "
+    "3 the run stopped short of the hops asked without a fall (run; it says why), 130 interrupted "
+    "(Ctrl-C or SIGTERM). compare exits 0 once it has finished: with the wheel off the "
+    "robot is expected to fall."
+)
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse with errors on one line (no usage dump) and one prefix, subcommands included."""
+
+    def error(self, message: str) -> NoReturn:
+        fail(message)
+
+
+def fail(message: str) -> NoReturn:
+    print(f"hopper-sim: error: {message}", file=sys.stderr)
+    raise SystemExit(EXIT_USAGE)
+
+
+def writable_file(text: str) -> Path:
+    """An output path that can really be written (checked before any simulation).
+
+    It is opened for appending, as hopper.telemetry.check_writable does for .rrd: permission bits
+    say little for root, /proc, read-only mounts or ACLs. A file that did not exist is removed again.
+    """
+    path = Path(text)
+    folder = path.parent
+    if path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text} is a directory")
+    if not folder.is_dir():
+        raise argparse.ArgumentTypeError(f"folder {folder} does not exist")
+    existed = path.exists()
+    try:
+        with open(path, "ab"):
+            pass
+    except OSError as exc:
+        raise argparse.ArgumentTypeError(f"cannot write {text}: {exc.strerror or exc}") from None
+    if not existed:
+        path.unlink(missing_ok=True)
+    return path
+
+
+def seed(text: str) -> int:
+    """A terrain seed, a non-negative integer (numpy's generators take no negative seed)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid int value: {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"seed must be a non-negative integer, got {value}")
+    return value
+
+
+def rrd_file(text: str) -> Path:
+    """A .rrd path that can really be written (hopper.telemetry.check_writable opens it)."""
+    from hopper.telemetry import check_writable
+
+    try:
+        return check_writable(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def part_limit(low: float, unit: str) -> Callable[[str], float]:
+    """A finite rollover limit of at least `low` (a part must hold the ~1.1 MB scene)."""
+
+    def check(text: str) -> float:
+        value = finite(text)
+        if value < low:
+            raise argparse.ArgumentTypeError(f"must be at least {low:g} {unit}, got {text}")
+        return value
+
+    return check
+
+
+def finite(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{text} is not a finite number")
+    return value
+
+
+def gravity(text: str) -> float:
+    """A number in m/s^2 or a preset name (moon, mars, ceres, earth)."""
+    if text.lower() in GRAVITY_PRESETS:
+        return GRAVITY_PRESETS[text.lower()]
+    try:
+        return finite(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is neither m/s^2 nor one of {', '.join(GRAVITY_PRESETS)}") from None
+
+
+def schedule(text: str) -> KickSchedule:
+    """A repeatable test's kick, KIND:MAGNITUDE[@DELAYms][,every:N] (hopper.schedule.parse)."""
+    try:
+        return parse(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def add_run_flags(p: argparse.ArgumentParser) -> None:
+    """The flags of one simulated robot (terrain, gravity, gains, sensing, gait), as run and compare take them."""
+    defaults = Gains()
+    p.add_argument("--hops", type=int, default=7, help="hops to complete (default 7)")
+    p.add_argument("--terrain", choices=("crater", "flat"), default="crater")
+    p.add_argument(
+        "--gravity",
+        type=gravity,
+        default=GRAVITY_PRESETS["moon"],
+        help="m/s^2 or moon|mars|ceres|earth (default moon, 1.625)",
+    )
+    p.add_argument("--kp", type=finite, default=defaults.kp, help=f"N m/rad (default {defaults.kp:g})")
+    p.add_argument("--ki", type=finite, default=defaults.ki, help=f"N m/(rad s) (default {defaults.ki:g})")
+    p.add_argument("--kd", type=finite, default=defaults.kd, help=f"N m s/rad (default {defaults.kd:g})")
+    p.add_argument(
+        "--sensing",
+        choices=("ideal", "realistic"),
+        default="ideal",
+        help="what the controller reads: the true pitch, or a simulated IMU's estimate (default ideal)",
+    )
+    p.add_argument("--json", type=writable_file, metavar="PATH", help="write the results as JSON")
+    p.add_argument(
+        "--scenario",
+        choices=tuple(SCENARIOS),
+        default="default",
+        help="gait preset: default, or paper (the paper's backward leg sweep in flight; hopper/scenarios.py)",
+    )
