@@ -6,6 +6,7 @@ Browsers are stood in for by `ProbeClient`, which speaks viser's real websocket 
 from __future__ import annotations
 
 import math
+import re
 import socket
 import time
 from pathlib import Path
@@ -17,7 +18,7 @@ from hopper.app.dashboard.feedback import notify_all
 from hopper.app.dashboard.pacing import MAX_LAG_S, Pacer
 from hopper.app.dashboard.panels.events import describe
 from hopper.app.dashboard.panels.hops import hop_table_html
-from hopper.app.dashboard.server import Dashboard, PortInUse
+from hopper.app.dashboard.server import FRAME_S, STATUS_S, Dashboard, PortInUse
 from net import free_port, port_is_free, wait_until
 
 from benchmarks.probe import ProbeClient
@@ -185,6 +186,43 @@ def test_every_published_frame_reaches_the_client_as_one_pose_update(dashboard: 
         published,
     )
     assert client.snapshot()[2] - poses0 <= dashboard.frames - frames0 + 1
+
+
+def _badge(dashboard: Dashboard) -> str:
+    """The phase the status strip's badge shows, as last handed to viser (what the browsers get)."""
+    match = re.search(r"class='hd-phase hd-(\w+)'", dashboard.layout.status.html.content)
+    return match.group(1) if match else ""
+
+
+@pytest.mark.parametrize("speed", [1.0, 64.0])
+def test_the_phase_label_and_the_status_badge_show_the_same_phase_in_every_frame(tmp_path: Path, speed: float) -> None:
+    """The loop's cadence, driven frame by frame on this thread (the loop thread is never started):
+    a frame of steps, then a publish, the status strip due every STATUS_S. After every frame the label
+    over the robot and the badge say the phase the simulation is in, also when it changed between two
+    status updates (1x: a landing lasts 0.2 s; 64x: the phase changes from one frame to the next)."""
+    d = Dashboard(DashboardConfig(port=free_port(), speed=speed, sessions_dir=tmp_path), verbose=False)
+    try:
+        ticks = round(FRAME_S * speed / d.sim.model.opt.timestep)  # steps between two frames
+        every = round(STATUS_S / FRAME_S)  # frames between two status updates
+        frames = round((8.0 if speed == 1.0 else 40.0) / (FRAME_S * speed))  # two hops at 1x, ten at 64x
+        seen, phase_changes, status_frames, resent = set(), 0, 0, 0
+        previous = d.sim.phase.label
+        for frame in range(frames):
+            for _ in range(ticks):
+                d.sim.step()
+            phase, due, strip = d.sim.phase.label, frame % every == 0, d.layout.status.html.content
+            d._publish(frame * FRAME_S, FRAME_S, due)
+            where = f"frame {frame} at t = {d.sim.time:.3f} s"
+            assert d.robot.label.visible and (d.robot.label.text, _badge(d)) == (phase, phase), where
+            seen.add(phase)
+            phase_changes, status_frames = phase_changes + (phase != previous), status_frames + due
+            resent += d.layout.status.html.content != strip
+            previous = phase
+        assert {"landing", "stance", "crouch", "push", "flight"} <= seen, seen
+        # The strip goes out on its own cadence and on a phase change, not with every frame.
+        assert resent <= status_frames + phase_changes, (resent, status_frames, phase_changes)
+    finally:
+        d.stop()
 
 
 # -- simulation trouble ----------------------------------------------------------------------------

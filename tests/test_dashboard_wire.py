@@ -26,6 +26,7 @@ from net import free_port
 
 from benchmarks.probe import CATEGORIES, ProbeClient
 from hopper.config import WHEEL_TORQUE_LIMIT, SimConfig
+from hopper.control import Phase
 from hopper.meshes import body_meshes, body_poses
 from hopper.metrics import RAD_S_TO_RPM
 from hopper.sim import Simulation
@@ -177,6 +178,32 @@ def test_local_poses_compose_back_to_the_world_poses() -> None:
     sim.step()
     later_p, _ = local_poses(*body_poses(sim.model, sim.data, meshes), parents)
     assert np.allclose(later_p, local_p, atol=1e-12)
+
+
+def test_the_phase_label_switches_labels_and_never_re_sends_a_text() -> None:
+    """One label per phase, only the current one visible (RobotView): viser's client draws a visibility
+    in the frame it arrives with the poses, a new text a render frame later."""
+    sim = Simulation(SimConfig())
+    server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
+    try:
+        robot = RobotView(server.scene, sim.model)
+        sent: list[str] = []
+        for handle in robot.labels.values():
+            handle._queue_update = lambda name, value: sent.append(name)  # type: ignore[method-assign]
+        phases = [phase.label for phase in Phase]
+        assert [handle.text for handle in robot.labels.values()] == phases
+        for phase in [*phases, "stance", "stance"]:
+            robot.update(sim.model, sim.data, 0.0, phase)
+            assert [h.text for h in robot.labels.values() if h.visible] == [phase] and robot.label.text == phase
+        robot.show_label = False  # the View panel's "Phase label" unticked
+        robot.update(sim.model, sim.data, 0.0, "flight")
+        assert not any(h.visible for h in robot.labels.values()) and robot.label.text == "flight"
+        robot.show_label = True
+        robot.update(sim.model, sim.data, 0.0, "flight")
+        assert [h.text for h in robot.labels.values() if h.visible] == ["flight"]
+        assert sent == [], sent  # no label's text (or other property) ever changed
+    finally:
+        server.stop()
 
 
 def test_every_frame_moves_the_whole_robot_in_one_message(dashboard: Dashboard, client: ProbeClient) -> None:

@@ -12,6 +12,7 @@ import viser
 from hopper.terrain import CraterParams
 
 from hopper.config import WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT
+from hopper.control import Phase
 from hopper.meshes import BodyMesh, body_meshes, body_poses, terrain_mesh
 
 # A client can leave between listing the clients and moving its camera; viser then warns that the
@@ -27,6 +28,7 @@ TRAIL_PUBLISH_S = 0.1  # s of wall time between re-sends of the newest chunk (ea
 TRAIL_COLOR = (255, 176, 59)
 SATURATION_COLORS = ((70, 200, 120), (245, 190, 40), (235, 60, 50))  # free, half, saturated
 RING_STEP = 0.05  # of saturation: the ring's colour steps
+LABEL_POSITION = (0.0, 0.0, 0.42)  # m above the torso's origin: the phase label clears the wheel
 CAMERA_OFFSET = np.array([0.0, -4.4, 1.9])  # m from the look-at point: side view from 23 deg above
 LOOK_OFFSET = np.array([0.3, 0.0, -0.3])  # m from the followed torso: a little ahead (it hops toward +x), down
 CAMERA_FOV = math.radians(45.0)  # vertical; about 4 m of height in view at the default distance
@@ -138,6 +140,12 @@ class RobotView:
     A frame at the torso's position carries the label; under it the torso takes its rotation and every
     other body its pose relative to its parent body. A hinge only turns its body, so a frame moves the
     frame (one position) and sends one rotation per body: viser skips the constant offsets.
+
+    The label is one label per phase, the current one visible: viser's client (1.1.1,
+    label/LabelRenderer.tsx) draws a label's new text one render frame after the poses it came with (the
+    text reaches its renderer through a React effect), a visibility in the frame it arrives. With a new
+    text, a page drawing about a frame a second (headless Chromium, software WebGL) showed "flight" over
+    a robot in stance under a STANCE badge; a switch of labels is drawn with the poses and the badge.
     """
 
     def __init__(self, scene: viser.SceneApi, model: mujoco.MjModel) -> None:
@@ -162,12 +170,26 @@ class RobotView:
             position=(0.0, -0.07, 0.0),
             cast_shadow=False,
         )
-        # Above the torso, unrotated: a child of the frame that only follows the torso's position.
-        self.label = scene.add_label(
-            f"{ROBOT}/label", "stance", position=(0.0, 0.0, 0.42), anchor="bottom-center", font_screen_scale=0.9
-        )
+        # Above the torso, unrotated: children of the frame that only follows the torso's position.
+        self.labels = {
+            phase.label: scene.add_label(
+                f"{ROBOT}/label_{phase.label}",
+                phase.label,
+                position=LABEL_POSITION,
+                anchor="bottom-center",
+                font_screen_scale=0.9,
+                visible=phase is Phase.STANCE,
+            )
+            for phase in Phase
+        }
+        self.phase = Phase.STANCE.label  # the phase labelled (shown if show_label)
         self.show_label = True
         self.torso_position = np.zeros(3)  # m, in the world frame, as last sent
+
+    @property
+    def label(self) -> viser.LabelHandle:
+        """The label of the phase labelled now."""
+        return self.labels[self.phase]
 
     def grabbable(self) -> list[viser.SceneNodeHandle]:
         """The nodes a mouse drag pulls the torso by: the torso, the bodies fixed on it (the wheel), its ring."""
@@ -191,9 +213,9 @@ class RobotView:
             self._level = round(level / RING_STEP) * RING_STEP
             self.ring.color = saturation_color(self._level)
         self.torso_position = positions[root]  # in the world frame, as sent
-        if self.label.text != phase:
-            self.label.text = phase
-        self.label.visible = self.show_label
+        self.phase = phase
+        for label, handle in self.labels.items():
+            handle.visible = self.show_label and label == phase  # viser sends only the two that change
 
 
 class Trail:

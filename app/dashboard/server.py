@@ -46,6 +46,7 @@ from hopper.history import History
 from hopper.metrics import RAD_S_TO_RPM
 from hopper.sim import Simulation
 from hopper.snapshot import Snapshot
+from hopper.state import RobotState
 
 log = logging.getLogger(__name__)
 PLANT_CHANGES = (EventKind.GRAVITY, EventKind.TERRAIN, EventKind.SENSING)
@@ -320,8 +321,16 @@ class Dashboard:
         while self._events:
             self._handle(self._events.popleft())
         level = saturation(s.wheel_torque, s.wheel_speed)
+        # One read of the phase for the label over the robot and the status badge, sent in the same
+        # window. The label goes with every frame, the strip every STATUS_S: a phase change re-sends the
+        # strip at once, or the badge would show the phase before it for up to STATUS_S (a landing lasts
+        # 0.2 s at 1x; at 64x the phase changes from one frame to the next).
+        phase = sim.phase.label
+        status = self._status(s, phase, level) if with_status or phase != self.layout.status.phase else None
         with self.server.atomic():
-            self.robot.update(sim.model, sim.data, level, sim.phase.label)
+            self.robot.update(sim.model, sim.data, level, phase)
+            if status is not None:
+                self.layout.status.show(status)
             # Smoothing in simulated time: at 64x the camera keeps up with a robot 64 times as fast.
             self.camera.update(s.x, s.z, dt * max(self.pacer.speed, 1.0))
             self.ghost.update(now)
@@ -333,25 +342,27 @@ class Dashboard:
             self.layout.replay.show_span(self.pacer.paused)
         if with_status:
             self.roles.poll()  # an idle operator's control passes on
-            self.layout.status.show(
-                Status(
-                    phase=sim.phase.label,
-                    time=s.time,
-                    rtf=self.pacer.real_time_factor(),
-                    speed=self.pacer.speed,
-                    paused=self.pacer.paused,
-                    behind=self.pacer.behind,
-                    hops=sum(h.completed for h in sim.hops),
-                    pitch_deg=math.degrees(s.pitch),
-                    wheel_rpm=s.wheel_speed * RAD_S_TO_RPM,
-                    saturation=level,
-                    capacity=s.wheel_speed / WHEEL_NO_LOAD_SPEED,
-                    capacity_nms=momentum_capacity(),
-                    gravity=sim.config.gravity,
-                    recording=self.recorder.active,
-                )
-            )
             self.layout.record.refresh()  # the recording's current file and size
+
+    def _status(self, s: RobotState, phase: str, level: float) -> Status:
+        """What the status strip shows now; `phase` is the frame's one read, the label's too."""
+        sim = self.sim
+        return Status(
+            phase=phase,
+            time=s.time,
+            rtf=self.pacer.real_time_factor(),
+            speed=self.pacer.speed,
+            paused=self.pacer.paused,
+            behind=self.pacer.behind,
+            hops=sum(h.completed for h in sim.hops),
+            pitch_deg=math.degrees(s.pitch),
+            wheel_rpm=s.wheel_speed * RAD_S_TO_RPM,
+            saturation=level,
+            capacity=s.wheel_speed / WHEEL_NO_LOAD_SPEED,
+            capacity_nms=momentum_capacity(),
+            gravity=sim.config.gravity,
+            recording=self.recorder.active,
+        )
 
     def _handle(self, event: Event) -> None:
         """React to one simulation event (on the loop thread)."""

@@ -78,8 +78,10 @@ def status_html(s: Status) -> str:
 @dataclasses.dataclass
 class StatusPanel:
     html: viser.GuiHtmlHandle
+    phase: str = ""  # the phase the badge shows ("" before the first show)
 
     def show(self, status: Status) -> None:
+        self.phase = status.phase
         content = status_html(status)
         if content != self.html.content:
             self.html.content = content
