@@ -405,3 +405,25 @@ def test_at_64x_the_camera_keeps_the_robot_in_view(dashboard: Dashboard) -> None
         time.sleep(0.05)
     assert sorted(offsets)[len(offsets) // 2] < 0.5, offsets  # the median frame: the robot near the centre
     assert dashboard.pacer.real_time_factor() > 16.0  # it did fast-forward
+
+
+def test_loop_controls_are_commands_the_loop_applies_in_order(dashboard: Dashboard) -> None:
+    """One way into the loop: pause, speed, steps and stay-fallen go on the simulation's queue and
+    change the loop's state only where the loop drains it, in the order they were asked."""
+    import threading
+
+    held, seen = threading.Event(), []
+    dashboard.sim.submit(Call(lambda sim: held.wait(30)))  # the loop waits here, between two rounds
+    try:
+        dashboard.set_speed(8.0)
+        dashboard.set_stay_fallen(True)
+        dashboard.set_paused(True)
+        dashboard.sim.submit(Call(lambda sim: seen.append((dashboard.pacer.speed, dashboard.stay_fallen))))
+        assert (dashboard.pacer.speed, dashboard.stay_fallen, dashboard.pacer.paused) == (1.0, False, False), (
+            "a control changed the loop from the caller's thread"
+        )
+    finally:
+        held.set()
+    assert wait_until(lambda: seen == [(8.0, True)] and dashboard.pacer.paused)
+    with pytest.raises(ValueError, match="speed must be"):
+        dashboard.set_speed(math.inf)  # refused in the caller's thread, nothing queued

@@ -27,10 +27,15 @@ class Pacer:
         self._steps = 0  # cumulative steps done, for the real-time factor
         self._samples: collections.deque[tuple[float, int]] = collections.deque()  # (wall s, steps)
 
-    def set_speed(self, speed: float) -> None:
-        """Set the asked speed (x real time); raises ValueError outside [MIN_SPEED, MAX_SPEED]."""
+    @staticmethod
+    def check_speed(speed: float) -> None:
+        """Raise ValueError unless `speed` (x real time) is a number in [MIN_SPEED, MAX_SPEED]."""
         if not (isinstance(speed, (int, float)) and math.isfinite(speed) and MIN_SPEED <= speed <= MAX_SPEED):
             raise ValueError(f"speed must be a number in [{MIN_SPEED:g}, {MAX_SPEED:g}] x real time, got {speed!r}")
+
+    def set_speed(self, speed: float) -> None:
+        """Set the asked speed (x real time); raises ValueError outside [MIN_SPEED, MAX_SPEED]."""
+        self.check_speed(speed)
         self.speed = float(speed)
 
     def due(self, now: float, most: int | None = None) -> int:

@@ -19,6 +19,7 @@ from hopper.app.dashboard.access import Access, Gatekeeper, page_url
 from hopper.app.dashboard.config import DashboardConfig
 from hopper.app.dashboard.feedback import notify_all
 from hopper.app.dashboard.layout import Layout, build_layout
+from hopper.app.dashboard.loop_commands import Pause, Restore, SetSpeed, StayFallen, Steps
 from hopper.app.dashboard.pacing import Pacer
 from hopper.app.dashboard.panels import PanelContext
 from hopper.app.dashboard.panels.status import Status
@@ -85,15 +86,14 @@ class Dashboard:
         self.sim = Simulation(config.sim_config())
         self.pacer = Pacer(self.sim.model.opt.timestep, config.speed)
         self.stay_fallen = False
-        self._single_steps = 0
-        self._single_lock = threading.Lock()
+        self._single_steps = 0  # ticks asked by Steps, stepped in the next round (loop thread only)
         self._events: collections.deque[Event] = collections.deque()
         self._stopping = threading.Event()
         self._stopped = False
         self._fallen_since: float | None = None
         self._end_notified = -math.inf  # wall s of the last "end of the terrain" notice
         self._next_sample = 0.0
-        self._restore: Snapshot | None = None  # asked by the Replay panel, applied by the loop
+        self._restored = False  # a Restore was applied in this round: it steps nothing
         self.frames = 0  # pose frames published, for tests and the benchmark
 
         limits = FileLimits(max_mb=config.rrd_max_mb, max_min=config.rrd_max_min, flush_s=config.rrd_flush_s)
@@ -201,43 +201,56 @@ class Dashboard:
         """Block until stop() is called (or `timeout` s); True if stopped."""
         return self._stopping.wait(timeout)
 
-    # -- LoopControls (called from viser's threads: flags only) ------------------------------
+    # -- LoopControls (called from any thread: each is a command on the simulation's queue) ----
     def set_paused(self, paused: bool) -> None:
-        self.pacer.paused = paused
-        self.pacer.restart_window()
+        self.sim.submit(Pause(self, bool(paused)))
 
     def request_steps(self, count: int) -> None:
-        with self._single_lock:
-            self._single_steps += max(int(count), 0)
+        self.sim.submit(Steps(self, max(int(count), 0)))
 
     def set_speed(self, speed: float) -> None:
-        self.pacer.set_speed(speed)
-        self.pacer.restart_window()
+        self.pacer.check_speed(speed)  # a bad speed is refused here, in the caller's thread
+        self.sim.submit(SetSpeed(self, speed))
+
+    def set_stay_fallen(self, stay: bool) -> None:
+        self.sim.submit(StayFallen(self, bool(stay)))
 
     # -- ReplayHost (panels/replay.py) ------------------------------------------------------
     def pause(self, paused: bool) -> None:
         self.layout.simulation.set_paused(paused)
 
     def request_restore(self, snapshot: Snapshot) -> None:
-        self._restore = snapshot  # one reference assignment: atomic; a newer request replaces an older one
+        self.sim.submit(Restore(self, snapshot))
 
-    def _apply_restore(self) -> bool:
-        """On the loop thread: restore a requested snapshot; True if one was (no steps this round)."""
-        snapshot, self._restore = self._restore, None
-        if snapshot is None:
-            return False
+    # -- loop_commands.Loop (on the loop thread, as the queue is drained) ---------------------
+    def apply_paused(self, paused: bool) -> None:
+        self.pacer.paused = paused
+        self.pacer.restart_window()
+
+    def apply_speed(self, speed: float) -> None:
+        self.pacer.set_speed(speed)
+        self.pacer.restart_window()
+
+    def apply_steps(self, count: int) -> None:
+        self._single_steps += count
+
+    def apply_stay_fallen(self, stay: bool) -> None:
+        self.stay_fallen = stay
+
+    def apply_restore(self, snapshot: Snapshot) -> None:
+        """Restore a snapshot; no steps in this round: the restored moment must be the one shown."""
+        self._restored = True
         try:
             self.sim.restore(snapshot)
         except Exception as exc:
             log.exception("restoring a snapshot failed")
             notify_all(self.server, "Restore failed", f"{type(exc).__name__}: {exc}", "error")
-            return True
+            return
         self.history.rewound(snapshot)
         self._next_sample = snapshot.time
         self.layout.plots.drop_after(snapshot.time)
         if snapshot.hops is not None:  # the hop table shows the hops of the moment restored
             self.layout.hops.show(list(snapshot.hops))
-        return True
 
     # -- Listener (called on the loop thread by sim.step) -------------------------------------
     def tick(self, sim: Simulation) -> None:
@@ -260,13 +273,11 @@ class Dashboard:
             now = time.perf_counter()
             # At most two frames' worth of steps between publishes: fast-forward keeps the scene and
             # the charts moving together even when the machine cannot deliver the asked speed.
+            self._apply_commands()  # the one way in: simulation and loop commands, in order
             budgeted = self.pacer.due(now, most=math.ceil(2 * FRAME_S * self.pacer.speed / self.pacer.timestep))
-            if self._restore is not None and self._apply_restore():
-                budgeted = 0  # paused by the scrubber: the restored moment must be the one shown
-            if self.pacer.paused:
-                self._apply_commands()
-            with self._single_lock:
-                extra, self._single_steps = self._single_steps, 0
+            if self._restored:
+                budgeted, self._restored = 0, False  # the restored moment must be the one shown
+            extra, self._single_steps = self._single_steps, 0
             self._step(budgeted + extra)
             self.pacer.done(budgeted, now, extra)
             self._watchdog(now)
@@ -282,7 +293,7 @@ class Dashboard:
             self._stopping.wait(max(0.0, min(next_frame - time.perf_counter(), MAX_SLEEP_S)))
 
     def _apply_commands(self) -> None:
-        """While paused, apply queued commands without stepping (a reset or new gains show at once)."""
+        """Apply queued commands before this round's steps (paused, a reset or new gains show at once)."""
         try:
             self.sim.apply_pending()
         except Exception:

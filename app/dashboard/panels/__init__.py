@@ -12,9 +12,12 @@ from hopper.sim import Command
 
 
 class LoopControls(Protocol):
-    """What the panels may ask of the simulation loop (never MjData itself)."""
+    """What the panels may ask of the simulation loop (never MjData itself): each call queues a
+    command that the loop applies with the simulation's, in order (loop_commands)."""
 
-    stay_fallen: bool
+    stay_fallen: bool  # read only: set_stay_fallen changes it
+
+    def set_stay_fallen(self, stay: bool) -> None: ...
 
     def set_paused(self, paused: bool) -> None: ...
 

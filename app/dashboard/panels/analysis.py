@@ -2,7 +2,8 @@
 
 The analysis is of the flight plant (hopper.linearize): the whole model linearized early in a
 flight of the present configuration, computed on a worker thread whenever gravity, terrain or
-sensing change; a gain change only re-closes the loop (about 60 ms), so it follows every change.
+sensing change; a gain change only re-closes the loop (about 60 ms), so it follows every change,
+on a worker thread of its own: never on the simulation's 1 kHz loop, which reports gain changes.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import logging
 import math
 import threading
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 
 import viser
 from hopper.app.dashboard.feedback import guarded, notify
@@ -48,6 +50,10 @@ class AnalysisPanel:
     _lock: threading.RLock = dataclasses.field(default_factory=threading.RLock, repr=False)
     _workers: list[threading.Thread] = dataclasses.field(default_factory=list, repr=False)
     _closed: bool = False
+    _shown: int = 0  # requests to show the loop; only the newest is computed
+    _closer: ThreadPoolExecutor = dataclasses.field(
+        default_factory=lambda: ThreadPoolExecutor(1, thread_name_prefix="loop-analysis"), repr=False
+    )
 
     def show_gains(self, gains: Gains, delay: int | None = None) -> None:
         """Re-close the loop at these gains (and command delay, ticks) and show it."""
@@ -95,10 +101,28 @@ class AnalysisPanel:
             workers = list(self._workers)
         for worker in workers:
             worker.join(timeout)
+        self._closer.shutdown(wait=True, cancel_futures=True)
 
     def _refresh(self) -> None:
-        self.result = analyse(self.plant, self.gains, self.delay, self.rate.value) if self.plant else None
-        self.html.content = _render(self.result, self.gains, self.plant)
+        """Re-close the loop soon, on the analysis thread (the caller may be the simulation's loop)."""
+        self._shown += 1
+        if not self._closed:
+            self._closer.submit(self._close_loop, self._shown)
+
+    def _close_loop(self, shown: int) -> None:
+        with self._lock:
+            if shown != self._shown:
+                return  # a newer request follows
+            plant, gains, delay, rate = self.plant, self.gains, self.delay, self.rate.value
+        try:
+            result = analyse(plant, gains, delay, rate) if plant else None
+        except Exception:
+            log.exception("loop analysis failed")
+            result = None
+        with self._lock:
+            if shown == self._shown:  # nothing changed meanwhile: show it
+                self.result = result
+                self.html.content = _render(result, gains, plant)
 
     def design(self, kind: str, client: viser.ClientHandle | None) -> None:
         """Run a design helper on the present plant and apply its gains (or say why not)."""

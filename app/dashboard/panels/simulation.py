@@ -80,7 +80,7 @@ def build_simulation_panel(gui: viser.GuiApi, ctx: PanelContext, speed: float = 
 
     @guarded
     def on_stay(_: viser.GuiEvent) -> None:
-        ctx.loop.stay_fallen = bool(panel.stay_fallen.value)
+        ctx.loop.set_stay_fallen(bool(panel.stay_fallen.value))
 
     panel.speed.on_update(on_speed)
     panel.stay_fallen.on_update(on_stay)
