@@ -119,6 +119,12 @@ class Roles:
             return list(self._seats)
 
     @property
+    def last_input(self) -> float:
+        """The clock's time (s) of the operator's last input, or of the last change of operator."""
+        with self._lock:
+            return self._last_input
+
+    @property
     def askers(self) -> list[int]:
         with self._lock:
             return list(self._askers)
