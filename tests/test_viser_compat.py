@@ -212,8 +212,8 @@ def test_the_message_classes_are_what_a_client_sends_decode_into(
     assert [getattr(m, "uuid", None) for _, m in gated.items][:3] == ["u1", "u2", "u3"]
 
 
-# -- element ids and the registries ---------------------------------------------------------------
-def test_lookups_find_shared_inputs_and_commands_by_the_id_a_client_uses(
+# -- element_id, shared_input(s), is_shared_command --------------------------------------------
+def test_an_element_id_is_the_id_a_client_uses_for_it(
     server: viser.ViserServer, clients: Clients, probes: list[ProbeClient]
 ) -> None:
     slider = server.gui.add_slider("Shared", 0.0, 1.0, 0.1, 0.5)
@@ -222,26 +222,44 @@ def test_lookups_find_shared_inputs_and_commands_by_the_id_a_client_uses(
     command.on_trigger(lambda _: triggered.add("shared"))
     probe, client = connect(server, clients, probes)
     own = client.gui.add_button("Own")
-    own_command = client.gui.add_command("Own command")
-
-    # The id on the wire (the one the page gives the element's root as its DOM id).
-    shared_id, own_id = compat.element_id(slider), compat.element_id(own)
-    assert probe.input_uuid("Shared", TIMEOUT_S) == shared_id and probe.input_uuid("Own", TIMEOUT_S) == own_id
-    assert compat.shared_input(server, shared_id) is slider
-    assert compat.shared_input(server, own_id) is None  # a client's own widget is no shared input
-    inputs = compat.shared_inputs(server)
-    assert inputs[shared_id] is slider and own_id not in inputs
-    inputs.clear()  # a copy
-    assert compat.shared_input(server, shared_id) is slider
-    assert compat.is_shared_command(server, compat.element_id(command))
-    assert not compat.is_shared_command(server, compat.element_id(own_command))
-    assert not compat.is_shared_command(server, shared_id)
+    # The id on the wire (and the one the page gives the element's root as its DOM id).
+    assert probe.input_uuid("Shared", TIMEOUT_S) == compat.element_id(slider)
+    assert probe.input_uuid("Own", TIMEOUT_S) == compat.element_id(own)
     # A command's id is the one a client triggers it by.
     probe.send({"type": "CommandTriggerMessage", "uuid": compat.element_id(command)})
     assert triggered.wait_for(lambda t: t == ["shared"])
 
+
+def test_shared_input_finds_the_servers_inputs_only(
+    server: viser.ViserServer, clients: Clients, probes: list[ProbeClient]
+) -> None:
+    slider = server.gui.add_slider("Shared", 0.0, 1.0, 0.1, 0.5)
+    _, client = connect(server, clients, probes)
+    own = client.gui.add_button("Own")
+    shared_id, own_id = compat.element_id(slider), compat.element_id(own)
+    assert compat.shared_input(server, shared_id) is slider
+    assert compat.shared_input(server, own_id) is None  # a client's own widget is no shared input
+    assert compat.shared_input(server, "no-such-id") is None
+    inputs = compat.shared_inputs(server)
+    assert inputs[shared_id] is slider and own_id not in inputs
+    inputs.clear()  # a copy
+    assert compat.shared_input(server, shared_id) is slider
     slider.remove()
     assert compat.shared_input(server, shared_id) is None and shared_id not in compat.shared_inputs(server)
+
+
+def test_is_shared_command_knows_the_servers_commands_only(
+    server: viser.ViserServer, clients: Clients, probes: list[ProbeClient]
+) -> None:
+    command = server.gui.add_command("Shared command")
+    slider = server.gui.add_slider("Shared", 0.0, 1.0, 0.1, 0.5)
+    _, client = connect(server, clients, probes)
+    own_command = client.gui.add_command("Own command")
+    assert compat.is_shared_command(server, compat.element_id(command))
+    assert not compat.is_shared_command(server, compat.element_id(own_command))
+    assert not compat.is_shared_command(server, compat.element_id(slider))  # an input, not a command
+    command.remove()
+    assert not compat.is_shared_command(server, compat.element_id(command))
 
 
 # -- update_for_client ------------------------------------------------------------------------------
