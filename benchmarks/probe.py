@@ -104,6 +104,7 @@ class ProbeClient:
         self.chart_data: dict[str, list[Any]] = {}  # uPlot uuid -> its latest data, decoded (binary as raw bytes)
         self.notifications: list[dict[str, Any]] = []
         self.gui: dict[str, dict[str, Any]] = {}  # uuid -> creation message
+        self.gui_updates: dict[str, dict[str, Any]] = {}  # uuid -> latest value of each property updated (not charts)
         self.closed = False
         self._thread = threading.Thread(target=self._receive, name="probe", daemon=True)
         self._thread.start()
@@ -219,6 +220,8 @@ class ProbeClient:
                     uuid, refreshes = message["uuid"], self.traffic.chart_refreshes
                     refreshes[uuid] = refreshes.get(uuid, 0) + 1
                     self.chart_data[uuid] = self._resolve(message["updates"]["data"], raw, compressed, lengths)
+                elif kind == "GuiUpdateMessage":
+                    self.gui_updates.setdefault(message["uuid"], {}).update(message["updates"])
                 if "uuid" in message and "props" in message and kind.startswith("Gui"):
                     self.gui[message["uuid"]] = message
             self.pose_frames += moved

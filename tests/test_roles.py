@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator
 
 import pytest
-import viser._messages as messages
+from hopper.app.dashboard import viser_compat as compat
 from hopper.app.dashboard.server import Dashboard
 from net import wait_until
 
@@ -93,8 +93,8 @@ def test_a_viewer_may_open_help_and_nothing_can_open_a_share_tunnel(start: Start
     assert b.wait_for(lambda p: p.counts["GuiModalMessage"] == modals + 1), "a viewer could not open Help"
     # A share tunnel would publish the session beyond --host and the token: refused even from the
     # operator (checked here, not sent: the tunnel's server is outside the loopback range).
-    assert not d.roles.allows(d.roles.operator, messages.ShareUrlRequest())
-    assert not d.roles.allows(d.roles.seated[1], messages.ShareUrlRequest())
+    assert not d.roles.allows(d.roles.operator, compat.ShareUrlRequest())
+    assert not d.roles.allows(d.roles.seated[1], compat.ShareUrlRequest())
 
 
 def test_asking_and_handing_over(start: Start, probes) -> None:

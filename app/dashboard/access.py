@@ -10,7 +10,6 @@ hmac.compare_digest and never logged.
 
 from __future__ import annotations
 
-import asyncio
 import dataclasses
 import hmac
 import ipaddress
@@ -20,13 +19,14 @@ import secrets
 import socket
 import threading
 import time
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Literal
 from urllib.parse import parse_qs, urlsplit
 
 from hopper.config import InvalidConfig
 
 if TYPE_CHECKING:  # config.py uses this module's checks: keep --help free of viser
     import viser
+    from hopper.app.dashboard.viser_compat import Opening
 
 log = logging.getLogger(__name__)
 
@@ -102,48 +102,43 @@ class ClientInfo:
 class Gatekeeper:
     """Checks every websocket of a viser server as it opens; remembers each client's address and grant.
 
-    Installed on viser's websocket layer (not `server.on_client_connect`, which viser calls only
-    after the browser's first camera message, once data has already been sent).
+    Installed on viser's websocket layer (viser_compat.on_connection_open), not
+    `server.on_client_connect`, which viser calls only after the browser's first camera message,
+    once data has already been sent.
     """
 
     def __init__(self, server: viser.ViserServer, access: Access) -> None:
+        # Imported here, not at the top: config.py imports this module, and --help stays free of viser.
+        from hopper.app.dashboard import viser_compat as compat
+
         self.access = access
         self.refused = 0  # connections refused, for tests and the log
         self._clients: dict[int, ClientInfo] = {}
         self._lock = threading.Lock()
         self._last_refusal_log = -REFUSED_LOG_S
-        self._ws = server._websock_server  # viser 1.1.1: the websocket layer has no public handle
-        self._ws.on_client_connect(self._opened)
-        self._ws.on_client_disconnect(self._closed)
+        compat.on_connection_open(server, self._opened)
+        compat.on_connection_close(server, self._closed)
         # The server accepted connections before this ran: close any that slipped in unchecked
         # (they reconnect at once and are checked then; nothing of the scene existed yet).
-        loop = self._ws._background_event_loop
-        for connection in tuple(self._ws._live_connections.values()):
-            if loop is not None:
-                asyncio.run_coroutine_threadsafe(connection.close(), loop)
+        compat.close_connections(server)
 
     def info(self, client_id: int) -> ClientInfo | None:
         with self._lock:
             return self._clients.get(client_id)
 
-    async def _opened(self, conn: Any) -> None:
-        connection = self._ws._live_connections.get(conn.client_id)
-        if connection is None:
-            return
-        path = connection.request.path if connection.request is not None else "/"
-        grant = self.access.grant(path)
-        address = str(connection.remote_address[0]) if connection.remote_address else "?"
+    async def _opened(self, opening: Opening) -> None:
+        grant = self.access.grant(opening.path)
         if grant is None:
-            self._log_refusal(address)
+            self._log_refusal(opening.address)
             # Closed before viser's senders start: nothing of the session reaches this client.
-            await connection.close(REFUSED_CLOSE_CODE, "access token required")
+            await opening.close(REFUSED_CLOSE_CODE, "access token required")
             return
         with self._lock:
-            self._clients[conn.client_id] = ClientInfo(address, grant)
+            self._clients[opening.client_id] = ClientInfo(opening.address, grant)
 
-    async def _closed(self, conn: Any) -> None:
+    async def _closed(self, client_id: int) -> None:
         with self._lock:
-            self._clients.pop(conn.client_id, None)
+            self._clients.pop(client_id, None)
 
     def _log_refusal(self, address: str) -> None:
         self.refused += 1

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import viser
 import viser.uplot as uplot
+from hopper.app.dashboard import viser_compat as compat
 
 from hopper.config import WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT
 from hopper.metrics import RAD_S_TO_RPM
@@ -137,10 +138,9 @@ def _send(chart: viser.GuiUplotHandle, data: tuple[np.ndarray, ...]) -> None:
     viser's setter casts uPlot data to float64 and ships it as raw, uncompressed binary (8 bytes a
     value). Lists of the same float32 values (exact in float64) go inside the zstd-compressed msgpack
     instead: about 4 bytes a value, and the constant limit lines next to nothing. The browser hands
-    either form to uPlot unchanged. (Private viser API: tests/test_dashboard_wire.py reads the wire.)
+    either form to uPlot unchanged (tests/test_dashboard_wire.py reads the wire).
     """
-    chart._impl.props.data = data  # what the handle reports
-    chart._queue_update("data", tuple(column.tolist() for column in data))
+    compat.set_chart_lists(chart, data)
 
 
 class LivePlots:

@@ -21,7 +21,7 @@ from collections.abc import Callable, Iterable
 from typing import Any
 
 import viser
-import viser._messages as messages
+from hopper.app.dashboard import viser_compat as compat
 from hopper.app.dashboard.access import Gatekeeper
 from hopper.app.dashboard.feedback import guarded, notify
 
@@ -35,11 +35,11 @@ READ_ONLY_NOTICE_S = 5.0  # s between a viewer's 'Read-only' notices (its refuse
 REPLAY_WAIT_S = 20.0  # s at most to wait for a new client's replay of the scene before greying its controls
 REPLAY_MARGIN_S = 0.2  # s after viser has queued the replay's last window, for it to be sent
 # Per-client, harmless from anyone: the camera, and answers to the server's own requests.
-VIEWER_MESSAGES = (messages.ViewerCameraMessage, messages.GetRenderResponseMessage)
+VIEWER_MESSAGES = (compat.ViewerCameraMessage, compat.GetRenderResponseMessage)
 # Allowed from a viewer when they name one of the viewer-safe inputs (Help, Side view).
-INPUT_MESSAGES = (messages.GuiUpdateMessage, messages.GuiButtonHoldMessage)
+INPUT_MESSAGES = (compat.GuiUpdateMessage, compat.GuiButtonHoldMessage)
 # Refused from everyone: a share tunnel would publish the session past --host and the token.
-NEVER = (messages.ShareUrlRequest, messages.ShareUrlDisconnect)
+NEVER = (compat.ShareUrlRequest, compat.ShareUrlDisconnect)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -86,7 +86,7 @@ class Roles:
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.server, self.submit, self.folder, self.gatekeeper = server, submit, folder, gatekeeper
-        self.viewer_safe = frozenset(handle._impl.uuid for handle in viewer_safe)
+        self.viewer_safe = frozenset(compat.element_id(handle) for handle in viewer_safe)
         self.idle_timeout_s, self.clock = idle_timeout_s, clock
         self.operator: int | None = None
         self.refused = 0  # messages dropped from non-operators, for tests
@@ -94,14 +94,7 @@ class Roles:
         self._askers: list[int] = []
         self._last_input = clock()
         self._lock = threading.RLock()
-        self._ws = server._websock_server  # viser 1.1.1: no public hook sees messages before dispatch
-        dispatch = self._ws._handle_incoming_message
-
-        async def gated(client_id: int, message: Any) -> None:
-            if self.allows(client_id, message):
-                await dispatch(client_id, message)
-
-        self._ws._handle_incoming_message = gated
+        compat.gate_incoming(server, self.allows)  # every message, before viser's server-scope handlers
         # Async: run on viser's event loop in the order they happen (thread-pool callbacks may not).
         server.on_client_connect(self._connected)
         server.on_client_disconnect(self._disconnected)
@@ -154,19 +147,18 @@ class Roles:
         """Whether viser's server-scope handlers would act on it. viser hands every message to both
         the server's and the sending client's handlers; one for the client's own widgets finds
         nothing on the server's side, so it may pass (its own handler is not gated)."""
-        gui = self.server.gui
         if isinstance(message, INPUT_MESSAGES):
-            return message.uuid in gui._gui_input_handle_from_uuid
-        if isinstance(message, messages.CommandTriggerMessage):
-            return message.uuid in gui._command_handle_from_uuid
+            return compat.shared_input(self.server, message.uuid) is not None
+        if isinstance(message, compat.CommandTriggerMessage):
+            return compat.is_shared_command(self.server, message.uuid)
         return True  # anything else from a viewer is refused
 
     def _refused(self, seat: Seat, message: Any) -> None:
         """Show the refused client what runs again (its widget may have moved) and why."""
         uuid = getattr(message, "uuid", None)
-        handle = self.server.gui._gui_input_handle_from_uuid.get(uuid) if isinstance(uuid, str) else None
+        handle = compat.shared_input(self.server, uuid) if isinstance(uuid, str) else None
         if handle is not None:
-            _send(seat.client, messages.GuiUpdateMessage(handle._impl.uuid, {"value": handle._impl.value}))
+            _send(seat.client, uuid, {"value": handle.value})
         now = self.clock()
         if now - seat.last_notice < READ_ONLY_NOTICE_S:  # a drag or a held slider sends 20 a second
             return
@@ -251,10 +243,9 @@ class Roles:
         viser sends the replay of the shared scene and per-client messages on separate queues;
         so wait until the replay's last window has left (viser's own cursor of it).
         """
-        buffer = self._ws._broadcast_buffer
-        target = buffer.message_counter - 1
+        target = compat.broadcast_mark(self.server)
         deadline = time.monotonic() + REPLAY_WAIT_S
-        while buffer.generator_cursors.get(seat.client.client_id, -1) < target and time.monotonic() < deadline:
+        while compat.broadcast_sent(self.server, seat.client.client_id) < target and time.monotonic() < deadline:
             if seat.client.client_id not in self._seats:
                 return
             await asyncio.sleep(0.05)
@@ -352,11 +343,11 @@ class Roles:
             seat.read_only = read_only
             return
         seat.read_only = read_only
-        for uuid, handle in list(self.server.gui._gui_input_handle_from_uuid.items()):
+        for uuid, handle in compat.shared_inputs(self.server).items():
             if uuid in self.viewer_safe:
                 continue
-            disabled = read_only or bool(getattr(handle._impl.props, "disabled", False))
-            _send(seat.client, messages.GuiUpdateMessage(uuid, {"disabled": disabled}))
+            disabled = read_only or bool(getattr(handle, "disabled", False))
+            _send(seat.client, uuid, {"disabled": disabled})
 
     def _build_view(self, seat: Seat) -> ControlView:
         gui, client_id = seat.client.gui, seat.client.client_id
@@ -377,14 +368,14 @@ def _div(content: str) -> str:
 
 def _gone(client: viser.ClientHandle) -> bool:
     """Whether the client's connection has closed (viser warns about messages queued after that)."""
-    return client._websock_connection.get_message_buffer().done
+    return compat.connection_closed(client)
 
 
-def _send(client: viser.ClientHandle, message: Any) -> None:
-    """Queue a message for one client only (viser has no public per-client update of a shared widget)."""
+def _send(client: viser.ClientHandle, uuid: str, updates: dict[str, Any]) -> None:
+    """Update a shared input in one client's page only (viser has no public per-client update of a shared widget)."""
     if _gone(client):
         return
     try:
-        client._websock_connection.queue_message(message)
+        compat.update_for_client(client, uuid, updates)
     except Exception:
         log.debug("sending to client %s failed", client.client_id, exc_info=True)

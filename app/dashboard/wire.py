@@ -13,15 +13,14 @@ checks (hopper.app.dashboard.feedback), which clamp or refuse with a notificatio
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Coroutine
 from typing import Any
 
 import viser
-from viser._messages import GuiUpdateMessage
+from hopper.app.dashboard import viser_compat as compat
 
 log = logging.getLogger(__name__)
-
-Handler = Callable[[Any, GuiUpdateMessage], Coroutine[Any, Any, None]]
+# viser's handles for which a browser sends a press (True) or, in a group, one of its options.
+BUTTONS = (viser.GuiButtonHandle, viser.GuiButtonGroupHandle, viser.GuiUploadButtonHandle)
 
 
 def _same_kind(current: object, value: object) -> bool:
@@ -41,41 +40,36 @@ def _same_kind(current: object, value: object) -> bool:
     return type(value) is type(current)
 
 
-def problem(state: Any, updates: object) -> str | None:
-    """Why a browser's `updates` for a control in `state` (viser's handle state) must be dropped; None if fine."""
+def problem(handle: viser.GuiInputHandle, updates: object) -> str | None:
+    """Why a browser's `updates` for this control must be dropped; None if fine."""
     if not isinstance(updates, dict) or set(updates) != {"value"}:
         return f"updates {sorted(updates) if isinstance(updates, dict) else type(updates).__name__} are not a value"
-    props = state.props
-    if getattr(props, "disabled", False):
+    if getattr(handle, "disabled", False):
         return "the control is disabled"
     value = updates["value"]
-    options = getattr(props, "options", None)
-    if state.is_button:  # a button sends True; a button group one of its options
+    options = getattr(handle, "options", None)
+    if isinstance(handle, BUTTONS):  # a button sends True; a button group one of its options
         ok = isinstance(value, str) if options is not None else value is True
         return None if ok else f"a button sent {value!r}"
-    if not _same_kind(state.value, value):
-        return f"a {type(value).__name__} for a {type(state.value).__name__} control"
+    if not _same_kind(handle.value, value):
+        return f"a {type(value).__name__} for a {type(handle.value).__name__} control"
     if options is not None and value not in options:  # a dropdown
         return f"{value!r} is not one of its options"
     return None
 
 
 def guard_gui_updates(server: viser.ViserServer) -> None:
-    """Put the check in front of the server GUI's update handler (once, after the server starts)."""
-    gui = server.gui
-    websock = server._websock_server  # viser offers no public hook before an update is applied
-    original: Handler = gui._handle_gui_updates  # type: ignore[assignment]
+    """Check every GUI update a browser sends before viser applies it to a shared control (once, at start)."""
 
-    async def checked(client_id: Any, message: GuiUpdateMessage) -> None:
-        handle = gui._gui_input_handle_from_uuid.get(message.uuid)
-        if handle is None:
-            return
-        why = problem(handle._impl, message.updates)
+    def allows(client_id: int, message: Any) -> bool:
+        if not isinstance(message, compat.GuiUpdateMessage):
+            return True
+        handle = compat.shared_input(server, message.uuid)
+        if handle is None:  # a client's own widget (its handlers are not gated) or no control at all
+            return True
+        why = problem(handle, message.updates)
         if why is not None:
-            label = getattr(handle._impl.props, "label", "?")
-            log.info("dropped a GUI update from client %s for %r: %s", client_id, label, why)
-            return
-        await original(client_id, message)
+            log.info("dropped a GUI update from client %s for %r: %s", client_id, getattr(handle, "label", "?"), why)
+        return why is None
 
-    websock.unregister_handler(GuiUpdateMessage, original)
-    websock.register_handler(GuiUpdateMessage, checked)
+    compat.gate_incoming(server, allows)

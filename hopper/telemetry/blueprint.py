@@ -6,11 +6,10 @@ from typing import Any
 
 import rerun as rr
 import rerun.blueprint as rrb
-import rerun_bindings as bindings
 from rerun.blueprint.encodings import ComponentSourceKind, VisualizerComponentMapping
-from rerun.recording_stream import RecordingStream
 
 from hopper.layout import LEG_JOINTS
+from hopper.telemetry import rerun_compat as compat
 from hopper.telemetry.columns import SCALARS
 from hopper.telemetry.schema import HOP, TIME
 
@@ -90,23 +89,20 @@ class BlueprintSource:
     rerun 0.41's `set_sinks(default_blueprint=...)` builds a new blueprint stream per call and
     about 2.4 MB of each is never freed (measured: 40 calls, +100 MB of resident memory), which
     made an hour's recording with rollover grow without bound. One blueprint stream, re-logged into
-    a fresh memory sink for each part, is freed as it should be (40 parts, flat).
+    a fresh memory sink for each part, is freed as it should be (40 parts, flat). The private
+    touches this takes are in hopper.telemetry.rerun_compat.
     """
 
     def __init__(self, application_id: str) -> None:
         self._blueprint = default_blueprint()
-        self._stream = RecordingStream._from_native(  # what rerun.blueprint.api does, once
-            bindings.new_blueprint(
-                application_id=application_id, make_default=False, make_thread_default=False, default_enabled=True
-            )
-        )
+        self._stream = compat.blueprint_stream(application_id)  # what rerun.blueprint.api does, once
         self._stream.set_time("blueprint", sequence=0)
         self._memory: Any = None
 
     def storage(self) -> Any:
-        """A memory sink holding the blueprint, for `rerun_bindings.set_sinks(default_blueprint=...)`."""
+        """A memory sink holding the blueprint, for `rerun_compat.set_sinks(default_blueprint=...)`."""
         self._memory = self._stream.memory_recording()  # kept until the next part's
-        self._blueprint._log_to_stream(self._stream)
+        compat.log_blueprint(self._blueprint, self._stream)
         return self._memory.storage
 
     def close(self) -> None:

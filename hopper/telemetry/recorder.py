@@ -19,7 +19,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pyarrow as pa
 import rerun as rr
-import rerun_bindings as bindings
 
 from hopper.config import WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT
 from hopper.control import Phase
@@ -28,6 +27,7 @@ from hopper.interrupts import held
 from hopper.layout import LEG_JOINTS
 from hopper.meshes import body_meshes
 from hopper.metrics import RAD_S_TO_RPM
+from hopper.telemetry import rerun_compat
 from hopper.telemetry.blueprint import RED, BlueprintSource
 from hopper.telemetry.columns import (
     CHILD_FRAME,
@@ -272,9 +272,7 @@ class Telemetry:
             self.parts.append(path)
             files = [self._file.sink]
         # rr.set_sinks, with the blueprint from one stream (BlueprintSource: rerun leaks one a call)
-        bindings.set_sinks(
-            [*files, *self._sinks], default_blueprint=self._blueprints.storage(), recording=self.rec.to_native()
-        )
+        rerun_compat.set_sinks([*files, *self._sinks], default_blueprint=self._blueprints.storage(), recording=self.rec)
         if self._file is not None:
             self._file.attached()
         sim = self.sim

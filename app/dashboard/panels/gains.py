@@ -7,6 +7,7 @@ import threading
 from collections.abc import Callable
 
 import viser
+from hopper.app.dashboard import viser_compat as compat
 from hopper.app.dashboard.feedback import Refused, checked, guarded, notify
 from hopper.app.dashboard.panels import PanelContext
 from hopper.app.dashboard.panels.entry import NumberEntry
@@ -71,10 +72,10 @@ class GainsPanel:
 def _hide_slider_boxes(gui: viser.GuiApi, sliders: list[viser.GuiSliderHandle[float]]) -> None:
     """Hide the number box viser draws beside each slider: it has the faults NumberEntry avoids.
 
-    viser gives a slider's root element the handle's id and draws the box right after it; the id
-    is only reachable through the handle's private state.
+    viser gives a slider's root element the handle's id and draws the box right after it (no
+    option of add_slider leaves it out).
     """
-    selectors = ", ".join(f'[id="{s._impl.uuid}"] + .mantine-NumberInput-root' for s in sliders)
+    selectors = ", ".join(f'[id="{compat.element_id(s)}"] + .mantine-NumberInput-root' for s in sliders)
     gui.add_html(f"<style>{selectors} {{ display: none; }}</style>")
 
 

@@ -1,0 +1,400 @@
+"""Contract tests of hopper.app.dashboard.viser_compat: one per private touch of viser, by what it does.
+
+Each runs a real `viser.ViserServer` on 127.0.0.1 and real websocket clients (`ProbeClient`, which
+speaks the browser's protocol), so a viser release that reroutes a touch fails here: a gate that
+no longer sees messages, an update that no longer arrives, a cursor that no longer moves. Waits
+are on conditions that viser's own callbacks or the client's received frames make true.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import importlib.util
+import re
+import threading
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import numpy as np
+import pytest
+import viser
+import websockets.exceptions
+import websockets.sync.client as ws_client
+from hopper.app.dashboard import viser_compat as compat
+from net import wait_until
+
+from benchmarks.probe import ProbeClient
+from hopper.errors import HopperError
+from hopper.versions import UnsupportedVersion
+
+pytestmark = pytest.mark.integration  # a real ViserServer and websocket clients
+
+HOST = "127.0.0.1"
+TIMEOUT_S = 20.0  # s at most for any one awaited condition (a bound for a stuck run, not a delay)
+
+
+class Seen:
+    """Items reported from viser's threads, waited on with a condition variable."""
+
+    def __init__(self) -> None:
+        self.items: list[Any] = []
+        self._changed = threading.Condition()
+
+    def add(self, item: Any) -> None:
+        with self._changed:
+            self.items.append(item)
+            self._changed.notify_all()
+
+    def wait_for(self, predicate: Callable[[list[Any]], object], timeout: float = TIMEOUT_S) -> bool:
+        with self._changed:
+            return bool(self._changed.wait_for(lambda: predicate(self.items), timeout))
+
+
+class Clients:
+    """A server's registered clients, from its own connect and disconnect callbacks."""
+
+    def __init__(self, server: viser.ViserServer) -> None:
+        self.joined, self.left = Seen(), Seen()
+
+        async def joined(client: viser.ClientHandle) -> None:
+            self.joined.add(client)
+
+        async def left(client: viser.ClientHandle) -> None:
+            self.left.add(client.client_id)
+
+        server.on_client_connect(joined)
+        server.on_client_disconnect(left)
+
+    def wait_left(self, client_id: int) -> bool:
+        return self.left.wait_for(lambda ids: client_id in ids)
+
+
+@pytest.fixture
+def server() -> Iterator[viser.ViserServer]:
+    s = viser.ViserServer(host=HOST, port=0, verbose=False)
+    yield s
+    s.stop()  # idempotent: a test may have stopped it
+
+
+@pytest.fixture
+def probes() -> Iterator[list[ProbeClient]]:
+    opened: list[ProbeClient] = []
+    yield opened
+    for p in opened:
+        p.close()
+
+
+@pytest.fixture
+def clients(server: viser.ViserServer) -> Clients:
+    return Clients(server)
+
+
+def connect(
+    server: viser.ViserServer, clients: Clients, probes: list[ProbeClient], path: str = ""
+) -> tuple[ProbeClient, viser.ClientHandle]:
+    """A probe that viser has registered as a client (it has handled the probe's camera message), and its handle."""
+    before = len(clients.joined.items)
+    probe = ProbeClient(f"http://{HOST}:{server.get_port()}{path}")
+    probes.append(probe)
+    assert clients.joined.wait_for(lambda c: len(c) == before + 1), "viser never registered the probe"
+    return probe, clients.joined.items[-1]
+
+
+def updates_of(gated: Seen) -> list[tuple[int, Any]]:
+    return [(cid, m.updates) for cid, m in gated.items if isinstance(m, compat.GuiUpdateMessage)]
+
+
+# -- the version check ---------------------------------------------------------------------------
+def test_the_version_check_refuses_another_release_series(monkeypatch: pytest.MonkeyPatch) -> None:
+    compat.check_version()  # the installed one
+    for supported in ("1.1.0", "1.1.1", "1.1.12", "1.1.2rc1"):
+        compat.check_version(supported)
+    for other in ("1.2.0", "1.10.1", "1.0.9", "2.1.1"):
+        with pytest.raises(UnsupportedVersion, match=rf"viser {re.escape(other)} is installed; .* viser 1\.1\.\* only"):
+            compat.check_version(other)
+    assert issubclass(UnsupportedVersion, HopperError) and issubclass(UnsupportedVersion, RuntimeError)
+
+    # At import: under another installed release the module refuses to load at all.
+    real = importlib.metadata.version
+    monkeypatch.setattr(importlib.metadata, "version", lambda name: "1.2.0" if name == "viser" else real(name))
+    spec = importlib.util.spec_from_file_location("viser_compat_under_1_2", compat.__file__)
+    assert spec is not None and spec.loader is not None
+    with pytest.raises(UnsupportedVersion, match=r"viser 1\.2\.0 is installed"):
+        spec.loader.exec_module(importlib.util.module_from_spec(spec))
+
+
+# -- gate_incoming ----------------------------------------------------------------------------------
+def test_the_gate_sees_a_clients_messages_first_and_what_it_drops_reaches_no_server_handler(
+    server: viser.ViserServer, clients: Clients, probes: list[ProbeClient]
+) -> None:
+    slider = server.gui.add_slider("Gain", 0.0, 10.0, 1.0, 0.0)
+    applied = Seen()
+
+    async def on_update(_: viser.GuiEvent) -> None:  # async: on viser's event loop, in message order
+        applied.add(slider.value)
+
+    slider.on_update(on_update)
+    # Installed while the client is connected, as the dashboard may be: it applies to open connections too.
+    probe, client = connect(server, clients, probes)
+    first, second = Seen(), Seen()
+
+    def drop_one(value: float, seen: Seen) -> compat.Gate:
+        def allows(client_id: int, message: Any) -> bool:
+            seen.add((client_id, message))
+            return not (isinstance(message, compat.GuiUpdateMessage) and message.updates == {"value": value})
+
+        return allows
+
+    compat.gate_incoming(server, drop_one(1.0, first))
+    compat.gate_incoming(server, drop_one(3.0, second))  # stacked: runs before the first
+    for value in (1.0, 3.0, 2.0):
+        probe.set_gui_value("Gain", value)
+    assert applied.wait_for(lambda values: values == [2.0]), applied.items
+    # viser handles a connection's messages in order, each to its end: had 1.0 or 3.0 got
+    # through, its callback would have run before 2.0's.
+    assert applied.items == [2.0] and slider.value == 2.0
+    me = client.client_id
+    assert updates_of(second) == [(me, {"value": 1.0}), (me, {"value": 3.0}), (me, {"value": 2.0})]
+    assert updates_of(first) == [(me, {"value": 1.0}), (me, {"value": 2.0})]
+
+
+def test_a_message_the_gate_drops_still_reaches_the_senders_own_widgets(
+    server: viser.ViserServer, clients: Clients, probes: list[ProbeClient]
+) -> None:
+    """The read-only gate lets viewers press their own buttons (Ask for control) only because of this."""
+    probe, client = connect(server, clients, probes)
+    own = client.gui.add_button("Mine")
+    pressed = Seen()
+    own.on_click(lambda event: pressed.add(event.client_id))
+    gated = Seen()
+
+    def drop_all(client_id: int, message: Any) -> bool:
+        gated.add(message)
+        return False
+
+    compat.gate_incoming(server, drop_all)
+    probe.set_gui_value("Mine", True)
+    assert pressed.wait_for(lambda ids: ids == [client.client_id]), "the client's own handler never ran"
+    uuid = compat.element_id(own)
+    assert any(isinstance(m, compat.GuiUpdateMessage) and m.uuid == uuid for m in gated.items)
+
+
+# What a browser (or a script) sends, for each class the read-only gate sorts messages by.
+WIRE: dict[str, dict[str, Any]] = {
+    "GuiUpdateMessage": {"uuid": "u1", "updates": {"value": 1.0}},
+    "GuiButtonHoldMessage": {"uuid": "u2", "frequency": 10.0},
+    "CommandTriggerMessage": {"uuid": "u3"},
+    "GetRenderResponseMessage": {"payload": b"", "render_uuid": "r1"},
+    "ShareUrlRequest": {},
+    "ShareUrlDisconnect": {},
+}
+
+
+def test_the_message_classes_are_what_a_client_sends_decode_into(
+    server: viser.ViserServer, clients: Clients, probes: list[ProbeClient], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Should a message get past the gate after all, no share tunnel is tried (loopback only).
+    monkeypatch.setattr(server, "request_share_url", lambda *_, **__: None)
+    monkeypatch.setattr(server, "disconnect_share_url", lambda *_, **__: None)
+    probe, client = connect(server, clients, probes)
+    gated = Seen()
+
+    def drop_all(client_id: int, message: Any) -> bool:
+        gated.add((client_id, message))
+        return False
+
+    compat.gate_incoming(server, drop_all)
+    for kind, fields in WIRE.items():
+        probe.send({"type": kind, **fields})
+    probe.send_camera()
+    assert gated.wait_for(lambda items: len(items) == len(WIRE) + 1), [type(m).__name__ for _, m in gated.items]
+    assert all(cid == client.client_id for cid, _ in gated.items)
+    kinds = [*WIRE, "ViewerCameraMessage"]
+    assert [type(m) for _, m in gated.items] == [getattr(compat, kind) for kind in kinds]
+    assert [getattr(m, "uuid", None) for _, m in gated.items][:3] == ["u1", "u2", "u3"]
+
+
+# -- element_id, shared_input(s), is_shared_command --------------------------------------------
+def test_an_element_id_is_the_id_a_client_uses_for_it(
+    server: viser.ViserServer, clients: Clients, probes: list[ProbeClient]
+) -> None:
+    slider = server.gui.add_slider("Shared", 0.0, 1.0, 0.1, 0.5)
+    command = server.gui.add_command("Shared command")
+    triggered = Seen()
+    command.on_trigger(lambda _: triggered.add("shared"))
+    probe, client = connect(server, clients, probes)
+    own = client.gui.add_button("Own")
+    # The id on the wire (and the one the page gives the element's root as its DOM id).
+    assert probe.input_uuid("Shared", TIMEOUT_S) == compat.element_id(slider)
+    assert probe.input_uuid("Own", TIMEOUT_S) == compat.element_id(own)
+    # A command's id is the one a client triggers it by.
+    probe.send({"type": "CommandTriggerMessage", "uuid": compat.element_id(command)})
+    assert triggered.wait_for(lambda t: t == ["shared"])
+
+
+def test_shared_input_finds_the_servers_inputs_only(
+    server: viser.ViserServer, clients: Clients, probes: list[ProbeClient]
+) -> None:
+    slider = server.gui.add_slider("Shared", 0.0, 1.0, 0.1, 0.5)
+    _, client = connect(server, clients, probes)
+    own = client.gui.add_button("Own")
+    shared_id, own_id = compat.element_id(slider), compat.element_id(own)
+    assert compat.shared_input(server, shared_id) is slider
+    assert compat.shared_input(server, own_id) is None  # a client's own widget is no shared input
+    assert compat.shared_input(server, "no-such-id") is None
+    inputs = compat.shared_inputs(server)
+    assert inputs[shared_id] is slider and own_id not in inputs
+    inputs.clear()  # a copy
+    assert compat.shared_input(server, shared_id) is slider
+    slider.remove()
+    assert compat.shared_input(server, shared_id) is None and shared_id not in compat.shared_inputs(server)
+
+
+def test_is_shared_command_knows_the_servers_commands_only(
+    server: viser.ViserServer, clients: Clients, probes: list[ProbeClient]
+) -> None:
+    command = server.gui.add_command("Shared command")
+    slider = server.gui.add_slider("Shared", 0.0, 1.0, 0.1, 0.5)
+    _, client = connect(server, clients, probes)
+    own_command = client.gui.add_command("Own command")
+    assert compat.is_shared_command(server, compat.element_id(command))
+    assert not compat.is_shared_command(server, compat.element_id(own_command))
+    assert not compat.is_shared_command(server, compat.element_id(slider))  # an input, not a command
+    command.remove()
+    assert not compat.is_shared_command(server, compat.element_id(command))
+
+
+# -- update_for_client ------------------------------------------------------------------------------
+def test_an_update_for_one_client_reaches_that_client_only(
+    server: viser.ViserServer, clients: Clients, probes: list[ProbeClient]
+) -> None:
+    slider = server.gui.add_slider("Shared", 0.0, 1.0, 0.1, 0.5)
+    uuid = compat.element_id(slider)
+    a, client_a = connect(server, clients, probes)
+    b, _ = connect(server, clients, probes)
+    compat.update_for_client(client_a, uuid, {"disabled": True})
+    # Broadcast after it: had the update gone to everyone, b would get it before this.
+    slider.label = "Marker"
+    assert a.wait_for(lambda p: p.gui_updates.get(uuid, {}).get("disabled") is True), a.gui_updates.get(uuid)
+    assert b.wait_for(lambda p: p.gui_updates.get(uuid, {}).get("label") == "Marker")
+    assert "disabled" not in b.gui_updates[uuid]
+    assert slider.disabled is False  # the server's state is untouched
+
+
+# -- set_chart_lists --------------------------------------------------------------------------------
+def test_chart_lists_reach_a_client_as_plain_numbers_and_the_handle_reports_them(
+    server: viser.ViserServer, clients: Clients, probes: list[ProbeClient]
+) -> None:
+    empty = (np.zeros(1, dtype=np.float32), np.zeros(1, dtype=np.float32))
+    chart = server.gui.add_uplot(empty, ({"label": "t"}, {"label": "y"}))
+    uuid = compat.element_id(chart)
+    probe, _ = connect(server, clients, probes)
+    assert probe.wait_for(lambda p: uuid in p.uplots)
+    data = (np.array([0.0, 0.5, 1.0], dtype=np.float32), np.array([1.5, -2.25, 0.1], dtype=np.float32))
+    compat.set_chart_lists(chart, data)
+    assert probe.wait_for(lambda p: uuid in p.chart_data), "the chart's data never arrived"
+    # Lists of numbers in the msgpack, not binary buffers (the probe would give (dtype, bytes) for those).
+    assert probe.chart_data[uuid] == [column.tolist() for column in data]
+    assert chart.data is data
+
+
+# -- broadcast_mark, broadcast_sent ---------------------------------------------------------------
+def test_the_broadcast_cursor_reaches_the_mark_as_the_replay_is_sent(
+    server: viser.ViserServer, clients: Clients, probes: list[ProbeClient]
+) -> None:
+    for i in range(300):  # a replay of several windows (viser sends at most 128 messages in one)
+        server.gui.add_checkbox(f"box {i}", False)
+    last = server.gui.add_markdown("the last shared element")
+    mark = compat.broadcast_mark(server)
+    assert mark >= 300
+    assert compat.broadcast_sent(server, 10_000) == -1  # no such client
+    probe, client = connect(server, clients, probes)
+    assert probe.wait_for(lambda p: compat.element_id(last) in p.gui), "the replay never ended"
+    assert wait_until(lambda: compat.broadcast_sent(server, client.client_id) >= mark, TIMEOUT_S)
+    assert compat.broadcast_sent(server, client.client_id) <= compat.broadcast_mark(server)
+    server.gui.add_markdown("one more")
+    assert compat.broadcast_mark(server) > mark
+    probe.close()
+    assert clients.wait_left(client.client_id)
+    assert compat.broadcast_sent(server, client.client_id) == -1
+
+
+# -- connection_closed ------------------------------------------------------------------------------
+def test_a_closed_connection_says_so_at_once_even_while_viser_still_lists_the_client(
+    server: viser.ViserServer, clients: Clients, probes: list[ProbeClient]
+) -> None:
+    a, client_a = connect(server, clients, probes)
+    _, client_b = connect(server, clients, probes)
+    _, client_c = connect(server, clients, probes)
+    everyone = (client_a, client_b, client_c)
+    assert not any(compat.connection_closed(c) for c in everyone)
+    # What the dashboard's own disconnect callback sees of the others (it updates their widgets).
+    seen = Seen()
+
+    async def left(gone: viser.ClientHandle) -> None:
+        listed = server.get_clients()
+        seen.add(
+            (gone.client_id, {c.client_id: (compat.connection_closed(c), c.client_id in listed) for c in everyone})
+        )
+
+    server.on_client_disconnect(left)
+    a.close()
+    assert seen.wait_for(lambda s: len(s) == 1)
+    assert seen.items[0] == (
+        client_a.client_id,
+        {client_a.client_id: (True, False), client_b.client_id: (False, True), client_c.client_id: (False, True)},
+    )
+    server.stop()  # b and c still connected: stop() closes their connections before viser lets go of them
+    assert seen.wait_for(lambda s: len(s) == 3)
+    for gone, view in seen.items[1:]:
+        assert all(view[c.client_id][0] for c in (client_b, client_c)), (gone, view)
+    print(f"\nlisted by get_clients() in the callbacks while stopping: {[v for _, v in seen.items[1:]]}")
+
+
+# -- on_connection_open, on_connection_close, close_connections ----------------------------------
+def refused_code(url: str) -> int:
+    """Open a websocket as a browser would; the close code the server sent. Fails if any data arrives."""
+    with (
+        ws_client.connect(url, subprotocols=[f"viser-v{viser.__version__}"], open_timeout=10) as socket,  # type: ignore[list-item]
+        pytest.raises(websockets.exceptions.ConnectionClosed) as closed,
+    ):
+        data = socket.recv(timeout=TIMEOUT_S)
+        pytest.fail(f"a refused client received {len(data)} bytes")
+    assert closed.value.rcvd is not None, "the server did not close the connection"
+    return closed.value.rcvd.code
+
+
+def test_the_open_hook_sees_path_and_peer_first_and_closing_there_sends_nothing(
+    server: viser.ViserServer, clients: Clients, probes: list[ProbeClient]
+) -> None:
+    openings, closings = Seen(), Seen()
+
+    async def opened(opening: compat.Opening) -> None:
+        openings.add(opening)
+        if "token=ok" not in opening.path:
+            await opening.close(1008, "token required")
+
+    async def closed(client_id: int) -> None:
+        closings.add(client_id)
+
+    compat.on_connection_open(server, opened)
+    compat.on_connection_close(server, closed)
+    assert refused_code(f"ws://{HOST}:{server.get_port()}/?token=bad") == 1008
+    refused = openings.items[0]
+    assert (refused.path, refused.address) == ("/?token=bad", HOST)
+    assert closings.wait_for(lambda ids: refused.client_id in ids)
+
+    probe, client = connect(server, clients, probes, path="/?token=ok")
+    assert probe.wait_for(lambda p: p.frames > 0)
+    assert [(o.client_id, o.path) for o in openings.items[1:]] == [(client.client_id, "/?token=ok")]
+    assert [c.client_id for c in clients.joined.items] == [client.client_id]  # the refused one never joined
+
+
+def test_close_connections_closes_every_open_websocket(
+    server: viser.ViserServer, clients: Clients, probes: list[ProbeClient]
+) -> None:
+    a, client_a = connect(server, clients, probes)
+    b, client_b = connect(server, clients, probes)
+    compat.close_connections(server)
+    assert a.wait_for(lambda p: p.closed, TIMEOUT_S) and b.wait_for(lambda p: p.closed, TIMEOUT_S)
+    assert clients.wait_left(client_a.client_id) and clients.wait_left(client_b.client_id)
