@@ -118,6 +118,9 @@ def test_off_loopback_a_client_without_the_token_is_refused_and_one_with_it_conn
     try:
         assert probe.wait_for(lambda p: len(p.gui) > 20 and p.pose_frames > 0), "the token holder saw nothing"
         assert wait_until(lambda: d.roles.operator is not None), "the token holder does not operate"
+        # Operating is not yet being viser's client: viser drops GUI updates from a connection
+        # until it has handled its first camera message (conftest's `client` waits the same way).
+        assert wait_until(lambda: len(d.server.get_clients()) == 1), "the server never registered the probe"
         probe.set_gui_value("Kp", 640.0)
         assert wait_until(lambda: d.sim.gains.kp == 640.0)
     finally:

@@ -93,7 +93,7 @@ class Dashboard:
         self._fallen_since: float | None = None
         self._end_notified = -math.inf  # wall s of the last "end of the terrain" notice
         self._next_sample = 0.0
-        self._restored = False  # a Restore was applied in this round: it steps nothing
+        self._pending_restore: Snapshot | None = None  # a Restore drained, applied at the next round's top
         self.frames = 0  # pose frames published, for tests and the benchmark
 
         limits = FileLimits(max_mb=config.rrd_max_mb, max_min=config.rrd_max_min, flush_s=config.rrd_flush_s)
@@ -238,8 +238,14 @@ class Dashboard:
         self.stay_fallen = stay
 
     def apply_restore(self, snapshot: Snapshot) -> None:
-        """Restore a snapshot; no steps in this round: the restored moment must be the one shown."""
-        self._restored = True
+        """Restore `snapshot` at the top of the next round, never inside a tick (the queue may be
+        drained by sim.step mid-batch; the batch stops there)."""
+        self._pending_restore = snapshot
+
+    def _restore_now(self) -> None:
+        """Restore the pending snapshot; no steps in this round: the restored moment must be the one shown."""
+        snapshot, self._pending_restore = self._pending_restore, None
+        assert snapshot is not None
         try:
             self.sim.restore(snapshot)
         except Exception as exc:
@@ -274,12 +280,15 @@ class Dashboard:
             # At most two frames' worth of steps between publishes: fast-forward keeps the scene and
             # the charts moving together even when the machine cannot deliver the asked speed.
             self._apply_commands()  # the one way in: simulation and loop commands, in order
+            restored = self._pending_restore is not None
+            if restored:
+                self._restore_now()
             budgeted = self.pacer.due(now, most=math.ceil(2 * FRAME_S * self.pacer.speed / self.pacer.timestep))
-            if self._restored:
-                budgeted, self._restored = 0, False  # the restored moment must be the one shown
+            if restored:
+                budgeted = 0  # the restored moment must be the one shown
             extra, self._single_steps = self._single_steps, 0
-            self._step(budgeted + extra)
-            self.pacer.done(budgeted, now, extra)
+            taken = self._step(budgeted + extra)
+            self.pacer.done(min(budgeted, taken), now, max(taken - budgeted, 0))
             self._watchdog(now)
             if now >= next_frame:
                 try:
@@ -299,14 +308,21 @@ class Dashboard:
         except Exception:
             log.exception("applying commands while paused failed")
 
-    def _step(self, count: int) -> None:
+    def _step(self, count: int) -> int:
+        """Step `count` ticks, fewer if a pause or a restore arrives mid-batch; the ticks stepped."""
+        sim, pacer, paused = self.sim, self.pacer, self.pacer.paused
+        taken = 0
         try:
             for _ in range(count):
-                self.sim.step()
+                sim.step()
+                taken += 1
+                if self._pending_restore is not None or (pacer.paused and not paused):
+                    break
         except Exception as exc:  # a bug below must not stop the dashboard: report, reset, go on
             log.exception("simulation step failed")
             notify_all(self.server, "Simulation error", f"{type(exc).__name__}: {exc}; the robot was reset", "error")
             self.sim.reset(reason="error")
+        return taken
 
     def _watchdog(self, now: float) -> None:
         """Keep a dashboard that runs for hours going: restart after a fall (unless asked not to)

@@ -1,8 +1,8 @@
 """Replay panel: re-fly the last flight with the current gains (A/B table), a history scrubber, keyframes.
 
 Callbacks run on viser's threads: re-flying uses a scratch simulation of its own; saving a keyframe
-is a command the loop applies between ticks; a restore (a scrubbed moment, a keyframe) is handed to
-the loop, which applies it between two step batches, so that no tick follows it while paused.
+is a command the loop applies between ticks; a restore (a scrubbed moment, a keyframe) is a command
+too, which the loop applies between two step batches, so that no tick follows it while paused.
 """
 
 from __future__ import annotations
@@ -126,6 +126,7 @@ class ReplayPanel:
     rows: collections.deque = dataclasses.field(default_factory=lambda: collections.deque(maxlen=AB_ROWS))
     last: Comparison | None = None  # the last re-fly, for tests
     scrubbed: Snapshot | None = None  # the moment the live simulation was put back to, if any
+    _scrub_paused: bool = False  # the loop has shown the scrub paused (a later resume ends the scrub)
     _lock: threading.Lock = dataclasses.field(default_factory=threading.Lock, repr=False)
 
     # -- re-fly ----------------------------------------------------------------------------
@@ -159,7 +160,8 @@ class ReplayPanel:
         snap = history.at(seconds_back)
         if snap is None:
             return None
-        self.host.pause(True)
+        self.host.pause(True)  # queued: the loop applies it with the restore, in order
+        self._scrub_paused = False
         self.scrubbed = snap
         self.host.request_restore(snap)
         self.scrub_info.content = _scrub_html(snap, seconds_back, history.span)
@@ -174,7 +176,9 @@ class ReplayPanel:
 
     def show_span(self, paused: bool) -> None:
         """Refresh the history line while live (the loop calls it with the status)."""
-        if self.scrubbed is not None and not paused:  # resumed by the Simulation panel's button
+        if self.scrubbed is not None and paused:
+            self._scrub_paused = True  # the loop has applied the scrub's pause
+        elif self.scrubbed is not None and self._scrub_paused:  # resumed by the Simulation panel's button
             self.scrubbed = None
             self.scrub.value = 0.0
         if self.scrubbed is None:
