@@ -122,7 +122,10 @@ def test_off_loopback_a_client_without_the_token_is_refused_and_one_with_it_conn
         # until it has handled its first camera message (conftest's `client` waits the same way).
         assert wait_until(lambda: len(d.server.get_clients()) == 1), "the server never registered the probe"
         probe.set_gui_value("Kp", 640.0)
-        assert wait_until(lambda: d.sim.gains.kp == 640.0)
+        assert wait_until(lambda: d.sim.gains.kp == 640.0), (
+            d.sim.gains, d.roles.operator, d.roles.seated, d.roles.refused, [n.get("title") for n in probe.notifications],
+            [e.describe() for e in list(d.sim.events)[-5:]],
+        )
     finally:
         probe.close()
 
