@@ -123,7 +123,9 @@ def test_off_loopback_a_client_without_the_token_is_refused_and_one_with_it_conn
         assert wait_until(lambda: len(d.server.get_clients()) == 1), "the server never registered the probe"
         probe.set_gui_value("Kp", 640.0)
         assert wait_until(lambda: d.sim.gains.kp == 640.0), (
-            d.sim.gains, d.roles.operator, d.roles.seated, d.roles.refused, [n.get("title") for n in probe.notifications],
+            d.sim.gains,
+            (d.roles.operator, d.roles.seated, d.roles.refused),
+            [n.get("title") for n in probe.notifications],
             [e.describe() for e in list(d.sim.events)[-5:]],
         )
     finally:
