@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -39,6 +40,15 @@ def start(tmp_path: Path):
     yield make
     for d in dashboards:
         d.stop()
+
+
+@pytest.fixture
+def probes() -> Iterator[list[ProbeClient]]:
+    """Headless clients a test opens (append them); all are closed after the test."""
+    opened: list[ProbeClient] = []
+    yield opened
+    for p in opened:
+        p.close()
 
 
 @pytest.fixture

@@ -6,7 +6,7 @@ sends is exactly what a page (or a hand-crafted script) could send.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 
 import pytest
 from hopper.app.dashboard import viser_compat as compat
@@ -19,14 +19,6 @@ from hopper.events import EventKind, OperatorChanged
 pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)
 
 Start = Callable[..., Dashboard]
-
-
-@pytest.fixture
-def probes() -> Iterator[list[ProbeClient]]:
-    opened: list[ProbeClient] = []
-    yield opened
-    for p in opened:
-        p.close()
 
 
 def labelled(label: str) -> Callable[[ProbeClient], bool]:

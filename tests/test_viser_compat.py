@@ -77,14 +77,6 @@ def server() -> Iterator[viser.ViserServer]:
 
 
 @pytest.fixture
-def probes() -> Iterator[list[ProbeClient]]:
-    opened: list[ProbeClient] = []
-    yield opened
-    for p in opened:
-        p.close()
-
-
-@pytest.fixture
 def clients(server: viser.ViserServer) -> Clients:
     return Clients(server)
 
