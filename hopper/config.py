@@ -192,8 +192,14 @@ class SimConfig:
     # "realistic": a noisy, biased IMU, an attitude estimate, and a delayed wheel command (sensor).
     sensing: Literal["ideal", "realistic"] = "ideal"
     sensor: SensingParams = dataclasses.field(default_factory=SensingParams)
+    # The flight's wheel law (hopper.controllers.loading reads the spec) and its declared params;
+    # the PID's params are `gains` (hopper.controllers.law.with_controller).
+    controller: str = "pid"
+    controller_params: tuple[tuple[str, float], ...] = ()
 
     def __post_init__(self) -> None:
+        if not isinstance(self.controller, str) or not self.controller.strip():
+            raise InvalidConfig(f"controller must be a non-empty spec, got {self.controller!r}")
         if self.terrain not in ("crater", "flat"):
             raise InvalidConfig(f"terrain must be 'crater' or 'flat', got {self.terrain!r}")
         if self.sensing not in ("ideal", "realistic"):

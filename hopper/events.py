@@ -32,6 +32,8 @@ class EventKind(enum.StrEnum):
     SENSING = "sensing"
     OPERATOR = "operator"
     SCHEDULE = "schedule"
+    CONTROLLER = "controller"
+    CONTROLLER_FAILED = "controller_failed"
 
 
 def _hop_text(hop: HopMetrics) -> str:
@@ -228,6 +230,32 @@ class Recording:
         return f"recording {'started' if self.state == 'started' else 'saved'}: {where}"
 
 
+@dataclasses.dataclass(frozen=True)
+class ControllerChanged:
+    """The flight's wheel law now (hopper.controllers): its spec, class and param values."""
+
+    kind: ClassVar[EventKind] = EventKind.CONTROLLER
+    spec: str  # pid, lqr, mpc, FILE.py:Class, module:Class, tcp://...
+    name: str  # the class
+    params: tuple[tuple[str, float], ...] = ()
+
+    def describe(self) -> str:
+        values = ", ".join(f"{k} {v:.4g}" for k, v in self.params)
+        return f"controller {self.spec} ({self.name}{': ' + values if values else ''})"
+
+
+@dataclasses.dataclass(frozen=True)
+class ControllerFailed:
+    """A controller misbehaved in a run; the built-in PID flies from this tick on."""
+
+    kind: ClassVar[EventKind] = EventKind.CONTROLLER_FAILED
+    spec: str
+    cause: str
+
+    def describe(self) -> str:
+        return f"controller {self.spec} failed, the PID flies on: {self.cause}"
+
+
 OperatorReason = Literal["first", "handed over", "disconnected", "idle"]
 
 
@@ -257,6 +285,7 @@ Payload = (
     | TerrainChanged
     | Disturbance | Dragged
     | DisturbanceArmed | Diverged | CommandFailed | Recording | OperatorChanged | ScheduleChanged
+    | ControllerChanged | ControllerFailed
 )  # fmt: skip
 
 

@@ -16,14 +16,38 @@ from typing import Literal, Protocol
 import mujoco
 import numpy as np
 
-from hopper.config import FOOT_RADIUS, HIP_OFFSET_Z, THIGH_LENGTH, Gains, InvalidConfig, SimConfig, require_finite
+from hopper.ballistics import Ground, predict
+from hopper.config import (
+    FOOT_RADIUS,
+    HIP_OFFSET_Z,
+    THIGH_LENGTH,
+    WHEEL_NO_LOAD_SPEED,
+    WHEEL_TORQUE_LIMIT,
+    Gains,
+    InvalidConfig,
+    SimConfig,
+    require_finite,
+)
 from hopper.control import EV_APEX, EV_FALL, EV_LIFTOFF, EV_TOUCHDOWN, HopController, Phase, control_tick
+from hopper.control.kernel import EV_WHEEL, finish_wheel
 from hopper.control.landing import FOOT_Y, ground_height
 from hopper.control.memory import MEMORY
+from hopper.control.wheel import WHEEL_DAMPING
+from hopper.controllers import (
+    ControllerContext,
+    ControllerError,
+    ControllerFault,
+    FlightLaw,
+    Observation,
+    params_of,
+    with_controller,
+)
 from hopper.disturbances import DISTURBANCE_LIMITS, DisturbanceKind
 from hopper.events import (
     Apex,
     CommandFailed,
+    ControllerChanged,
+    ControllerFailed,
     Disturbance,
     DisturbanceArmed,
     Diverged,
@@ -53,6 +77,7 @@ log = logging.getLogger(__name__)
 
 TORQUE_PULSE_S = 0.1  # s, how long a torque pulse (hopper.disturbances.DISTURBANCE_LIMITS) acts
 TORQUE_PULSE_DELAY_S = 0.15  # s after liftoff, when armed on the ground
+PROBE_PITCH, PROBE_RATE = 0.02, 0.2  # rad, rad/s: the pre-run check's flight tick (hopper.controllers.law)
 HEALTH_CHECK_TICKS = 50  # ticks between checks for a diverged state
 STOP_POLL_TICKS = 100  # ticks between two asks of run()'s stop(): a Ctrl-C ends a run within 0.1 s simulated
 
@@ -98,6 +123,12 @@ class Simulation:
         self.schedule: KickSchedule | None = None  # the repeatable test's kick (hopper.schedule)
         self.pending = Pending()  # the torque pulse and scheduled kick under way (hopper.snapshot)
         self.pull: Pull | None = None  # a mouse drag under way (hopper.perturb)
+        self.law: FlightLaw | None = None  # the flight's wheel law (hopper.controllers); set below
+        self.controller_fault: str | None = None  # why the controller was replaced by the PID, if it was
+        self._ground_profile: Ground | None = None  # for the obs' time_to_touchdown, built on first use
+        wheel = self.model.body("wheel").id
+        self._spin_inertia = float(self.model.body_inertia[wheel].max() + self.model.dof_armature[self.layout.v_wheel])
+        self._bind_law(config)
         self.reset(reason="start")
 
     # -- reading ---------------------------------------------------------------------------
@@ -140,6 +171,7 @@ class Simulation:
             hops=tuple(self.metrics.hops) if with_hops else None,
             config=self.config,
             schedule=self.schedule,
+            law=self.law.state() if self._external else None,
         )
 
     def check_fits(self, snap: Snapshot) -> None:
@@ -172,6 +204,8 @@ class Simulation:
             self.set_schedule(snap.schedule)
         self.pending = dataclasses.replace(snap.pending)
         self.metrics.progress = dataclasses.replace(snap.progress)
+        if self._external:
+            self.law.set_state(snap.law)
         if snap.hops is not None:
             self.metrics.hops[:] = snap.hops
 
@@ -189,6 +223,8 @@ class Simulation:
             self.set_sensing(config.sensing)
         if c.gains != config.gains:
             self.set_gains(config.gains, "restored")
+        if (c.controller, c.controller_params) != (config.controller, config.controller_params):
+            self.set_controller(config.controller, config.controller_params)
         self.config = config
         self.controller.configure(config)
 
@@ -206,6 +242,8 @@ class Simulation:
         set_wheel_enabled(self.model, config.wheel)
         self.config = config
         self.controller.start_over(config)
+        self._ground_profile = None
+        self._bind_law(config)
         self.events.clear()
         self.ticks = 0  # the health check's phase, as in a new Simulation
         self.reset(reason="start")
@@ -220,7 +258,13 @@ class Simulation:
             self._drain()
         events = control_tick(self._qpos, self._qvel, self._sensors, self._ctrl, self._mem)
         if events:
-            self._controller_events(events)
+            if events & EV_WHEEL:  # a Python controller flies the wheel this tick
+                events ^= EV_WHEEL
+                if events:
+                    self._controller_events(events)
+                self._fly_wheel()
+            else:
+                self._controller_events(events)
         pending = self.pending
         if pending.pulse_at != math.inf and pending.pulse_at <= self.data.time:
             self._pulse_event()
@@ -233,6 +277,91 @@ class Simulation:
         for listener in self.listeners:
             listener.tick(self)
         return events
+
+    # -- the controller (hopper.controllers) -----------------------------------------------------
+    def observation(self) -> Observation:
+        """What an API controller sees this tick (its sensing: the estimate in realistic mode)."""
+        mem, t, w = self._mem[0], self.data.time, float(self._qvel[self.layout.v_wheel])
+        back_emf, limit, top, spin = WHEEL_DAMPING * w, WHEEL_TORQUE_LIMIT, WHEEL_NO_LOAD_SPEED, self._spin_inertia
+        return Observation(
+            pitch=float(mem["pitch_est"]),
+            rate=float(mem["rate_est"]),
+            wheel_speed=w,
+            time=t,
+            time_since_liftoff=t - self.pending.liftoff_at,
+            time_to_touchdown=max(self.pending.touchdown_at - t, 0.0),
+            gravity=self.config.gravity,
+            dt=self._dt,
+            momentum_headroom=(spin * (top - w), spin * (top + w)),
+            torque_bounds=(max(-limit, -limit - back_emf), min(limit, limit - back_emf)),
+            wheel_inertia=spin,
+            wheel_speed_limit=top,
+        )
+
+    def _fly_wheel(self) -> None:
+        try:
+            command = self.law(self.observation())
+        except ControllerFault as fault:
+            self._controller_failed(str(fault))
+            command = 0.0  # this one tick; the compiled PID flies from the next
+        finish_wheel(self._qvel, self._ctrl, self._mem, command)
+
+    def _controller_failed(self, cause: str) -> None:
+        """Fly on with the built-in PID (the config's gains) and say why."""
+        log.warning("controller %s failed: %s", self.config.controller, cause)
+        spec = self.config.controller
+        self.controller_fault = cause
+        self._emit(ControllerFailed(spec, cause))
+        self._bind_law(dataclasses.replace(self.config, controller="pid", controller_params=()), probe=False)
+        self._emit(ControllerChanged("pid", self.law.name, tuple(params_of(self.config).items())))
+
+    def _bind_law(self, config: SimConfig, probe: bool = True) -> None:
+        """Build config's controller, configure it for this plant and check it on a flight tick
+        (ControllerError, with nothing changed, if it cannot fly)."""
+        law = FlightLaw(config)
+        law.configure(ControllerContext(config, self.model))
+        if law.compiled is None and probe:
+            obs = self.observation()._replace(
+                pitch=PROBE_PITCH, rate=PROBE_RATE, time_since_liftoff=0.1, time_to_touchdown=1.0, wheel_speed=0.0
+            )
+            momentum = self._spin_inertia * WHEEL_NO_LOAD_SPEED
+            obs = obs._replace(gravity=config.gravity, momentum_headroom=(momentum, momentum))
+            law.probe(obs)
+        self.law, self.config = law, config
+        self._external = law.compiled is None
+        self.controller.mem["external"] = self._external
+
+    def set_controller(self, spec: str, values: object = ()) -> None:
+        """Fly `spec` with param `values` from the next tick (reset first; ControllerError if it cannot)."""
+        config = with_controller(self.config, spec, values)  # type: ignore[arg-type]
+        self._bind_law(config)
+        self.controller.configure(config)
+        self.controller_fault = None
+        self._emit(ControllerChanged(config.controller, self.law.name, tuple(params_of(config).items())))
+
+    def set_controller_param(self, name: str, value: float) -> None:
+        """Change one param of the controller flying now (for the PID: a gain)."""
+        if self.config.controller == "pid":
+            if name not in ("kp", "ki", "kd"):
+                raise ControllerError(f"PaperPID has no parameter {name} (its parameters: kp, ki, kd)")
+            self.set_gains(dataclasses.replace(self.config.gains, **{name: value}))
+            return
+        self.law.set_param(name, value)
+        self.config = dataclasses.replace(self.config, controller_params=tuple(sorted(self.law.values.items())))
+        self._emit(ControllerChanged(self.config.controller, self.law.name, self.config.controller_params))
+
+    def _predict_touchdown(self) -> None:
+        """When the flight will end, from the CoM's parabola and the terrain under the planned feet."""
+        if self._ground_profile is None:
+            self._ground_profile = Ground(self.heights, self.config.craters)
+        s, lay, g = self.data.sensordata, self.layout, self.config.gravity
+        com = (float(s[lay.s_com]), float(s[lay.s_com + 2]))
+        vel = (float(s[lay.s_com_vel]), float(s[lay.s_com_vel + 2]))
+        feet = self.controller.landing_feet(self.data, lay)
+        arc = predict(self.time, com, vel, feet, g, self._ground_profile)
+        # Off the strip (no ground found): back at the liftoff height, the parabola's own end.
+        flight = arc.landing_s if arc.landing_s is not None else max(2.0 * vel[1] / g, 0.0)
+        self.pending.touchdown_at = self.time + flight
 
     def time_limit(self, hops: int) -> float:
         """Simulated seconds a run of `hops` hops may take (twice the slowest hop the gait allows, and 5 s)."""
@@ -298,11 +427,16 @@ class Simulation:
             if p.pulse_armed:
                 p.pulse_at, p.pulse_magnitude, p.pulse_armed = s.time + TORQUE_PULSE_DELAY_S, p.pulse_armed, 0.0
             p.liftoff_at = s.time
+            if self._external:
+                self.law.needs_reset = True  # reset(obs) at each liftoff
+                self._predict_touchdown()
             if self.schedule is not None and self.schedule.due(len(self.hops) + 1):
                 # Half a tick early: the kick lands on the tick delay_s after the liftoff's, not the next.
                 self.pending.kick_at = s.time + self.schedule.delay_s - 0.5 * self._dt
         if events & EV_APEX:
             self.controller.plan_landing(self.data, self.layout, self._ground)
+            if self._external:
+                self._predict_touchdown()  # the legs' reach is planned now
             self._emit(Apex(s.z))
         if events & (EV_TOUCHDOWN | EV_FALL):
             self.pending.kick_at = math.inf  # a flight shorter than the delay goes unkicked
@@ -357,18 +491,21 @@ class Simulation:
     def set_sensing(self, sensing: Literal["ideal", "realistic"]) -> None:
         """Switch what the controller reads; a switch to realistic powers the IMU on at the next tick."""
         self._reconfigure(sensing=sensing)
+        self.law.configure(ControllerContext(self.config, self.model))
         self._emit(SensingChanged(sensing))
 
     def set_gravity(self, gravity: float) -> None:
         require_finite("gravity", gravity, 0.05, 30.0, "m/s^2")
         self._reconfigure(gravity=gravity)
         self.model.opt.gravity[2] = -gravity
+        self.law.configure(ControllerContext(self.config, self.model))
         self._emit(GravityChanged(gravity))
 
     def set_terrain(self, kind: Literal["crater", "flat"], seed: int) -> None:
         """Regenerate the heightfield in place (no recompile) and restart the robot on it."""
         self._reconfigure(terrain=kind, seed=seed)
         self.heights = terrain_heights(self.config)
+        self._ground_profile = None
         set_terrain(self.model, self.heights)
         self._emit(TerrainChanged(kind, seed))
         self.reset(reason="terrain")

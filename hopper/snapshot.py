@@ -3,9 +3,9 @@
 A snapshot holds everything the next tick reads: MuJoCo's integration state (mj_getState with
 mjSTATE_INTEGRATION: time, qpos, qvel, act, warm start, ctrl and applied forces), the sensor
 values the kernel reads before mj_step recomputes them, the control kernel's memory record (phase,
-PID integral, contact debounce, IMU noise RNG, motor delay line), the loop's pending disturbances
-and the metrics tracker's hop in progress. Restoring it and stepping repeats the original ticks
-bit for bit (the command queue is empty between ticks).
+PID integral, contact debounce, IMU noise RNG, motor delay line), the loop's pending disturbances,
+the metrics tracker's hop in progress and a Python controller's state (a deep copy). Restoring it
+and stepping repeats the original ticks bit for bit (the command queue is empty between ticks).
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ class Pending:
     pulse_at: float = math.inf  # s, when the pending pulse starts or the running one ends
     kick_at: float = math.inf  # s, the scheduled kick's time (hopper.schedule)
     liftoff_at: float = 0.0  # s, the last liftoff's time (a kick is timed from it)
+    touchdown_at: float = math.inf  # s, the flight's predicted touchdown (an API controller's obs)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -48,6 +49,7 @@ class Snapshot:
     hops: tuple[HopMetrics, ...] | None  # hops completed so far; None: keep the target's
     config: SimConfig  # gains, gravity, terrain, sensing, ... at that moment
     schedule: KickSchedule | None = None  # the repeatable test's kick (hopper.schedule)
+    law: object | None = None  # an API controller's state (hopper.controllers.law.FlightLaw.state)
 
     @property
     def gains(self) -> Gains:

@@ -32,6 +32,8 @@ SAMPLES = [
     ev.ScheduleChanged(KickSchedule("pitch_kick", 0.3, 0.15, every=2)),
     ev.ScheduleChanged(None),
     ev.Disturbance("pitch_kick", 0.3, "N m s", after_liftoff_s=0.15),
+    ev.ControllerChanged("lqr", "LQR", (("q_pitch", 1.0),)),
+    ev.ControllerFailed("my.py:Law", "Law returned nan N m, not a finite torque"),
 ]
 
 

@@ -38,6 +38,9 @@ SWEEP_RAMP = 0.25
 WHEEL_FULL = 0.9  # of the no-load speed: the wheel has next to no torque left that way
 # Event bits returned by the kernel.
 EV_LIFTOFF, EV_TOUCHDOWN, EV_FALL, EV_APEX = 1, 2, 4, 8
+# The flight's wheel law is a Python controller's this tick (m.external): the caller computes the
+# torque and finishes the tick with finish_wheel (hopper.sim; hopper.controllers is the API).
+EV_WHEEL = 16
 RESPONSE_THRESHOLD = math.radians(0.25)  # rad: a smaller pitch starts no excursion (hopper.metrics)
 SETTLE_BAND = math.radians(1.0)  # rad: settled within 1 deg
 
@@ -149,6 +152,27 @@ def respond(m, time: float, torque: float, wheel_speed: float) -> None:  # noqa:
         m.acc_last_out = time
     m.acc_peak_torque = max(m.acc_peak_torque, abs(torque))
     m.acc_resp_wheel = max(m.acc_resp_wheel, abs(wheel_speed))
+
+
+@njit(cache=True)
+def command_wheel(m, ctrl: np.ndarray, wheel: float, wheel_speed: float) -> None:  # noqa: ANN001
+    """Send `wheel` (N m, within the envelope) to the motor through the delay line."""
+    if not m.wheel_on:
+        wheel = 0.0
+    m.wheel_command = wheel
+    ctrl[m.a_wheel] = wheel_ctrl(delayed(m, wheel), wheel_speed)
+
+
+@njit(cache=True)
+def finish_wheel(qvel: np.ndarray, ctrl: np.ndarray, mem: np.ndarray, command: float) -> float:
+    """End a tick that returned EV_WHEEL: clamp an external law's `command` (N m) to the motor's
+    envelope, mark saturation as wheel_pid does, and send it. Returns the torque sent (N m)."""
+    m = mem[0]
+    wheel_speed = qvel[m.v_wheel]
+    torque = wheel_torque_bound(wheel_speed, command)
+    m.saturated = torque != command
+    command_wheel(m, ctrl, torque, wheel_speed)
+    return torque
 
 
 @njit(cache=True)
@@ -302,7 +326,7 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
             len_l, len_r = (m.tuck_length, m.tuck_length) if tucked else (m.land_l - wait, m.land_r - wait)
             hl, kl = swing_torques(left, len_l, mid + half, m.swing_scale, share, share_rate, rigid=kicked)
             hr, kr = swing_torques(right, len_r, mid - half, m.swing_scale, share, share_rate, rigid=kicked)
-        if phase == FLIGHT:
+        if phase == FLIGHT and not m.external:
             wheel = wheel_pid(m, pitch, rate, wheel_speed)
     elif m.push_done:
         # The push is over but a foot still touches: limp legs until it leaves, since swinging
@@ -324,10 +348,10 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
         else:
             wheel, hl, kl, hr, kr = stance(m, phase, body, left, right)
     ctrl[m.a_hip_l], ctrl[m.a_knee_l], ctrl[m.a_hip_r], ctrl[m.a_knee_r] = hl, kl, hr, kr
-    if not m.wheel_on:
-        wheel = 0.0
-    m.wheel_command = wheel
-    ctrl[m.a_wheel] = wheel_ctrl(delayed(m, wheel), wheel_speed)
+    if phase == FLIGHT and m.external:
+        events |= EV_WHEEL  # its obs reads m.pitch_est and m.rate_est, which sense() wrote
+    else:
+        command_wheel(m, ctrl, wheel, wheel_speed)
 
     # -- metrics of the hop in progress --
     torque = sensors[m.s_wheel_torque] * m.wheel_gear  # motor-side actuator force through the gear

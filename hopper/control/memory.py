@@ -21,6 +21,7 @@ _PARAMS = [
     ("kd", "f8"),  # N m s/rad
     ("gravity", "f8"),  # m/s^2, magnitude
     ("wheel_on", "?"),  # False: zero wheel torque, wheel free to spin
+    ("external", "?"),  # True: a Python controller flies the wheel (kernel.EV_WHEEL); False: wheel_pid
     ("stand", "f8"),  # m, hip height above the feet in stance
     ("crouch", "f8"),  # m, before the push
     ("push", "f8"),  # m, leg length where the push stops

@@ -67,11 +67,14 @@ POSE_EVERY_TICKS = 20  # 50 Hz body poses
 EVENT_LEVELS = {
     EventKind.FALL: "ERROR",
     EventKind.COMMAND_FAILED: "ERROR",
+    EventKind.CONTROLLER_FAILED: "ERROR",
     EventKind.DIVERGED: "WARN",
     EventKind.DISTURBANCE: "WARN",
 }
 HOP_ARCHETYPE = "hopper.HopMetrics"  # names the hop table's columns
-SETTING_EVENTS = (EventKind.GAINS, EventKind.WHEEL, EventKind.SENSING, EventKind.GRAVITY, EventKind.TERRAIN)
+SETTING_EVENTS = (
+    EventKind.GAINS, EventKind.WHEEL, EventKind.SENSING, EventKind.GRAVITY, EventKind.TERRAIN, EventKind.CONTROLLER
+)  # fmt: skip
 
 _open: weakref.WeakSet[Telemetry] = weakref.WeakSet()
 

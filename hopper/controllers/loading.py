@@ -1,0 +1,168 @@
+"""Find a controller by its spec and build it with its parameters.
+
+A spec is one of:
+- a built-in name: `pid` (the paper's, the default), `lqr`, `mpc`, `policy`;
+- `tcp://127.0.0.1:PORT`: a controller in another process (hopper.laws.remote's protocol);
+- `path/to/file.py:ClassName` or `package.module:ClassName`;
+- the name of an entry point in the `hopper.controllers` group (an installed package's).
+
+The built-ins load through the same path as a user's class: by their `module:Class` string.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import importlib.metadata
+import importlib.util
+import inspect
+import sys
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+
+from hopper.controllers.api import ControllerError, Param
+
+ENTRY_POINT_GROUP = "hopper.controllers"
+BUILTIN = {
+    "pid": "hopper.laws.pid:PaperPID",
+    "lqr": "hopper.laws.lqr:LQR",
+    "mpc": "hopper.laws.mpc:MPC",
+    "policy": "hopper.laws.policy:Policy",
+}
+REMOTE_PREFIX = "tcp://"
+
+
+def canonical(spec: str) -> str:
+    """The spec as every process reads it the same way: a file path made absolute."""
+    spec = spec.strip()
+    if not spec:
+        raise ControllerError("empty controller spec; " + _choices())
+    path, sep, name = spec.rpartition(":")
+    if sep and path.endswith(".py") and not spec.startswith(REMOTE_PREFIX):
+        return f"{Path(path).expanduser().resolve()}:{name}"
+    return spec
+
+
+def load_class(spec: str) -> type:
+    """The controller class a spec names, or ControllerError saying what was wrong and what is allowed."""
+    spec = canonical(spec)
+    if spec.startswith(REMOTE_PREFIX):
+        spec = "hopper.laws.remote:RemoteController"
+    target = BUILTIN.get(spec) or _entry_point(spec) or spec
+    where, sep, name = target.rpartition(":")
+    if not sep or not where or not name:
+        raise ControllerError(f"unknown controller {spec!r}; " + _choices())
+    module = _load_file(where) if where.endswith(".py") else _import(where, spec)
+    cls = getattr(module, name, None)
+    if cls is None:
+        found = sorted(k for k, v in vars(module).items() if inspect.isclass(v) and v.__module__ == module.__name__)
+        raise ControllerError(f"{where} has no class {name!r} (classes there: {', '.join(found) or 'none'})")
+    if not inspect.isclass(cls):
+        raise ControllerError(f"{target} is a {type(cls).__name__}, not a class")
+    _check_signature(cls, target)
+    return cls
+
+
+def declared_params(cls: type) -> tuple[Param, ...]:
+    """The class's `params`, each as a Param (a 3- or 4-tuple is accepted), checked."""
+    raw = getattr(cls, "params", ())
+    owner = cls.__name__
+    params: list[Param] = []
+    try:
+        for item in raw:
+            p = item if isinstance(item, Param) else Param(*item)
+            low, high = (float(v) for v in p.range)
+            p = Param(str(p.name), float(p.default), (low, high), str(p.unit))
+            if not p.name.isidentifier() or not low <= p.default <= high:
+                raise ValueError(p)
+            params.append(p)
+    except (TypeError, ValueError) as exc:
+        raise ControllerError(
+            f"{owner}.params must be Param(name, default, (low, high), unit) entries with low <= default <= high; "
+            f"got {exc}"
+        ) from None
+    return tuple(params)
+
+
+def build(spec: str, values: Mapping[str, float] | Iterable[tuple[str, float]] = ()) -> object:
+    """An instance of the spec's class, its declared params set (defaults, then `values`)."""
+    spec = canonical(spec)
+    cls = load_class(spec)
+    params = {p.name: p for p in declared_params(cls)}
+    values = dict(values)
+    unknown = sorted(set(values) - set(params))
+    if unknown:
+        names = ", ".join(params) or "none"
+        raise ControllerError(f"{cls.__name__} has no parameter {', '.join(unknown)} (its parameters: {names})")
+    try:
+        controller = cls(spec) if spec.startswith(REMOTE_PREFIX) else cls()
+    except Exception as exc:
+        raise ControllerError(f"{cls.__name__}() failed: {type(exc).__name__}: {exc}") from exc
+    for name, p in params.items():
+        setattr(controller, name, p.check(values.get(name, p.default), cls.__name__))
+    return controller
+
+
+def _choices() -> str:
+    names = [*BUILTIN, *(ep.name for ep in _entry_points())]
+    return f"choose {', '.join(names)}, FILE.py:Class, package.module:Class or tcp://127.0.0.1:PORT"
+
+
+def _entry_points() -> list[importlib.metadata.EntryPoint]:
+    return list(importlib.metadata.entry_points(group=ENTRY_POINT_GROUP))
+
+
+def _entry_point(name: str) -> str | None:
+    for ep in _entry_points():
+        if ep.name == name:
+            return ep.value
+    return None
+
+
+def _import(module: str, spec: str) -> object:
+    try:
+        return importlib.import_module(module)
+    except ModuleNotFoundError as exc:
+        if exc.name and module.startswith(exc.name):
+            raise ControllerError(f"no module {module!r} for controller {spec!r}; " + _choices()) from None
+        raise ControllerError(f"importing {module}: {type(exc).__name__}: {exc}") from exc
+    except Exception as exc:
+        raise ControllerError(f"importing {module}: {type(exc).__name__}: {exc}") from exc
+
+
+def _load_file(path: str) -> object:
+    """Import a user's file once per process under a name derived from its path."""
+    file = Path(path)
+    if not file.is_file():
+        raise ControllerError(f"controller file {path} does not exist")
+    name = "hopper_user_controller_" + hashlib.sha1(str(file).encode()).hexdigest()[:12]
+    if name in sys.modules:
+        return sys.modules[name]
+    spec = importlib.util.spec_from_file_location(name, file)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module  # so that pickling (sweep workers, snapshots) finds its classes
+    try:
+        spec.loader.exec_module(module)
+    except Exception as exc:
+        del sys.modules[name]
+        raise ControllerError(f"controller file {path} failed to load: {type(exc).__name__}: {exc}") from exc
+    return module
+
+
+def _check_signature(cls: type, target: str) -> None:
+    """`__call__(self, obs)` and, if present, `reset(self, obs)`: each takes exactly one argument."""
+    for method in ("__call__", "reset"):
+        owner = next((k for k in cls.__mro__[:-1] if method in vars(k)), None)
+        if owner is None:
+            if method == "__call__":
+                raise ControllerError(f"{target} has no __call__(self, obs) -> float")
+            continue
+        fn = vars(owner)[method]
+        try:
+            inspect.signature(fn).bind(None, None)
+        except TypeError:
+            raise ControllerError(
+                f"{target}.{method} must take (self, obs); it is {method}{inspect.signature(fn)}"
+            ) from None
+        except ValueError:
+            pass  # a builtin without a signature: tried at the first call instead
