@@ -13,14 +13,15 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import NoReturn
 
-from hopper.config import GRAVITY_PRESETS, Gains
+from hopper.config import GRAVITY_PRESETS, Gains, SimConfig
 from hopper.scenarios import SCENARIOS
 from hopper.schedule import KickSchedule, parse
 
-EXIT_OK, EXIT_FELL, EXIT_USAGE, EXIT_SHORT, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+EXIT_OK, EXIT_FELL, EXIT_USAGE, EXIT_SHORT, EXIT_CONTROLLER, EXIT_INTERRUPTED = 0, 1, 2, 3, 4, 130
 EXIT_STATUSES = (
-    "exit status: 0 success, 1 the robot fell (run) or a case failed (stress), 2 bad arguments, "
-    "3 the run stopped short of the hops asked without a fall (run; it says why), 130 interrupted "
+    "exit status: 0 success, 1 the robot fell (run) or a case failed (stress), 2 bad arguments (a controller "
+    "that cannot fly included), 3 the run stopped short of the hops asked without a fall (run; it says why), "
+    "4 the controller failed mid-run and the PID flew on (run; it says why), 130 interrupted "
     "(Ctrl-C or SIGTERM). compare exits 0 once it has finished: with the wheel off the "
     "robot is expected to fall."
 )
@@ -119,6 +120,50 @@ def schedule(text: str) -> KickSchedule:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+def controller_param(text: str) -> tuple[str, float]:
+    """NAME=VALUE, a controller's declared param (hopper.controllers.Param)."""
+    name, sep, value = text.partition("=")
+    if not sep or not name.strip():
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}")
+    try:
+        return name.strip(), finite(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{name.strip()}: {value!r} is not a finite number") from None
+
+
+def add_controller_flags(p: argparse.ArgumentParser) -> None:
+    """--controller and --controller-param, as every command that flies the robot takes them."""
+    p.add_argument(
+        "--controller",
+        default="pid",
+        metavar="SPEC",
+        help="the flight's wheel law: pid (default), lqr, mpc, FILE.py:Class, package.module:Class, an entry "
+        "point of the hopper.controllers group, or tcp://127.0.0.1:PORT (README: Bring your own controller)",
+    )
+    p.add_argument(
+        "--controller-param",
+        type=controller_param,
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="set one of the controller's declared params (repeatable; for pid: kp, ki, kd)",
+    )
+
+
+def with_controller_flags(config: SimConfig, args: argparse.Namespace) -> SimConfig:
+    """`config` flying the flags' controller, checked as a run would start it (one line and exit 2 if it
+    cannot: a missing file, a wrong signature, an exception, NaN, a call over budget)."""
+    from hopper.controllers import ControllerError, with_controller
+    from hopper.sim import Simulation
+
+    try:
+        config = with_controller(config, args.controller, args.controller_param)
+        Simulation(config)  # builds, configures and probes the controller
+    except ControllerError as exc:
+        fail(str(exc))
+    return config
+
+
 def add_run_flags(p: argparse.ArgumentParser) -> None:
     """The flags of one simulated robot (terrain, gravity, gains, sensing, gait), as run and compare take them."""
     defaults = Gains()
@@ -133,6 +178,7 @@ def add_run_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--kp", type=finite, default=defaults.kp, help=f"N m/rad (default {defaults.kp:g})")
     p.add_argument("--ki", type=finite, default=defaults.ki, help=f"N m/(rad s) (default {defaults.ki:g})")
     p.add_argument("--kd", type=finite, default=defaults.kd, help=f"N m s/rad (default {defaults.kd:g})")
+    add_controller_flags(p)
     p.add_argument(
         "--sensing",
         choices=("ideal", "realistic"),

@@ -125,6 +125,7 @@ def simulate(
                 "wall_time_s": time.perf_counter() - start,
                 "hops": [hop.as_dict() for hop in sim.hops],
                 "short": shortfall(sim, hops),
+                "controller": controller_summary(sim),
             }
             if recorder is not None:
                 result["trace"] = recorder.as_dict()
@@ -140,6 +141,19 @@ def simulate(
             if telemetry is not None:
                 telemetry.close()
     return result
+
+
+def controller_summary(sim: Simulation) -> dict[str, Any]:
+    """The controller that flew (spec, class, params), its mean compute per call (us) and its fault."""
+    law = sim.failed_law or sim.law  # after a fault the PID flies: report the one that was asked
+    return {
+        "spec": law.spec,
+        "name": law.name,
+        "params": law.values,
+        "calls": law.calls,
+        "compute_us": law.compute_ns / law.calls / 1e3 if law.calls else 0.0,
+        "fault": sim.controller_fault,
+    }
 
 
 def shortfall(sim: Simulation, hops: int) -> str | None:

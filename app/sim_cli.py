@@ -16,18 +16,21 @@ from typing import Any
 import numpy as np
 from hopper.app import report_cli, sweep_cli
 from hopper.app.cli_common import (
+    EXIT_CONTROLLER,
     EXIT_FELL,
     EXIT_INTERRUPTED,
     EXIT_OK,
     EXIT_SHORT,
     EXIT_STATUSES,
     Parser,
+    add_controller_flags,
     add_run_flags,
     fail,
     part_limit,
     rrd_file,
     schedule,
     seed,
+    with_controller_flags,
     writable_file,
 )
 from hopper.app.episode import settings, simulate, version
@@ -109,6 +112,7 @@ def parser() -> Parser:
     stress.add_argument("--quick", action="store_true", help="a few cases of each group (what the tests run)")
     stress.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
     stress.add_argument("--json", type=writable_file, metavar="PATH", help="write every case's outcome as JSON")
+    add_controller_flags(stress)
 
     envelope = commands.add_parser(
         "envelope",
@@ -137,7 +141,8 @@ def parser() -> Parser:
 
 
 def make_config(args: argparse.Namespace, seed: int, wheel: bool) -> SimConfig:
-    return SimConfig(
+    """The flags' robot, its controller checked (one line and exit 2 if it cannot fly)."""
+    config = SimConfig(
         seed=seed,
         terrain=args.terrain,
         gravity=args.gravity,
@@ -146,6 +151,7 @@ def make_config(args: argparse.Namespace, seed: int, wheel: bool) -> SimConfig:
         sensing=args.sensing,
         gait=scenario(args.scenario).gait,
     )
+    return with_controller_flags(config, args)
 
 
 def hop_table(hops: list[dict[str, Any]]) -> str:
@@ -182,10 +188,16 @@ def summary(result: dict[str, Any]) -> str:
     done = [h for h in result["hops"] if h["completed"]]
     s = result["settings"]
     wheel = "on" if s["wheel"] else "off (zero torque, free to spin)"
-    gains = s["gains"]
+    gains, law = s["gains"], result.get("controller") or {"spec": "pid"}
+    if law["spec"] == "pid":
+        flown = f"kp {gains['kp']:g} ki {gains['ki']:g} kd {gains['kd']:g}"
+    else:
+        values = " ".join(f"{k} {v:g}" for k, v in law["params"].items())
+        flown = f"controller {law['spec']} ({law['name']}{': ' + values if values else ''}; "
+        flown += f"{law['compute_us']:.1f} us a call)"
     lines = [
         f"terrain {s['terrain']}, seed {s['seed']}, gravity {s['gravity']:g} m/s^2, "
-        f"kp {gains['kp']:g} ki {gains['ki']:g} kd {gains['kd']:g}, wheel {wheel}: {len(done)} hops"
+        f"{flown}, wheel {wheel}: {len(done)} hops"
         + (", FELL" if result["fell"] else "")
         + f"; {result['sim_time_s']:.2f} s simulated in {result['wall_time_s']:.2f} s wall"
         + f" ({result['sim_time_s'] / max(result['wall_time_s'], 1e-9):.0f}x real time)"
@@ -203,6 +215,8 @@ def summary(result: dict[str, Any]) -> str:
         )
     if any(not h["completed"] for h in result["hops"]):
         lines.append("* the flight that ended in the fall")
+    if law.get("fault"):
+        lines.append(f"the controller failed and the PID flew on: {law['fault']}")
     return "\n".join(lines)
 
 
@@ -233,6 +247,10 @@ def command_run(args: argparse.Namespace) -> int:
     if result["short"] is not None:
         print(f"hopper-sim: error: {result['short']}", file=sys.stderr)
         return EXIT_SHORT
+    fault = result["controller"]["fault"]
+    if fault:
+        print(f"hopper-sim: error: controller {config.controller} failed: {fault}", file=sys.stderr)
+        return EXIT_CONTROLLER
     return EXIT_FELL if result["fell"] else EXIT_OK
 
 
@@ -248,9 +266,12 @@ def command_compare(args: argparse.Namespace) -> int:
         for f in dataclasses.fields(GaitParams)
         if getattr(gait, f.name) != getattr(default, f.name)
     )  # the scenario's gait, as a sweep's gait axes
+    flown = make_config(args, 0, True)  # checks the controller before any episode
+    g, params = flown.gains, flown.controller_params
     episodes = [
-        Episode(kp=args.kp, ki=args.ki, kd=args.kd, gravity=args.gravity, seed=seed, hops_target=args.hops,
-                terrain=args.terrain, wheel=wheel, sensing=args.sensing, gait=changed)
+        Episode(kp=g.kp, ki=g.ki, kd=g.kd, gravity=args.gravity, seed=seed, hops_target=args.hops,
+                terrain=args.terrain, wheel=wheel, sensing=args.sensing, gait=changed,
+                controller=flown.controller, params=params)
         for seed in range(args.seeds)
         for wheel in (True, False)
     ]  # fmt: skip
@@ -328,7 +349,8 @@ def command_stress(args: argparse.Namespace) -> int:
 
     from hopper.stress import battery, run_case, table
 
-    cases = battery(seeds=args.seeds, gravity_seeds=args.gravity_seeds, quick=args.quick)
+    flown = with_controller_flags(SimConfig(), args)
+    cases = battery(seeds=args.seeds, gravity_seeds=args.gravity_seeds, quick=args.quick, controller=flown)
     cases = [c for c in cases if c.group in args.groups]
     workers = max(1, min(args.workers, len(cases)))
     with children_ignore_ctrl_c():  # pool workers leave Ctrl-C to this process, which stops them
@@ -341,7 +363,7 @@ def command_stress(args: argparse.Namespace) -> int:
         rows = [
             {"group": o.case.group, "case": o.case.name, "passed": o.passed, "hops": o.hops, "fell": o.fell,
              "cause": o.cause, "worst_landing_deg": o.worst_landing_deg, "worst_peak_deg": o.worst_peak_deg,
-             "peak_wheel_rpm": o.peak_wheel_rpm, "settings": settings(o.case.config, o.case.hops)}
+             "peak_wheel_rpm": o.peak_wheel_rpm, "fault": o.fault, "settings": settings(o.case.config, o.case.hops)}
             for o in outcomes
         ]  # fmt: skip
         args.json.write_text(json.dumps({"version": version(), "cases": rows}, indent=2))

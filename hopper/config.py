@@ -200,6 +200,13 @@ class SimConfig:
     def __post_init__(self) -> None:
         if not isinstance(self.controller, str) or not self.controller.strip():
             raise InvalidConfig(f"controller must be a non-empty spec, got {self.controller!r}")
+        try:  # JSON gives lists: hold (name, value) tuples so that the config stays hashable
+            params = tuple((str(name), float(value)) for name, value in self.controller_params)
+        except (TypeError, ValueError):
+            raise InvalidConfig(
+                f"controller_params must be (name, value) pairs, got {self.controller_params!r}"
+            ) from None
+        object.__setattr__(self, "controller_params", params)
         if self.terrain not in ("crater", "flat"):
             raise InvalidConfig(f"terrain must be 'crater' or 'flat', got {self.terrain!r}")
         if self.sensing not in ("ideal", "realistic"):

@@ -125,6 +125,7 @@ class Simulation:
         self.pull: Pull | None = None  # a mouse drag under way (hopper.perturb)
         self.law: FlightLaw | None = None  # the flight's wheel law (hopper.controllers); set below
         self.controller_fault: str | None = None  # why the controller was replaced by the PID, if it was
+        self.failed_law: FlightLaw | None = None  # the controller that was replaced
         self._ground_profile: Ground | None = None  # for the obs' time_to_touchdown, built on first use
         wheel = self.model.body("wheel").id
         self._spin_inertia = float(self.model.body_inertia[wheel].max() + self.model.dof_armature[self.layout.v_wheel])
@@ -244,6 +245,7 @@ class Simulation:
         self.controller.start_over(config)
         self._ground_profile = None
         self._bind_law(config)
+        self.controller_fault = self.failed_law = None
         self.events.clear()
         self.ticks = 0  # the health check's phase, as in a new Simulation
         self.reset(reason="start")
@@ -310,7 +312,7 @@ class Simulation:
         """Fly on with the built-in PID (the config's gains) and say why."""
         log.warning("controller %s failed: %s", self.config.controller, cause)
         spec = self.config.controller
-        self.controller_fault = cause
+        self.controller_fault, self.failed_law = cause, self.law
         self._emit(ControllerFailed(spec, cause))
         self._bind_law(dataclasses.replace(self.config, controller="pid", controller_params=()), probe=False)
         self._emit(ControllerChanged("pid", self.law.name, tuple(params_of(self.config).items())))
@@ -336,7 +338,7 @@ class Simulation:
         config = with_controller(self.config, spec, values)  # type: ignore[arg-type]
         self._bind_law(config)
         self.controller.configure(config)
-        self.controller_fault = None
+        self.controller_fault = self.failed_law = None
         self._emit(ControllerChanged(config.controller, self.law.name, tuple(params_of(config).items())))
 
     def set_controller_param(self, name: str, value: float) -> None:

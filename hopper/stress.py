@@ -14,6 +14,7 @@ from typing import Literal
 from hopper.config import GRAVITY_PRESETS, SimConfig
 from hopper.control import Phase
 from hopper.control.gait import momentum_capacity
+from hopper.controllers import ControllerError, params_of, with_controller
 from hopper.events import EventKind
 from hopper.sim import TORQUE_PULSE_S, Simulation
 
@@ -52,6 +53,7 @@ class Outcome:
     worst_peak_deg: float
     peak_wheel_rpm: float
     applied: bool  # the disturbance happened (its phase came)
+    fault: str = ""  # the controller's failure (it could not fly, or the PID took over), "" if none
 
     @property
     def passed(self) -> bool:
@@ -59,7 +61,7 @@ class Outcome:
         # on the ground, whose recovery hop may land less cleanly.
         landed = self.case.group == "ground" or self.worst_landing_deg <= LANDING_LIMIT_DEG
         disturbed = self.case.disturbance is None or self.applied
-        return not self.fell and landed and self.hops >= self.case.hops and disturbed
+        return not self.fell and landed and self.hops >= self.case.hops and disturbed and not self.fault
 
 
 def run_episode(sim: Simulation, hops: int, disturbance: Schedule | None = None) -> bool:
@@ -97,7 +99,10 @@ def _disturb_when_due(sim: Simulation, d: Schedule, hops: int, limit: float) -> 
 
 def run_case(case: Case) -> Outcome:
     """Simulate one case to its hops, a fall or the time limit."""
-    sim = Simulation(case.config)
+    try:
+        sim = Simulation(case.config)
+    except ControllerError as exc:
+        return Outcome(case, 0, False, str(exc), 0.0, 0.0, 0.0, False, str(exc))
     applied = run_episode(sim, case.hops, case.disturbance)
     done = [h for h in sim.hops if h.completed]
     fall = next((e for e in reversed(sim.events) if e.kind is EventKind.FALL), None)
@@ -105,11 +110,12 @@ def run_case(case: Case) -> Outcome:
         case=case,
         hops=len(done),
         fell=sim.fallen,
-        cause=fall.describe() if fall is not None and sim.fallen else "",
+        cause=fall.describe() if fall is not None and sim.fallen else (sim.controller_fault or ""),
         worst_landing_deg=max((h.landing_pitch_deg for h in done), default=0.0),
         worst_peak_deg=max((h.peak_pitch_deg for h in sim.hops), default=0.0),
         peak_wheel_rpm=max((h.peak_wheel_rpm for h in sim.hops), default=0.0),
         applied=applied,
+        fault=sim.controller_fault or "",
     )
 
 
@@ -117,8 +123,19 @@ GRAVITIES = (0.2, GRAVITY_PRESETS["ceres"], 0.62, 1.0, GRAVITY_PRESETS["moon"], 
              GRAVITY_PRESETS["earth"])  # fmt: skip
 
 
-def battery(*, seeds: int = 100, gravity_seeds: int = 5, quick: bool = False) -> list[Case]:
-    """The issue's acceptance cases; `quick` keeps a few of each group (for the tests)."""
+def battery(
+    *, seeds: int = 100, gravity_seeds: int = 5, quick: bool = False, controller: SimConfig | None = None
+) -> list[Case]:
+    """The issue's acceptance cases; `quick` keeps a few of each group (for the tests). Every case flies
+    `controller`'s controller and params (its other settings are ignored; default the PID)."""
+    cases = _cases(seeds, gravity_seeds, quick)
+    if controller is None:
+        return cases
+    spec, params = controller.controller, params_of(controller)
+    return [dataclasses.replace(c, config=with_controller(c.config, spec, params.items())) for c in cases]
+
+
+def _cases(seeds: int, gravity_seeds: int, quick: bool) -> list[Case]:
     if quick:
         seeds, gravity_seeds = 2, 1
     cases: list[Case] = []

@@ -144,8 +144,9 @@ def test_help_documents_the_exit_statuses() -> None:
         assert result.returncode == 0, result.stderr
         text = " ".join(result.stdout.split())
         expected = (
-            "exit status: 0 success, 1 the robot fell (run) or a case failed (stress), 2 bad arguments, "
-            "3 the run stopped short of the hops asked without a fall (run; it says why), 130"
+            "exit status: 0 success, 1 the robot fell (run) or a case failed (stress), 2 bad arguments (a "
+            "controller that cannot fly included), 3 the run stopped short of the hops asked without a fall (run; "
+            "it says why), 4 the controller failed mid-run and the PID flew on (run; it says why), 130"
         )
         assert expected in text, text
 

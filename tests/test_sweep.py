@@ -153,7 +153,7 @@ def test_the_parquet_datasets_follow_the_contract(tmp_path: Path) -> None:
     assert (run.ran, run.skipped) == (4, 0)
     episodes = ds.dataset(tmp_path / "out" / "episodes", format="parquet").to_table()
     hops = ds.dataset(tmp_path / "out" / "hops", format="parquet").to_table()
-    settings = [name for name, _ in SETTING_COLUMNS] + ["apex_height"]
+    settings = [name for name, _ in SETTING_COLUMNS] + ["apex_height", "controller"]
     assert episodes.column_names == settings + [name for name, _ in RESULT_COLUMNS]
     hop_fields = list(HopMetrics.__dataclass_fields__)
     assert hops.column_names == settings + ["hop"] + hop_fields
@@ -167,6 +167,7 @@ def test_the_parquet_datasets_follow_the_contract(tmp_path: Path) -> None:
         assert all(h["seed"] == r["seed"] and h["wheel"] == r["wheel"] for h in own)
         assert r["hops_completed"] == sum(h["completed"] for h in own)
         assert r["disturbance"] == "" and r["disturbance_size"] == 0.0 and r["terrain"] == "crater"
+        assert r["controller"] == "pid" and r["controller_fault"] == ""
         if r["wheel"]:
             assert not r["fell"] and r["hops_completed"] == 2 and 0 < r["momentum_used_pct"] < 100
         else:  # wheel off: the robot tumbles in its first flight (README)

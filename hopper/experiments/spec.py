@@ -39,6 +39,8 @@ import numpy as np
 
 from hopper.config import GAIN_RANGES, GRAVITY_PRESETS, Gains, GaitParams, InvalidConfig, SimConfig, require_finite
 from hopper.control.phases import Phase
+from hopper.controllers import ControllerError, load_class, with_controller
+from hopper.controllers.loading import canonical, declared_params
 from hopper.disturbances import DISTURBANCE_LIMITS
 from hopper.errors import HopperError
 from hopper.stress import Schedule
@@ -68,6 +70,8 @@ class Episode:
     sensing: str
     disturbance: Schedule | None = None
     gait: tuple[tuple[str, float], ...] = ()  # swept GaitParams fields, the rest default
+    controller: str = "pid"  # the flight's wheel law (hopper.controllers.loading)
+    params: tuple[tuple[str, float], ...] = ()  # the controller's swept params, the rest default
 
     def settings(self) -> dict[str, Any]:
         """The setting columns of its Parquet rows (hopper.experiments.store)."""
@@ -76,6 +80,7 @@ class Episode:
             "kp": self.kp, "ki": self.ki, "kd": self.kd, "gravity": self.gravity, "seed": self.seed,
             "hops_target": self.hops_target, "terrain": self.terrain, "wheel": self.wheel, "sensing": self.sensing,
             "disturbance": describe(d), "disturbance_size": d.magnitude if d is not None else 0.0, **dict(self.gait),
+            "controller": self.controller, **dict(self.params),
         }  # fmt: skip
 
     @property
@@ -85,7 +90,7 @@ class Episode:
         return hashlib.sha256(text.encode()).hexdigest()[:20]
 
     def config(self) -> SimConfig:
-        return SimConfig(
+        config = SimConfig(
             seed=self.seed,
             terrain=self.terrain,  # type: ignore[arg-type]
             gravity=self.gravity,
@@ -94,6 +99,7 @@ class Episode:
             wheel=self.wheel,
             sensing=self.sensing,  # type: ignore[arg-type]
         )
+        return with_controller(config, self.controller, self.params) if self.controller != "pid" else config
 
 
 def describe(schedule: Schedule | None) -> str:
@@ -122,37 +128,47 @@ class SweepSpec:
     sensing: tuple[str, ...] = ("ideal",)
     disturbance: tuple[Schedule | None, ...] = (None,)
     gait: tuple[tuple[str, tuple[float, ...]], ...] = ()
+    controller: tuple[str, ...] = ("pid",)  # specs (hopper.controllers.loading)
+    params: tuple[tuple[str, tuple[float, ...]], ...] = ()  # declared params of the (non-pid) controllers
 
     @property
     def size(self) -> int:
-        n = math.prod(len(getattr(self, a)) for a in (*AXES, "disturbance"))
-        return n * math.prod(len(values) for _, values in self.gait)
+        n = math.prod(len(getattr(self, a)) for a in (*AXES, "disturbance", "controller"))
+        return n * math.prod(len(values) for _, values in (*self.gait, *self.params))
 
     def episodes(self) -> Iterator[Episode]:
         """The product of the axes, terrain and seed outermost (a worker's terrain changes least often)."""
         names = [name for name, _ in self.gait]
         gait_values = list(itertools.product(*(values for _, values in self.gait)))
-        for terrain, seed, gravity, hops, wheel, sensing, disturbance, kp, ki, kd, gait in itertools.product(
-            self.terrain, self.seeds, self.gravity, self.hops, self.wheel, self.sensing, self.disturbance,
-            self.kp, self.ki, self.kd, gait_values,
+        param_names = [name for name, _ in self.params]
+        param_values = list(itertools.product(*(values for _, values in self.params)))
+        for terrain, seed, gravity, hops, wheel, sensing, disturbance, controller, kp, ki, kd, gait, params in (
+            itertools.product(
+                self.terrain, self.seeds, self.gravity, self.hops, self.wheel, self.sensing, self.disturbance,
+                self.controller, self.kp, self.ki, self.kd, gait_values, param_values,
+            )
         ):  # fmt: skip
             yield Episode(
                 kp=kp, ki=ki, kd=kd, gravity=gravity, seed=seed, hops_target=hops, terrain=terrain, wheel=wheel,
                 sensing=sensing, disturbance=disturbance, gait=tuple(zip(names, gait, strict=True)),
+                controller=controller, params=tuple(zip(param_names, params, strict=True)),
             )  # fmt: skip
 
     def axes(self) -> dict[str, tuple[Any, ...]]:
         """Column name -> values, for the per-axis summary (Parquet column names)."""
         axes: dict[str, tuple[Any, ...]] = {a: getattr(self, a) for a in AXES if a not in ("seeds", "hops")}
         axes |= {"seed": self.seeds, "hops_target": self.hops, "disturbance": tuple(map(describe, self.disturbance))}
-        return axes | dict(self.gait)
+        return axes | dict(self.gait) | {"controller": self.controller} | dict(self.params)
 
     def to_toml(self) -> str:
         """The resolved spec: every axis as its list of values (load_spec reads it back unchanged)."""
         lines = ["# hopper-sim sweep: the resolved spec, every axis as its list of values"]
         lines += [f"{a} = {_toml(list(getattr(self, a)))}" for a in AXES]
+        lines.append(f"controller = {_toml(list(self.controller))}")
         if self.gait:
             lines += ["", "[gait]", *(f"{name} = {_toml(list(values))}" for name, values in self.gait)]
+        if self.params:
+            lines += ["", "[params]", *(f"{name} = {_toml(list(values))}" for name, values in self.params)]
         for d in self.disturbance:
             lines += ["", "[[disturbance]]"]
             if d is None:
@@ -191,7 +207,7 @@ def load_spec(path: Path, overrides: dict[str, Any] | None = None) -> SweepSpec:
 
 def parse_spec(data: dict[str, Any]) -> SweepSpec:
     """A SweepSpec from TOML-shaped data; raises SpecError saying what is wrong, in one line."""
-    known = (*AXES, "gait", "disturbance")
+    known = (*AXES, "gait", "disturbance", "controller", "params")
     unknown = sorted(set(data) - set(known))
     if unknown:
         raise SpecError(f"unknown key {unknown[0]!r} (known: {', '.join(known)})")
@@ -213,6 +229,10 @@ def parse_spec(data: dict[str, Any]) -> SweepSpec:
         axes["wheel"] = tuple(_wheel(v) for v in _values("wheel", data["wheel"], numeric=False))
     if "gait" in data:
         axes["gait"] = _gait(data["gait"])
+    if "controller" in data:
+        axes["controller"] = tuple(_controller(v) for v in _values("controller", data["controller"], numeric=False))
+    if "params" in data:
+        axes["params"] = _params(data["params"], axes.get("controller", ("pid",)))
     if "disturbance" in data:
         axes["disturbance"] = _disturbances(data["disturbance"])
     for name, values in axes.items():
@@ -224,6 +244,40 @@ def parse_spec(data: dict[str, Any]) -> SweepSpec:
     if spec.size > MAX_EPISODES:
         raise SpecError(f"{spec.size} episodes is more than {MAX_EPISODES}")
     return spec
+
+
+def _controller(value: Any) -> str:
+    if not isinstance(value, str) or not value.strip():
+        raise SpecError(f"controller: expected a spec such as pid, lqr, mpc or FILE.py:Class, got {value!r}")
+    return canonical(value)
+
+
+def _params(value: Any, controllers: tuple[str, ...]) -> tuple[tuple[str, tuple[float, ...]], ...]:
+    """The [params] table: each declared param of every swept controller but pid, as a list of values."""
+    if not isinstance(value, dict):
+        raise SpecError(f"params: expected a table of NAME = VALUES, got {value!r}")
+    if "pid" in controllers:
+        raise SpecError("params: the pid's params are the kp, ki and kd axes; sweep [params] with other controllers")
+    axes = []
+    for name, values in value.items():
+        floats = tuple(_number(f"params.{name}", v) for v in _values(f"params.{name}", values))
+        for spec in controllers:
+            try:
+                with_controller(SimConfig(), spec, [(name, floats[0])])
+                declared = {p.name: p for p in declared_params(load_class(spec))}
+            except ControllerError as exc:
+                raise SpecError(f"params.{name}: {exc}") from None
+            if name not in declared:
+                raise SpecError(f"params.{name}: {spec} declares no such param ({', '.join(declared) or 'none'})")
+            for v in floats:
+                try:
+                    declared[name].check(v, spec)
+                except ControllerError as exc:
+                    raise SpecError(str(exc)) from None
+        if len(set(floats)) != len(floats):
+            raise SpecError(f"params.{name}: a value is repeated")
+        axes.append((name, floats))
+    return tuple(axes)
 
 
 def _values(name: str, value: Any, numeric: bool = True) -> list[Any]:

@@ -50,6 +50,7 @@ RESULT_COLUMNS: list[tuple[str, pa.DataType]] = [
     ("saturation_s", pa.float64()),  # total
     ("sim_time_s", pa.float64()),
     ("wall_s", pa.float64()),
+    ("controller_fault", pa.string()),  # why the controller was replaced by the PID mid-episode, "" if it was not
 ]
 _ARROW_TYPES = {int: pa.int64(), float: pa.float64(), bool: pa.bool_()}
 HOP_FIELDS: list[tuple[str, pa.DataType]] = [
@@ -61,8 +62,10 @@ FLUSH_S = 2.0  # s between parts at most while results stream in (and at the end
 
 
 def schemas(spec: SweepSpec) -> tuple[pa.Schema, pa.Schema]:
-    """(episodes, hops) schemas for a spec: its swept gait fields are float64 setting columns."""
-    settings = SETTING_COLUMNS + [(name, pa.float64()) for name, _ in spec.gait]
+    """(episodes, hops) schemas for a spec: its swept gait fields and controller params are float64
+    setting columns, after the controller's spec."""
+    settings = SETTING_COLUMNS + [(name, pa.float64()) for name, _ in spec.gait] + [("controller", pa.string())]
+    settings += [(name, pa.float64()) for name, _ in spec.params]  # the controller's swept params
     return pa.schema(settings + RESULT_COLUMNS), pa.schema(settings + [("hop", pa.int64())] + HOP_FIELDS)
 
 

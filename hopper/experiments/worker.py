@@ -12,6 +12,7 @@ import time
 from typing import Any
 
 from hopper.config import WHEEL_NO_LOAD_SPEED, SimConfig
+from hopper.controllers import ControllerError
 from hopper.experiments.spec import Episode
 from hopper.metrics import HopMetrics
 from hopper.sim import Simulation
@@ -30,6 +31,7 @@ class EpisodeResult:
     saturation_s: float  # s, every hop's plus the unfinished one's
     momentum_used_pct: float  # peak |wheel speed| / no-load speed = peak |wheel momentum| / capacity, %
     applied: bool  # the disturbance happened (its phase came); True without one
+    controller_fault: str = ""  # why the controller could not fly or was replaced by the PID; "" if neither
 
     def row(self) -> dict[str, Any]:
         """The episodes-table row (hopper.experiments.store.EPISODE_COLUMNS)."""
@@ -46,6 +48,7 @@ class EpisodeResult:
             "saturation_s": self.saturation_s,
             "sim_time_s": self.sim_time_s,
             "wall_s": self.wall_s,
+            "controller_fault": self.controller_fault,
         }
 
     def hop_rows(self) -> list[dict[str, Any]]:
@@ -72,7 +75,10 @@ class Worker:
     def run(self, episode: Episode) -> EpisodeResult:
         """Simulate one episode to its hops, a fall or the time limit (as `hopper-sim run` does)."""
         start = time.perf_counter()
-        sim = self._prepare(episode.config())
+        try:
+            sim = self._prepare(episode.config())
+        except ControllerError as exc:  # the episode fails with its cause; the batch goes on
+            return EpisodeResult(episode, (), False, 0.0, time.perf_counter() - start, 0.0, 0.0, False, str(exc))
         hops, schedule = episode.hops_target, episode.disturbance
         applied = run_episode(sim, hops, schedule)
         mem = sim.controller.mem
@@ -88,6 +94,7 @@ class Worker:
             saturation_s=saturation,
             momentum_used_pct=100.0 * peak_wheel / WHEEL_NO_LOAD_SPEED,
             applied=applied,
+            controller_fault=sim.controller_fault or "",
         )
 
     def _prepare(self, config: SimConfig) -> Simulation:
