@@ -146,7 +146,9 @@ def simulate(
 def controller_summary(sim: Simulation) -> dict[str, Any]:
     """The controller that flew (spec, class, params), its mean compute per call (us) and its fault."""
     law = sim.failed_law or sim.law  # after a fault the PID flies: report the one that was asked
+    trip = getattr(law.controller, "round_trip", None)  # an out-of-process controller (hopper.laws.remote)
     return {
+        "round_trip_us": dict(zip(("p50", "p99"), trip()[1:], strict=True)) if trip is not None else None,
         "spec": law.spec,
         "name": law.name,
         "params": law.values,

@@ -194,7 +194,10 @@ def summary(result: dict[str, Any]) -> str:
     else:
         values = " ".join(f"{k} {v:g}" for k, v in law["params"].items())
         flown = f"controller {law['spec']} ({law['name']}{': ' + values if values else ''}; "
-        flown += f"{law['compute_us']:.1f} us a call)"
+        trip = law["round_trip_us"]
+        flown += f"{law['compute_us']:.1f} us a call" + (
+            f", round trip p50 {trip['p50']:.1f} us p99 {trip['p99']:.1f} us)" if trip else ")"
+        )
     lines = [
         f"terrain {s['terrain']}, seed {s['seed']}, gravity {s['gravity']:g} m/s^2, "
         f"{flown}, wheel {wheel}: {len(done)} hops"

@@ -112,6 +112,8 @@ class FlightLaw:
         start = time.perf_counter_ns()
         try:
             command = self.controller(obs)
+        except ControllerFault:
+            raise  # it says what happened (a remote peer that left)
         except Exception as exc:
             raise ControllerFault(f"{self.name} raised {type(exc).__name__}: {exc}") from exc
         spent = time.perf_counter_ns() - start

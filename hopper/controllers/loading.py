@@ -96,6 +96,8 @@ def build(spec: str, values: Mapping[str, float] | Iterable[tuple[str, float]] =
         raise ControllerError(f"{cls.__name__} has no parameter {', '.join(unknown)} (its parameters: {names})")
     try:
         controller = cls(spec) if spec.startswith(REMOTE_PREFIX) else cls()
+    except ControllerError:
+        raise
     except Exception as exc:
         raise ControllerError(f"{cls.__name__}() failed: {type(exc).__name__}: {exc}") from exc
     for name, p in params.items():
