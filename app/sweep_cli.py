@@ -45,6 +45,14 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         metavar="none|KIND:SIZES:PHASE:DELAY[:HOP]",
         help="a disturbance axis entry, e.g. push_forward:2,4:stance:0.1 (repeat for more)",
     )
+    sweep.add_argument(
+        "--controller",
+        metavar="SPECS",
+        help="the controllers flown, comma-separated: pid (default), lqr, mpc, FILE.py:Class, module:Class, ...",
+    )
+    sweep.add_argument(
+        "--param", action="append", default=[], metavar="NAME=VALUES", help="an axis of the controllers' params"
+    )
     executor_options(sweep)
 
     tune = commands.add_parser(
@@ -152,7 +160,27 @@ def spec_overrides(args: argparse.Namespace) -> dict[str, Any]:
         }
     if args.disturbance:
         data["disturbance"] = [_disturbance(t) for t in args.disturbance]
+    if getattr(args, "controller", None):
+        data["controller"] = [c.strip() for c in args.controller.split(",") if c.strip()]
+    if getattr(args, "param", None):
+        data["params"] = {
+            name: flag_value(f"param {name}", values) for name, values in map(lambda t: _named("param", t), args.param)
+        }
     return data
+
+
+def check_controllers(spec: Any) -> None:  # noqa: ANN401 (hopper.experiments.spec.SweepSpec)
+    """Every controller of the sweep builds and flies a probe tick, or one line and exit 2 before any work."""
+    from hopper.config import SimConfig
+    from hopper.controllers import ControllerError, with_controller
+    from hopper.sim import Simulation
+
+    first = [(name, values[0]) for name, values in spec.params]
+    for controller in spec.controller:
+        try:
+            Simulation(with_controller(SimConfig(), controller, [] if controller == "pid" else first))
+        except ControllerError as exc:
+            fail(str(exc))
 
 
 def check_out(out: Path) -> None:
@@ -184,6 +212,7 @@ def command_sweep(args: argparse.Namespace) -> int:
         spec = load_spec(args.spec, overrides) if args.spec is not None else parse_spec(overrides)
     except SpecError as exc:
         fail(str(exc))
+    check_controllers(spec)
     check_out(args.out)
 
     from hopper.experiments.executor import ExecutorError, choose

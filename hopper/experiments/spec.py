@@ -47,6 +47,7 @@ from hopper.stress import Schedule
 
 AXES = ("kp", "ki", "kd", "gravity", "seeds", "hops", "terrain", "wheel", "sensing")
 GAIT_FIELDS = tuple(f.name for f in dataclasses.fields(GaitParams))
+PARAM_PREFIX = "param_"  # a controller param's column: its own names (kp, ...) may be a setting's
 MAX_EPISODES = 10_000_000  # a typo guard: 1e7 episodes is months of CPU
 MAX_HOPS = 1000
 
@@ -80,7 +81,7 @@ class Episode:
             "kp": self.kp, "ki": self.ki, "kd": self.kd, "gravity": self.gravity, "seed": self.seed,
             "hops_target": self.hops_target, "terrain": self.terrain, "wheel": self.wheel, "sensing": self.sensing,
             "disturbance": describe(d), "disturbance_size": d.magnitude if d is not None else 0.0, **dict(self.gait),
-            "controller": self.controller, **dict(self.params),
+            "controller": self.controller, **{PARAM_PREFIX + name: v for name, v in self.params},
         }  # fmt: skip
 
     @property
@@ -158,7 +159,7 @@ class SweepSpec:
         """Column name -> values, for the per-axis summary (Parquet column names)."""
         axes: dict[str, tuple[Any, ...]] = {a: getattr(self, a) for a in AXES if a not in ("seeds", "hops")}
         axes |= {"seed": self.seeds, "hops_target": self.hops, "disturbance": tuple(map(describe, self.disturbance))}
-        return axes | dict(self.gait) | {"controller": self.controller} | dict(self.params)
+        return axes | dict(self.gait) | {"controller": self.controller} | {PARAM_PREFIX + n: v for n, v in self.params}
 
     def to_toml(self) -> str:
         """The resolved spec: every axis as its list of values (load_spec reads it back unchanged)."""

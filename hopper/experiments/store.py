@@ -22,7 +22,7 @@ import pyarrow.dataset as ds
 import pyarrow.parquet as pq
 
 from hopper.errors import HopperError
-from hopper.experiments.spec import SweepSpec
+from hopper.experiments.spec import PARAM_PREFIX, SweepSpec
 from hopper.experiments.worker import EpisodeResult
 from hopper.metrics import HopMetrics
 
@@ -65,7 +65,7 @@ def schemas(spec: SweepSpec) -> tuple[pa.Schema, pa.Schema]:
     """(episodes, hops) schemas for a spec: its swept gait fields and controller params are float64
     setting columns, after the controller's spec."""
     settings = SETTING_COLUMNS + [(name, pa.float64()) for name, _ in spec.gait] + [("controller", pa.string())]
-    settings += [(name, pa.float64()) for name, _ in spec.params]  # the controller's swept params
+    settings += [(PARAM_PREFIX + name, pa.float64()) for name, _ in spec.params]  # the controller's swept params
     return pa.schema(settings + RESULT_COLUMNS), pa.schema(settings + [("hop", pa.int64())] + HOP_FIELDS)
 
 
