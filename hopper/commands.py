@@ -25,6 +25,26 @@ class SetGains:
 
 
 @dataclasses.dataclass(frozen=True)
+class SetController:
+    """Fly another controller from the next tick (hopper.controllers); refused (CommandFailed) if it cannot."""
+
+    spec: str
+    params: tuple[tuple[str, float], ...] = ()
+
+    def apply(self, sim: Simulation) -> None:
+        sim.set_controller(self.spec, self.params)
+
+
+@dataclasses.dataclass(frozen=True)
+class SetControllerParam:
+    name: str
+    value: float
+
+    def apply(self, sim: Simulation) -> None:
+        sim.set_controller_param(self.name, self.value)
+
+
+@dataclasses.dataclass(frozen=True)
 class SetWheel:
     enabled: bool
 

@@ -315,7 +315,7 @@ class Simulation:
         self.controller_fault, self.failed_law = cause, self.law
         self._emit(ControllerFailed(spec, cause))
         self._bind_law(dataclasses.replace(self.config, controller="pid", controller_params=()), probe=False)
-        self._emit(ControllerChanged("pid", self.law.name, tuple(params_of(self.config).items())))
+        self._emit(ControllerChanged("pid", self.law.name, self._law_values()))
 
     def _bind_law(self, config: SimConfig, probe: bool = True) -> None:
         """Build config's controller, configure it for this plant and check it on a flight tick
@@ -339,7 +339,12 @@ class Simulation:
         self._bind_law(config)
         self.controller.configure(config)
         self.controller_fault = self.failed_law = None
-        self._emit(ControllerChanged(config.controller, self.law.name, tuple(params_of(config).items())))
+        self._emit(ControllerChanged(config.controller, self.law.name, self._law_values()))
+
+    def _law_values(self) -> tuple[tuple[str, float], ...]:
+        """The flying controller's param values (the PID's are the config's gains)."""
+        values = params_of(self.config) if self._external is False else self.law.values
+        return tuple(values.items())
 
     def set_controller_param(self, name: str, value: float) -> None:
         """Change one param of the controller flying now (for the PID: a gain)."""
@@ -350,7 +355,7 @@ class Simulation:
             return
         self.law.set_param(name, value)
         self.config = dataclasses.replace(self.config, controller_params=tuple(sorted(self.law.values.items())))
-        self._emit(ControllerChanged(self.config.controller, self.law.name, self.config.controller_params))
+        self._emit(ControllerChanged(self.config.controller, self.law.name, self._law_values()))
 
     def _predict_touchdown(self) -> None:
         """When the flight will end, from the CoM's parabola and the terrain under the planned feet."""

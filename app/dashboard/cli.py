@@ -10,9 +10,11 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
 
+from hopper.app.cli_common import add_controller_flags
 from hopper.app.dashboard.config import DashboardConfig, check_sessions_dir
 
 from hopper.config import GAIN_RANGES
+from hopper.controllers import ControllerError
 from hopper.interrupts import raise_if_stop_requested, stop_like_ctrl_c
 
 if TYPE_CHECKING:
@@ -128,15 +130,25 @@ def parser() -> Parser:
         metavar="S",
         help="wall seconds between recording flushes: the most a killed server loses",
     )
+    add_controller_flags(p)
+    p.add_argument(
+        "--controller-choice",
+        action="append",
+        default=[],
+        metavar="SPEC",
+        help="another controller the Gains tab offers (repeatable; the built-ins always are)",
+    )
     return p
 
 
 def parse(args: Sequence[str] | None = None) -> DashboardConfig:
     """Parse and validate; raises SystemExit(2) after printing one line for bad arguments."""
     namespace = parser().parse_args(args)
+    namespace.controller_param = tuple(namespace.controller_param)
+    namespace.controller_choice = tuple(namespace.controller_choice)
     try:
         return DashboardConfig(**vars(namespace))
-    except ValueError as exc:  # DashboardConfig's own validation (InvalidConfig is a ValueError)
+    except (ValueError, ControllerError) as exc:  # DashboardConfig's own validation (InvalidConfig is a ValueError)
         fail(str(exc))
 
 
@@ -156,7 +168,7 @@ def open_dashboard(config: DashboardConfig) -> Dashboard:
             telemetry_module().check_writable(config.rrd)
         check_sessions_dir(config.sessions_dir)
         return Dashboard(config, verbose=False)
-    except (PortInUse, ValueError) as exc:
+    except (PortInUse, ValueError, ControllerError) as exc:
         fail(str(exc))
     except RuntimeError as exc:  # e.g. the rerun viewer asked for cannot start
         fail(f"{type(exc).__name__}: {exc}")

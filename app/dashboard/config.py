@@ -14,6 +14,8 @@ from hopper.app.dashboard.access import AUTO, check_token, generate_token, is_lo
 from hopper.app.dashboard.pacing import MAX_SPEED, MIN_SPEED
 
 from hopper.config import Gains, InvalidConfig, SimConfig
+from hopper.controllers import load_class, with_controller
+from hopper.controllers.loading import canonical
 
 _DEFAULT_GAINS = Gains()
 MIN_PART_MB = 2.0  # MB: a part starts with ~1.1 MB of terrain and robot meshes
@@ -60,6 +62,12 @@ class DashboardConfig:
     """Roll recordings over into numbered parts of this many minutes of simulation each."""
     rrd_flush_s: float = 1.0
     """Wall seconds between recording flushes: at most this much is lost if the process is killed."""
+    controller: str = "pid"
+    """The flight's wheel law: pid, lqr, mpc, FILE.py:Class, module:Class or tcp://127.0.0.1:PORT."""
+    controller_param: tuple[tuple[str, float], ...] = ()
+    """The controller's declared params, (NAME, VALUE) pairs (for pid: kp, ki, kd)."""
+    controller_choice: tuple[str, ...] = ()
+    """More controllers the Gains tab's selector offers (the built-ins always are)."""
 
     def __post_init__(self) -> None:
         try:
@@ -85,6 +93,9 @@ class DashboardConfig:
         if not MIN_SPEED <= self.speed <= MAX_SPEED:
             raise InvalidConfig(f"speed must be in [{MIN_SPEED:g}, {MAX_SPEED:g}] x real time, got {self.speed!r}")
         self.sim_config()  # validates seed, terrain and gains with the core's own messages
+        object.__setattr__(self, "controller_choice", tuple(canonical(c) for c in self.controller_choice))
+        for spec in self.controller_choice:
+            load_class(spec)  # ControllerError naming what is wrong with it
         if self.rrd is not None and self.rrd.suffix != ".rrd":
             raise InvalidConfig(f"--rrd must name a .rrd file, got {str(self.rrd)!r}")
         if self.rrd_max_mb is not None and not MIN_PART_MB <= self.rrd_max_mb < math.inf:
@@ -108,7 +119,8 @@ class DashboardConfig:
 
     def sim_config(self) -> SimConfig:
         """The simulation this dashboard starts with."""
-        return SimConfig(seed=self.seed, terrain=self.terrain, gains=self.gains, sensing=self.sensing)
+        config = SimConfig(seed=self.seed, terrain=self.terrain, gains=self.gains, sensing=self.sensing)
+        return with_controller(config, self.controller, self.controller_param)
 
 
 def check_sessions_dir(folder: Path) -> Path:

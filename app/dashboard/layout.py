@@ -8,6 +8,7 @@ import viser
 from hopper.app.dashboard import assets
 from hopper.app.dashboard.panels import PanelContext
 from hopper.app.dashboard.panels.analysis import AnalysisPanel, build_analysis_panel
+from hopper.app.dashboard.panels.controller import ControllerPanel, build_controller_panel
 from hopper.app.dashboard.panels.disturbances import DisturbancesPanel, build_disturbances_panel
 from hopper.app.dashboard.panels.events import EventLog, build_event_log
 from hopper.app.dashboard.panels.gains import GainsPanel, build_gains_panel
@@ -45,6 +46,7 @@ class Layout:
     control: viser.GuiFolderHandle  # each client's own role widgets go in here (app/dashboard/roles.py)
     viewer_safe: tuple[viser.GuiButtonHandle, ...]  # inputs a viewer may use: they change nothing shared
     replay: ReplayPanel | None = None  # re-fly, history scrubber, keyframes
+    controller: ControllerPanel | None = None  # which law flies the wheel, its params
 
 
 def configure_theme(server: viser.ViserServer) -> None:
@@ -77,6 +79,8 @@ def build_layout(
     replay_host: ReplayHost | None = None,
     ghost: GhostRobot | None = None,
     physics: PhysicsView | None = None,
+    controller: str = "pid",
+    controller_choices: tuple[str, ...] = (),
 ) -> Layout:
     configure_theme(server)
     gui, theme = server.gui, assets.theme()
@@ -88,7 +92,13 @@ def build_layout(
         simulation = build_simulation_panel(gui, ctx, speed)
     tabs = gui.add_tab_group()
     with tabs.add_tab("Gains", viser.Icon.ADJUSTMENTS):
+        controller_panel = build_controller_panel(gui, ctx, controller, controller_choices)
         gains_panel = build_gains_panel(gui, ctx, gains, sensing=sensing)
+        controller_panel.pid_handles = (
+            *gains_panel.sliders.values(),
+            *(e.handle for e in gains_panel.entries.values()),
+        )
+        controller_panel.pid_handles += (gains_panel.reset_button,)
         analysis = build_analysis_panel(
             gui, gains, lambda g, source: gains_panel.apply(source=source, kp=g.kp, ki=g.ki, kd=g.kd)
         )
@@ -134,4 +144,5 @@ def build_layout(
         control=control,
         viewer_safe=(help_button, view.home),
         replay=replay,
+        controller=controller_panel,
     )

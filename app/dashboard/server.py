@@ -147,7 +147,10 @@ class Dashboard:
             replay_host=self,
             ghost=self.ghost,
             physics=self.physics,
+            controller=sim.config.controller,
+            controller_choices=config.controller_choice,
         )
+        self.layout.controller.show(sim.law)
         self.recorder.listeners.append(self._recording_changed)
         guard_gui_updates(self.server)  # malformed browser updates never reach a setting
         sim.listeners.append(self)
@@ -406,12 +409,19 @@ class Dashboard:
             notify_all(self.server, "Simulation diverged", f"{payload.describe()}: the robot was reset", "warning")
         elif kind == EventKind.COMMAND_FAILED:
             notify_all(self.server, "Command failed", payload.describe(), "error")
+            if payload.command == "SetController":  # the selector shows what flies again
+                layout.controller.show(self.sim.law)
+        elif kind == EventKind.CONTROLLER_FAILED:
+            notify_all(self.server, "Controller failed", payload.describe(), "error")
+        elif kind == EventKind.CONTROLLER:
+            layout.controller.show(self.sim.law, self.sim.controller_fault)
+            layout.analysis.show_law(self.sim.law, self.sim.config)
         elif kind == EventKind.TERRAIN:
             self.terrain = add_terrain(self.server.scene, self.sim.heights, self.sim.config.craters)
             self.physics.terrain_changed(self.sim)
         if kind == EventKind.SCHEDULE:
             layout.disturbances.schedule.show(payload.schedule)
-        elif kind == EventKind.GAINS:
+        elif kind == EventKind.GAINS and self.sim.config.controller == "pid":
             layout.analysis.show_gains(payload.gains)
         elif kind in PLANT_CHANGES:  # the flight the analysis linearizes is another one now
             layout.analysis.update_plant(self.sim.config)

@@ -54,9 +54,13 @@ class LQR:
             raise ControllerError(f"LQR: these weights destabilise the attitude plant (spectral radius {radius:.4f})")
         return gain
 
-    def __call__(self, obs: Observation) -> float:
+    def state_feedback(self) -> np.ndarray:
+        """K for the present params, N m per (rad, rad/s, rad/s): a linear law (the loop analysis reads it)."""
         key = (self.pitch_tol, self.rate_tol, self.wheel_tol, self.torque_scale)
         if key != self._designed:
             self.gain, self._designed = self.design(), key
-        k = self.gain
+        return self.gain
+
+    def __call__(self, obs: Observation) -> float:
+        k = self.state_feedback()
         return float(k[0] * obs.pitch + k[1] * obs.rate + k[2] * obs.wheel_speed)

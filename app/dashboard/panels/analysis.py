@@ -22,6 +22,7 @@ from hopper.app.dashboard.panels.entry import NumberEntry
 
 from hopper.config import WHEEL_TORQUE_LIMIT, Gains, SimConfig
 from hopper.control.gait import momentum_capacity
+from hopper.controllers import FlightLaw
 from hopper.design import lqr_bryson, place_poles
 from hopper.linearize import Cancelled, flight_plant, settled_flight
 from hopper.loop import LoopAnalysis, Plant, analyse
@@ -44,6 +45,7 @@ class AnalysisPanel:
     apply_gains: ApplyGains
     gains: Gains
     delay: int = 0
+    note: str = ""  # what the analysis is of when not the PID's gains
     plant: Plant | None = None
     result: LoopAnalysis | None = None
     _generation: int = 0
@@ -62,6 +64,34 @@ class AnalysisPanel:
             if delay is not None:
                 self.delay = delay
             self._refresh()
+
+    def show_law(self, law: FlightLaw, config: SimConfig) -> None:
+        """Analyse the controller flying now: the PID at its gains; a law with `state_feedback()`
+        (N m per rad, rad/s and rad/s of the wheel, e.g. LQR) as the PD part of it; others not."""
+        with self._lock:
+            if law.compiled == "pid":
+                self.note = ""
+                self.show_gains(config.gains)
+                return
+            feedback = getattr(law.controller, "state_feedback", None)
+            gains = None
+            if feedback is not None:
+                try:
+                    k = feedback()
+                    gains = Gains(kp=float(k[0]), ki=0.0, kd=float(k[1]))
+                    self.note = (
+                        f"{law.name} as state feedback: Kp {k[0]:.4g} N m/rad, Kd {k[1]:.4g} N m s/rad; its "
+                        f"wheel-speed term {k[2]:.3g} N m s/rad is left out of this analysis"
+                    )
+                except Exception as exc:  # a gain outside the analysis' ranges, a failed design
+                    self.note = f"no loop analysis for {law.name}: {exc}"
+            else:
+                self.note = f"no loop analysis: {law.name} is not a linear law (the analysis is for PID and LQR)"
+            if gains is None:
+                self._shown += 1  # a pending re-close of the PID's loop is not shown
+                self.html.content = f"<div class='hd-analysis hd-dim'>{html.escape(self.note)}</div>"
+                return
+            self.show_gains(gains)
 
     def update_plant(self, config: SimConfig) -> None:
         """Linearize a flight of `config` on a worker thread; the newest request wins."""
@@ -113,7 +143,7 @@ class AnalysisPanel:
         with self._lock:
             if shown != self._shown:
                 return  # a newer request follows
-            plant, gains, delay, rate = self.plant, self.gains, self.delay, self.rate.value
+            plant, gains, delay, rate, note = self.plant, self.gains, self.delay, self.rate.value, self.note
         try:
             result = analyse(plant, gains, delay, rate) if plant else None
         except Exception:
@@ -122,7 +152,7 @@ class AnalysisPanel:
         with self._lock:
             if shown == self._shown:  # nothing changed meanwhile: show it
                 self.result = result
-                self.html.content = _render(result, gains, plant)
+                self.html.content = _render(result, gains, plant, note=note)
 
     def design(self, kind: str, client: viser.ClientHandle | None) -> None:
         """Run a design helper on the present plant and apply its gains (or say why not)."""
@@ -150,7 +180,9 @@ class AnalysisPanel:
         self.apply_gains(designed, source)
 
 
-def _render(result: LoopAnalysis | None, gains: Gains, plant: Plant | None, pending: bool = False) -> str:
+def _render(
+    result: LoopAnalysis | None, gains: Gains, plant: Plant | None, pending: bool = False, note: str = ""
+) -> str:
     if result is None:
         text = "linearizing a flight…" if pending or plant is None else "no analysis"
         return f"<div class='hd-analysis hd-dim'>{text}</div>"
@@ -180,7 +212,8 @@ def _render(result: LoopAnalysis | None, gains: Gains, plant: Plant | None, pend
     )
     delay = f", {result.delay_ticks} ms command delay" if result.delay_ticks else ""
     body = "".join(f"<tr><td>{html.escape(k)}</td><td>{v}</td></tr>" for k, v in rows)
-    caption = f"flight loop at Kp {gains.kp:.4g}, Ki {gains.ki:.4g}, Kd {gains.kd:.4g}{delay}"
+    caption = note + delay if note else f"flight loop at Kp {gains.kp:.4g}, Ki {gains.ki:.4g}, Kd {gains.kd:.4g}{delay}"
+    caption = html.escape(caption)
     return f"<div class='hd-analysis'><table>{body}</table><div class='hd-dim'>{caption}</div></div>"
 
 
