@@ -114,6 +114,23 @@ def parser() -> Parser:
     stress.add_argument("--json", type=writable_file, metavar="PATH", help="write every case's outcome as JSON")
     add_controller_flags(stress)
 
+    league = commands.add_parser(
+        "league",
+        help="every controller on one battery (terrains, gravities 0.2-10, pushes, kicks, model mismatch): a table",
+        epilog=EXIT_STATUSES,
+    )
+    league.add_argument(
+        "--controllers",
+        default="pid,lqr,mpc",
+        metavar="SPECS",
+        help="comma-separated: pid, lqr, mpc, FILE.py:Class, module:Class, tcp://... (default pid,lqr,mpc)",
+    )
+    league.add_argument("--quick", action="store_true", help="a few episodes of each group (what the tests run)")
+    league.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
+    league.add_argument("--executor", choices=("auto", "local", "ray"), default="auto", help="as for sweep")
+    league.add_argument("--address", help="a Ray cluster's address (as for sweep)")
+    league.add_argument("--json", type=writable_file, metavar="PATH", help="write the table and every episode as JSON")
+
     envelope = commands.add_parser(
         "envelope",
         help="pitch kicks of every size, direction and moment in flight against the physical limit: table and figure",
@@ -373,6 +390,51 @@ def command_stress(args: argparse.Namespace) -> int:
     return EXIT_OK if all(o.passed for o in outcomes) else EXIT_FELL
 
 
+def command_league(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from hopper import league
+    from hopper.controllers import ControllerError, with_controller
+    from hopper.controllers.loading import canonical
+    from hopper.experiments.executor import ExecutorError, choose, chunks
+    from hopper.sim import Simulation
+
+    specs = [canonical(c) for c in args.controllers.split(",") if c.strip()]
+    if not specs:
+        fail("--controllers: name at least one controller")
+    for spec in specs:  # each flies a probe tick before any episode
+        try:
+            Simulation(with_controller(SimConfig(sensing="realistic"), spec))
+        except ControllerError as exc:
+            fail(str(exc))
+    entries = league.battery(quick=args.quick)
+    episodes = [e for spec in specs for e in league.episodes(spec, (), entries)]
+    try:
+        executor = choose(args.executor, episodes, args.workers, args.address)
+    except ExecutorError as exc:
+        fail(str(exc))
+    done = {}
+    try:
+        with tqdm(total=len(episodes), desc="league", unit="ep", file=sys.stderr) as bar:
+            for chunk in executor.map(chunks(episodes, executor.workers)):
+                done |= {r.episode.episode_id: r for r in chunk}
+                bar.update(len(chunk))
+    finally:
+        executor.close()
+    rows = [league.row(spec, [done[e.episode_id] for e in episodes if e.controller == spec]) for spec in specs]
+    print(f"league: {len(entries)} episodes per controller, realistic sensing; landing |pitch| in deg")
+    print("\n".join(league.table(rows)))
+    if args.json:
+        runs = [
+            {"settings": settings(r.episode.config(), r.episode.hops_target), "group": None, "fell": r.fell,
+             "fault": r.controller_fault, "compute_us": r.compute_us, "hops": [h.as_dict() for h in r.hops]}
+            for r in (done[e.episode_id] for e in episodes)
+        ]  # fmt: skip
+        doc = {"version": version(), "kind": "league", "rows": [r.as_dict() for r in rows], "runs": runs}
+        args.json.write_text(json.dumps(doc, indent=2))
+    return EXIT_OK
+
+
 def float_list(text: str) -> list[float]:
     """'a,b,c' or 'start:stop:step' (stop included) as a list of finite floats."""
     try:
@@ -453,6 +515,8 @@ def main(argv: list[str] | None = None) -> int:
             return sweep_cli.run(args)
         if args.command == "report":
             return report_cli.command_report(args)
+        if args.command == "league":
+            return command_league(args)
         check_counts(args)
         if args.command == "stress":
             return command_stress(args)

@@ -35,6 +35,34 @@ STANDARD_GRAVITY = 9.80665  # m/s^2, the "g" of datasheet units (mg, ug), not an
 MAX_MOTOR_DELAY_TICKS = 16  # length of the kernel's wheel-command delay line (hopper.control.memory)
 
 
+# Model mismatch (hopper.mismatch applies it): what each factor scales, x nominal.
+MISMATCH_FACTORS = {
+    "torso_mass": "the torso's mass and pitch inertia together",
+    "wheel_inertia": "the wheel's spin inertia and the motor's reflected rotor inertia",
+    "motor_torque": "the wheel motor's torque constant k_t (stall torque x k, back-EMF damping x k^2)",
+    "leg_mass": "thighs' and shanks' masses and inertias",
+    "friction": "the ground's and the feet's sliding friction",
+}
+MISMATCH_RANGE = (0.2, 5.0)  # x nominal
+
+
+def check_mismatch(mismatch: tuple[tuple[str, float], ...]) -> tuple[tuple[str, float], ...]:
+    """(name, factor) pairs, names from FACTORS, factors within MISMATCH_RANGE; InvalidConfig if not."""
+    out = []
+    for item in mismatch:
+        try:
+            name, factor = str(item[0]), float(item[1])
+        except (TypeError, ValueError, IndexError):
+            raise InvalidConfig(f"mismatch entries are (name, factor) pairs, got {item!r}") from None
+        if name not in MISMATCH_FACTORS:
+            raise InvalidConfig(f"unknown mismatch {name!r}; choose from {', '.join(MISMATCH_FACTORS)}")
+        low, high = MISMATCH_RANGE
+        if not low <= factor <= high:
+            raise InvalidConfig(f"mismatch {name} = {factor:g} is outside [{low:g}, {high:g}] x nominal")
+        out.append((name, factor))
+    return tuple(out)
+
+
 class GainRange(NamedTuple):
     """The one allowed range of a flight gain: the core validates it, the CLIs and the dashboard show it."""
 
@@ -196,6 +224,8 @@ class SimConfig:
     # the PID's params are `gains` (hopper.controllers.law.with_controller).
     controller: str = "pid"
     controller_params: tuple[tuple[str, float], ...] = ()
+    # The robot simulated differs from the nominal one by these (name, factor) pairs (hopper.mismatch).
+    mismatch: tuple[tuple[str, float], ...] = ()
 
     def __post_init__(self) -> None:
         if not isinstance(self.controller, str) or not self.controller.strip():
@@ -207,6 +237,7 @@ class SimConfig:
                 f"controller_params must be (name, value) pairs, got {self.controller_params!r}"
             ) from None
         object.__setattr__(self, "controller_params", params)
+        object.__setattr__(self, "mismatch", check_mismatch(self.mismatch))
         if self.terrain not in ("crater", "flat"):
             raise InvalidConfig(f"terrain must be 'crater' or 'flat', got {self.terrain!r}")
         if self.sensing not in ("ideal", "realistic"):

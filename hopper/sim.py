@@ -67,6 +67,7 @@ from hopper.events import (
 )
 from hopper.layout import ModelLayout
 from hopper.metrics import HopMetrics, MetricsTracker
+from hopper.mismatch import Nominal
 from hopper.model import build_model, set_terrain, set_wheel_enabled, terrain_heights
 from hopper.perturb import Pull
 from hopper.schedule import KickSchedule
@@ -107,6 +108,9 @@ class Simulation:
         self.config = config
         self.heights = terrain_heights(config)
         self.model = build_model(config, self.heights)
+        self._nominal = Nominal.of(self.model)  # what a mismatch scales (hopper.mismatch)
+        if config.mismatch:
+            self._nominal.apply(self.model, config.mismatch)
         self.data = mujoco.MjData(self.model)
         self.layout = ModelLayout.of(self.model)
         self.controller = HopController(self.layout, config)
@@ -224,6 +228,8 @@ class Simulation:
             self.set_sensing(config.sensing)
         if c.gains != config.gains:
             self.set_gains(config.gains, "restored")
+        if c.mismatch != config.mismatch:
+            self._nominal.apply(self.model, config.mismatch)
         if (c.controller, c.controller_params) != (config.controller, config.controller_params):
             self.set_controller(config.controller, config.controller_params)
         self.config = config
@@ -241,6 +247,8 @@ class Simulation:
             set_terrain(self.model, self.heights)
         self.model.opt.gravity[2] = -config.gravity
         set_wheel_enabled(self.model, config.wheel)
+        if config.mismatch != c.mismatch:
+            self._nominal.apply(self.model, config.mismatch)
         self.config = config
         self.controller.start_over(config)
         self._ground_profile = None

@@ -73,6 +73,7 @@ class Episode:
     gait: tuple[tuple[str, float], ...] = ()  # swept GaitParams fields, the rest default
     controller: str = "pid"  # the flight's wheel law (hopper.controllers.loading)
     params: tuple[tuple[str, float], ...] = ()  # the controller's swept params, the rest default
+    mismatch: tuple[tuple[str, float], ...] = ()  # the simulated robot's factors off nominal (hopper.mismatch)
 
     def settings(self) -> dict[str, Any]:
         """The setting columns of its Parquet rows (hopper.experiments.store)."""
@@ -82,6 +83,7 @@ class Episode:
             "hops_target": self.hops_target, "terrain": self.terrain, "wheel": self.wheel, "sensing": self.sensing,
             "disturbance": describe(d), "disturbance_size": d.magnitude if d is not None else 0.0, **dict(self.gait),
             "controller": self.controller, **{PARAM_PREFIX + name: v for name, v in self.params},
+            **({"mismatch": " ".join(f"{k} x{v:g}" for k, v in self.mismatch)} if self.mismatch else {}),
         }  # fmt: skip
 
     @property
@@ -99,6 +101,7 @@ class Episode:
             gait=GaitParams(**dict(self.gait)),
             wheel=self.wheel,
             sensing=self.sensing,  # type: ignore[arg-type]
+            mismatch=self.mismatch,
         )
         return with_controller(config, self.controller, self.params) if self.controller != "pid" else config
 

@@ -32,6 +32,7 @@ class EpisodeResult:
     momentum_used_pct: float  # peak |wheel speed| / no-load speed = peak |wheel momentum| / capacity, %
     applied: bool  # the disturbance happened (its phase came); True without one
     controller_fault: str = ""  # why the controller could not fly or was replaced by the PID; "" if neither
+    compute_us: float = 0.0  # us, the controller's mean call (0 for the compiled PID)
 
     def row(self) -> dict[str, Any]:
         """The episodes-table row (hopper.experiments.store.EPISODE_COLUMNS)."""
@@ -55,6 +56,11 @@ class EpisodeResult:
         """The hops-table rows: the settings, then `hop` (1-based) and every HopMetrics field."""
         head = {"episode_id": self.episode.episode_id, **self.episode.settings()}
         return [{**head, "hop": hop.index, **hop.as_dict()} for hop in self.hops]
+
+
+def _compute_us(sim: Simulation) -> float:
+    law = sim.failed_law or sim.law
+    return law.compute_ns / law.calls / 1e3 if law.calls else 0.0
 
 
 class Worker:
@@ -95,6 +101,7 @@ class Worker:
             momentum_used_pct=100.0 * peak_wheel / WHEEL_NO_LOAD_SPEED,
             applied=applied,
             controller_fault=sim.controller_fault or "",
+            compute_us=_compute_us(sim),
         )
 
     def _prepare(self, config: SimConfig) -> Simulation:
