@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from hopper.config import Gains
+from hopper.config import Gains, SimConfig
 from hopper.control import EV_FALL
 from hopper.events import Event, EventKind
 from hopper.metrics import HopMetrics
@@ -35,6 +35,13 @@ class Flight:
     torque: np.ndarray  # N m, wheel torque applied in each tick
     poses: np.ndarray  # qpos every GHOST_EVERY ticks, for a ghost robot (may be empty)
     hop: HopMetrics | None  # the hop's metrics at its touchdown (None: it did not land)
+    controller: str = "pid"  # the controller that flew it (hopper.controllers spec)
+
+    @property
+    def label(self) -> str:
+        """What flew it, for a table: the PID's gains, or the controller's spec."""
+        g = self.gains
+        return f"{g.kp:g}/{g.ki:g}/{g.kd:g}" if self.controller == "pid" else self.controller.rpartition("/")[2]
 
     @property
     def duration(self) -> float:
@@ -117,9 +124,11 @@ class History:
     def _finish(self) -> None:
         n = self._n
         assert self._start is not None
+        start = self._start
         self.last_flight = Flight(
-            self._start, self._start.gains, self._pitch[:n].copy(), self._torque[:n].copy(), np.empty((0, 0)), self._hop
-        )
+            start, start.gains, self._pitch[:n].copy(), self._torque[:n].copy(), np.empty((0, 0)), self._hop,
+            start.config.controller,
+        )  # fmt: skip
         self._start, self._landing = None, False
 
     # -- scrubbing -------------------------------------------------------------------------
@@ -155,14 +164,26 @@ class History:
         return sum(s.nbytes for s in self.ring) + extra + self._pitch.nbytes + self._torque.nbytes
 
 
-def fly(start: Snapshot, gains: Gains | None = None, max_ticks: int = MAX_FLIGHT_TICKS) -> Flight:
-    """Re-fly a flight in a scratch simulation: restore `start`, set `gains` (None: the recorded
-    ones), step until the hop's touchdown or a fall. The live simulation is not touched."""
-    config = start.config if gains is None else dataclasses.replace(start.config, gains=gains)
+def fly(start: Snapshot, flown: Gains | SimConfig | None = None, max_ticks: int = MAX_FLIGHT_TICKS) -> Flight:
+    """Re-fly a flight in a scratch simulation: restore `start`, then fly it with `flown`'s gains
+    (a Gains) or gains and controller (a SimConfig; its plant settings are ignored), None: as
+    recorded; step until the hop's touchdown or a fall. The live simulation is not touched.
+
+    Another controller starts as attached mid-flight: reset at its first call. The recorded one
+    continues from the state the snapshot holds (bit for bit; tests/test_controllers.py)."""
+    config = start.config
+    if isinstance(flown, Gains):
+        config = dataclasses.replace(config, gains=flown)
+    elif flown is not None:
+        config = dataclasses.replace(
+            config, gains=flown.gains, controller=flown.controller, controller_params=flown.controller_params
+        )
     sim = Simulation(dataclasses.replace(start.config))
     sim.restore(start)
-    if gains is not None and gains != start.gains:
-        sim.set_gains(gains, "re-fly")
+    if config.gains != start.gains:
+        sim.set_gains(config.gains, "re-fly")
+    if (config.controller, config.controller_params) != (start.config.controller, start.config.controller_params):
+        sim.set_controller(config.controller, config.controller_params)
     assert sim.config == config
     hops = len(sim.hops)
     q_pitch, s_torque = sim.layout.q_pitch, sim.layout.s_wheel_torque
@@ -180,4 +201,4 @@ def fly(start: Snapshot, gains: Gains | None = None, max_ticks: int = MAX_FLIGHT
             break
     hop = sim.hops[hops] if len(sim.hops) > hops and sim.hops[hops].completed else None
     poses.append(qpos.copy())
-    return Flight(start, sim.gains, pitch[:n].copy(), torque[:n].copy(), np.asarray(poses), hop)
+    return Flight(start, sim.gains, pitch[:n].copy(), torque[:n].copy(), np.asarray(poses), hop, sim.config.controller)

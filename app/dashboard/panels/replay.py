@@ -23,7 +23,7 @@ from hopper.app.dashboard.plots import ReflyPlots
 from hopper.app.dashboard.scene import GhostRobot
 
 from hopper import keyframes
-from hopper.config import Gains
+from hopper.config import Gains, SimConfig
 from hopper.history import GHOST_EVERY, RING_SPAN_S, Flight, History, fly
 from hopper.snapshot import Snapshot
 
@@ -71,9 +71,10 @@ class Comparison:
         return r.pitch.tobytes() == b.pitch.tobytes() and r.torque.tobytes() == b.torque.tobytes()
 
 
-def refly(recorded: Flight, gains: Gains) -> Comparison:
-    """Fly `recorded` again from its liftoff state with its own gains and with `gains` (scratch simulations)."""
-    return Comparison(recorded, fly(recorded.start), fly(recorded.start, gains))
+def refly(recorded: Flight, flown: Gains | SimConfig) -> Comparison:
+    """Fly `recorded` again from its liftoff state as it was flown, and with `flown`'s gains (and
+    controller, given a SimConfig: the same flight flown by two controllers), in scratch simulations."""
+    return Comparison(recorded, fly(recorded.start), fly(recorded.start, flown))
 
 
 _COLUMNS = (
@@ -88,13 +89,13 @@ def _fmt(value: float, fmt: str) -> str:
     return fmt.format(value) if math.isfinite(value) else "–"
 
 
-def ab_table_html(rows: list[tuple[str, float, Gains, dict[str, float]]], note: str = "") -> str:
-    """Rows (label, liftoff time s, gains, Flight.summary()), oldest first."""
+def ab_table_html(rows: list[tuple[str, float, str, dict[str, float]]], note: str = "") -> str:
+    """Rows (label, liftoff time s, what flew it (Flight.label), Flight.summary()), oldest first."""
     head = "".join(f"<th>{h}<br><span>{u}</span></th>" for _, h, u, _ in _COLUMNS)
     body = []
     for label, t, g, summary in rows:
         cells = "".join(f"<td>{_fmt(summary[f], fmt)}</td>" for f, _, _, fmt in _COLUMNS)
-        gains = f"{g.kp:g}/{g.ki:g}/{g.kd:g}"
+        gains = html.escape(g)
         where = f"<td style='text-align:left;white-space:nowrap'>{html.escape(label)} <span>{t:.1f} s</span></td>"
         body.append(f"<tr>{where}<td style='white-space:nowrap'>{gains}</td>{cells}</tr>")
     if not body:
@@ -102,7 +103,7 @@ def ab_table_html(rows: list[tuple[str, float, Gains, dict[str, float]]], note: 
     caption = f"<caption>{html.escape(note)}</caption>" if note else ""
     return (
         f"<table class='hd-hops hd-ab'>{caption}<tr><th style='text-align:left'>flight<br><span>liftoff</span></th>"
-        f"<th>Kp/Ki/Kd<br><span>gains</span></th>{head}</tr>{''.join(body)}</table>"
+        f"<th>law<br><span>Kp/Ki/Kd or controller</span></th>{head}</tr>{''.join(body)}</table>"
     )
 
 
@@ -136,7 +137,7 @@ class ReplayPanel:
             notify(client, "Nothing to re-fly", "No complete flight yet: wait for a touchdown.", "warning")
             return None
         with self._lock:  # one re-fly at a time: two would interleave their rows
-            comparison = refly(recorded, self.host.sim.gains)
+            comparison = refly(recorded, self.host.sim.config)  # the gains and controller flying now
             before, after = comparison.before, comparison.after
             dt = recorded.start.config.timestep
             if self.plots is not None:
@@ -144,8 +145,8 @@ class ReplayPanel:
             self.ghost.play(after.poses, GHOST_EVERY * dt, time.perf_counter())
             t = recorded.start.time
             for label, flight in (("recorded", recorded), ("re-fly", after)):
-                row = (label, t, flight.gains, flight.summary())
-                if not any(r[1] == t and r[2] == flight.gains for r in self.rows):
+                row = (label, t, flight.label, flight.summary())
+                if not any(r[1] == t and r[2] == flight.label for r in self.rows):
                     self.rows.append(row)
             same = "identical to" if comparison.before_identical else "DIFFERS from"
             note = f"before (recorded gains, same state) is {same} the recorded flight, {len(recorded.pitch)} ticks"
@@ -225,7 +226,7 @@ def build_replay_panel(
 ) -> ReplayPanel:
     with gui.add_folder("Re-fly and compare"):
         refly_button = gui.add_button(
-            "Re-fly last flight with these gains",
+            "Re-fly last flight with these gains and controller",
             icon=viser.Icon.PLANE_DEPARTURE,
             hint="Restore the last liftoff state in a scratch simulation and fly it with the recorded and "
             "the current gains; the charts overlay both, the ghost shows the new flight",
