@@ -1,0 +1,86 @@
+"""The README's example controller, in a file outside the package, through every command that flies."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from test_controllers import readme_example
+
+pytestmark = pytest.mark.integration
+
+
+def hopper_sim(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "hopper.app.sim_cli", *args], capture_output=True, text=True, timeout=600, cwd=cwd
+    )
+
+
+@pytest.fixture(scope="module")
+def example(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    folder = tmp_path_factory.mktemp("user")
+    (folder / "my_controller.py").write_text(readme_example())
+    return folder
+
+
+SPEC = "my_controller.py:LandLevel"  # relative, as the README has it: made absolute when parsed
+
+
+def test_run_flies_it_and_reports_its_params_and_cost(example: Path) -> None:
+    out = example / "run.json"
+    result = hopper_sim("run", "--hops", "3", "--controller", SPEC, "--controller-param", "boost=2",
+                        "--json", str(out), cwd=example)  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert "controller " in result.stdout and "(LandLevel: kp 300 kd 25 boost 2;" in result.stdout
+    doc = json.loads(out.read_text())
+    assert doc["controller"]["params"] == {"kp": 300.0, "kd": 25.0, "boost": 2.0}
+    assert doc["controller"]["calls"] > 1000 and doc["controller"]["fault"] is None
+    assert doc["settings"]["controller"] == str(example / "my_controller.py") + ":LandLevel"
+    assert doc["settings"]["controller_params"] == [["boost", 2.0]]
+    assert len(doc["hops"]) == 3 and not doc["fell"]
+
+
+def test_compare_stress_sweep_and_league_fly_it(example: Path) -> None:
+    compare = hopper_sim("compare", "--seeds", "1", "--hops", "2", "--workers", "2", "--controller", SPEC,
+                         "--json", str(example / "c.json"), cwd=example)  # fmt: skip
+    assert compare.returncode == 0, compare.stderr
+    runs = json.loads((example / "c.json").read_text())["runs"]
+    assert {r["settings"]["controller"].rpartition("/")[2] for r in runs} == {SPEC}
+    stress = hopper_sim("stress", "--quick", "--groups", "flight", "--workers", "2", "--controller", SPEC,
+                        "--json", str(example / "s.json"), cwd=example)  # fmt: skip
+    assert stress.returncode in (0, 1), stress.stderr  # a failed case is a result here
+    cases = json.loads((example / "s.json").read_text())["cases"]
+    assert len(cases) == 8 and all(c["settings"]["controller"].endswith(SPEC) for c in cases)
+    assert all(c["fault"] == "" for c in cases)
+    sweep = hopper_sim("sweep", "--out", str(example / "sweep"), "--seeds", "1", "--hops", "2", "--controller",
+                       SPEC, "--param", "boost=0,3", "--workers", "2", cwd=example)  # fmt: skip
+    assert sweep.returncode == 0, sweep.stderr
+    assert "param_boost: 0: 0/1 fell" in sweep.stdout and "3: 0/1 fell" in sweep.stdout
+    league = hopper_sim("league", "--quick", "--controllers", f"pid,{SPEC}", "--workers", "2",
+                        "--json", str(example / "l.json"), cwd=example)  # fmt: skip
+    assert league.returncode == 0, league.stderr
+    rows = {r["controller"].rpartition("/")[2]: r for r in json.loads((example / "l.json").read_text())["rows"]}
+    assert set(rows) == {"pid", SPEC} and rows[SPEC]["episodes"] == rows["pid"]["episodes"] > 10
+    assert rows[SPEC]["compute_us"] > 0.0 == rows["pid"]["compute_us"]
+    assert SPEC in league.stdout
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (("run", "--controller", "missing.py:X"), "controller file"),
+        (("compare", "--controller", "my_controller.py:Nope", "--seeds", "1"), "has no class 'Nope'"),
+        (("stress", "--quick", "--controller", SPEC, "--controller-param", "boost=9"), "outside [0, 5]"),
+        (("sweep", "--out", "never", "--controller", "lqr", "--param", "boost=1"), "lqr declares no such param"),
+        (("league", "--controllers", "pid,nope"), "unknown controller 'nope'"),
+    ],
+)
+def test_a_bad_controller_stops_every_command_with_one_line_and_exit_2(example: Path, args, message: str) -> None:
+    result = hopper_sim(*args, cwd=example)
+    assert result.returncode == 2, result.stdout + result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("hopper-sim: error: ") and message in lines[0], lines
+    assert not (example / "never").exists()
