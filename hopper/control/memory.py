@@ -62,8 +62,10 @@ _LAYOUT = [  # hopper.layout.ModelLayout, flattened
         (name, "i8")
         for name in ("s_gyro", "s_foot_l", "s_foot_r", "s_wheel_torque", "s_com", "s_com_vel", "s_angmom", "s_accel")
     ),
+    *((name, "i8") for name in ("s_torque_hip_l", "s_torque_knee_l", "s_torque_hip_r", "s_torque_knee_r")),
     *((name, "i8") for name in ("a_wheel", "a_hip_l", "a_knee_l", "a_hip_r", "a_knee_r")),
     ("wheel_gear", "f8"),
+    ("leg_gear", "f8"),
 ]
 _STATE = [
     ("phase", "i8"),  # hopper.control.phases.Phase
@@ -135,10 +137,12 @@ def new_memory(layout: ModelLayout) -> np.ndarray:
         names |= {f"q_hip_{side}": layout.q_legs[hip], f"q_knee_{side}": layout.q_legs[knee]}
         names |= {f"v_hip_{side}": layout.v_legs[hip], f"v_knee_{side}": layout.v_legs[knee]}
         names |= {f"a_hip_{side}": layout.a_legs[hip], f"a_knee_{side}": layout.a_legs[knee]}
+        torques = layout.s_leg_torques
+        names |= {f"s_torque_hip_{side}": torques[hip], f"s_torque_knee_{side}": torques[knee]}
     names |= {"s_gyro": layout.s_gyro_pitch, "s_foot_l": layout.s_foot_l, "s_foot_r": layout.s_foot_r}
     names |= {"s_wheel_torque": layout.s_wheel_torque, "a_wheel": layout.a_wheel, "wheel_gear": layout.wheel_gear}
     names |= {"s_com": layout.s_com, "s_com_vel": layout.s_com_vel, "s_angmom": layout.s_angmom}
-    names |= {"s_accel": layout.s_accel}
+    names |= {"s_accel": layout.s_accel, "leg_gear": layout.leg_gear}
     for name, value in names.items():
         mem[name] = value
     return mem
