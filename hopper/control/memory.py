@@ -54,6 +54,11 @@ _PARAMS = [
     ("tilt_kp", "f8"),  # 1/s, attitude correction per unit of horizontal specific force / g
     ("tilt_ki", "f8"),  # 1/s^2, gyro bias correction per unit of horizontal specific force / g
     ("motor_delay", "i8"),  # ticks between a wheel command and the torque
+    # The motors' energy (hopper.control.energy; figures in hopper.config).
+    ("motor_kt", "f8"),  # N m/A, every motor's torque constant
+    ("motor_resistance", "f8"),  # ohm, every motor's winding
+    ("leg_motor_gear", "f8"),  # joint torque / motor torque at each leg joint
+    ("regenerate", "?"),  # True: braking energy is recovered (negative power counts); False: burnt
 ]
 _LAYOUT = [  # hopper.layout.ModelLayout, flattened
     *((name, "i8") for name in ("q_x", "q_z", "q_pitch", "q_wheel", "q_hip_l", "q_knee_l", "q_hip_r", "q_knee_r")),
@@ -113,6 +118,8 @@ _ACC = [
     ("acc_rate_sq", "f8"),  # rad^2/s^2, sum of pitch rate squared over flight ticks
     ("acc_flight_ticks", "f8"),
     ("acc_apex_z", "f8"),  # m, highest torso z in flight
+    ("acc_wheel_energy", "f8"),  # J, the wheel motor's electrical energy, ground and flight
+    ("acc_leg_energy", "f8"),  # J, the four leg motors', ground and flight
     # The response since liftoff or the scheduled kick (hopper.metrics.ResponseMetrics defines them).
     ("acc_lobe", "f8"),  # +1 / -1: sign of the first excursion beyond RESPONSE_THRESHOLD, 0: none yet
     ("acc_crossed", "f8"),  # 1: the pitch has crossed zero after the first excursion
