@@ -232,11 +232,11 @@ def summary(result: dict[str, Any]) -> str:
 
         mean_distance = statistics.fmean(h["distance_m"] for h in done)
         lines.append(
-            f"mean distance {mean_distance:.3f} m/hop; worst: peak pitch {stat('peak_pitch_deg'):.2f} deg, "
+            f"mean distance {mean_distance:.3f} m/hop, {energy_means(done, s['gravity'])}; "
+            f"worst: peak pitch {stat('peak_pitch_deg'):.2f} deg, "
             f"landing pitch {stat('landing_pitch_deg'):.2f} deg, saturation {stat('saturation_time_s'):.3f} s/hop, "
             f"wheel {stat('peak_wheel_rpm'):.0f} rpm"
         )
-        lines.append(energy_line(done, s["gravity"]))
     if any(not h["completed"] for h in result["hops"]):
         lines.append("* the flight that ended in the fall")
     if law.get("fault"):
@@ -250,7 +250,7 @@ def energy_per_hop(hops: list[dict[str, Any]]) -> float:
     return statistics.fmean(h["wheel_energy_j"] + h["leg_energy_j"] for h in done) if done else 0.0
 
 
-def energy_line(done: list[dict[str, Any]], gravity: float) -> str:
+def energy_means(done: list[dict[str, Any]], gravity: float) -> str:
     """The completed hops' mean energy and their cost of transport: all their energy over m g times
     all their distance."""
     from hopper.metrics import cost_of_transport  # numba's import, not paid by --help
@@ -260,7 +260,7 @@ def energy_line(done: list[dict[str, Any]], gravity: float) -> str:
     transport = cost_of_transport(len(done) * (wheel + legs), TOTAL_MASS, gravity, distance)
     return (
         f"energy {wheel + legs:.1f} J/hop (wheel {wheel:.1f}, legs {legs:.1f}; braking not recovered), "
-        f"cost of transport {transport:.2f}"
+        f"cost of transport {transport:.2f}"  # NaN if they went nowhere
     )
 
 
