@@ -110,3 +110,15 @@ def test_a_run_reports_each_hops_energy_ground_and_flight_and_a_plausible_cost_o
         assert 1.0 < hop.wheel_energy_j / duration < 100.0 and 1.0 < hop.leg_energy_j / duration < 100.0
         transport = (hop.wheel_energy_j + hop.leg_energy_j) / (TOTAL_MASS * 1.625 * hop.distance_m)
         assert hop.cost_of_transport == pytest.approx(transport) and 0.5 < hop.cost_of_transport < 50.0
+
+
+def test_a_motor_torque_mismatch_is_the_simulated_wheel_motors_torque_constant(kernel) -> None:
+    layout, mem, sizes = kernel
+    weak = HopController(layout, SimConfig(terrain="flat", mismatch=(("motor_torque", 0.5),))).mem
+    assert weak["wheel_kt"][0] == 0.5 * MOTOR_TORQUE_CONSTANT and weak["leg_kt"][0] == MOTOR_TORQUE_CONSTANT
+    still = ((0.0, 0.0),) * 4
+    for record in (mem, weak):
+        drive((layout, record, sizes), 0.2, lambda t: (6.0, 0.0), lambda t: still)  # 6 N m held
+    # Half the torque per ampere: twice the current for the same torque, four times the copper loss.
+    assert weak["acc_wheel_energy"][0] == pytest.approx(4.0 * mem["acc_wheel_energy"][0], rel=1e-12)
+    assert mem["acc_wheel_energy"][0] == pytest.approx(0.2 * copper(6.0, WHEEL_GEAR), rel=1e-12)

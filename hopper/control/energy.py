@@ -5,7 +5,8 @@ and the motor draws P = I^2 R + tau * w (w the joint's speed; tau * w is the mot
 negative when it brakes). Braking does not regenerate by default (hopper.config.REGENERATIVE_DRIVES):
 a negative P, the motor generating more than its copper loss burns, is burnt in the drive and counts
 as zero, each drive on its own (no exchange between the motors over a shared bus). Left out: iron and
-friction losses, the gearbox's, the drive's. The figures are in hopper.config (MOTOR_*, LEG_MOTOR_GEAR).
+friction losses, the gearbox's, the drive's. The figures are in hopper.config (MOTOR_*, LEG_MOTOR_GEAR);
+a motor_torque mismatch (hopper.mismatch) scales the wheel motor's k_t here as it does in the model.
 """
 
 from __future__ import annotations
@@ -34,10 +35,10 @@ def spend(m, qvel: np.ndarray, sensors: np.ndarray) -> None:  # noqa: ANN001 (a 
     against the speed it left: MuJoCo's integrators move qpos by dt times the new qvel, so tau * w * dt
     is exactly that step's work.
     """
-    dt, regen = m.dt, m.regenerate
-    kt, r, legs = m.motor_kt, m.motor_resistance, m.leg_motor_gear
+    dt, regen, r = m.dt, m.regenerate, m.motor_resistance
     wheel = sensors[m.s_wheel_torque] * m.wheel_gear  # N m at the wheel
-    m.acc_wheel_energy += dt * motor_power(wheel, qvel[m.v_wheel], m.wheel_gear, kt, r, regen)
+    m.acc_wheel_energy += dt * motor_power(wheel, qvel[m.v_wheel], m.wheel_gear, m.wheel_kt, r, regen)
+    kt, legs = m.leg_kt, m.leg_motor_gear
     g = m.leg_gear  # actuator force to joint torque
     power = motor_power(sensors[m.s_torque_hip_l] * g, qvel[m.v_hip_l], legs, kt, r, regen)
     power += motor_power(sensors[m.s_torque_knee_l] * g, qvel[m.v_knee_l], legs, kt, r, regen)

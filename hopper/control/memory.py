@@ -55,7 +55,8 @@ _PARAMS = [
     ("tilt_ki", "f8"),  # 1/s^2, gyro bias correction per unit of horizontal specific force / g
     ("motor_delay", "i8"),  # ticks between a wheel command and the torque
     # The motors' energy (hopper.control.energy; figures in hopper.config).
-    ("motor_kt", "f8"),  # N m/A, every motor's torque constant
+    ("wheel_kt", "f8"),  # N m/A, the wheel motor's torque constant (the simulated robot's: SimConfig.mismatch)
+    ("leg_kt", "f8"),  # N m/A, the leg motors'
     ("motor_resistance", "f8"),  # ohm, every motor's winding
     ("leg_motor_gear", "f8"),  # joint torque / motor torque at each leg joint
     ("regenerate", "?"),  # True: braking energy is recovered (negative power counts); False: burnt
