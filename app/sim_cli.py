@@ -36,7 +36,7 @@ from hopper.app.cli_common import (
 from hopper.app.episode import settings, simulate, version
 from hopper.app.episode import sim_config as sim_config  # re-exported: results' docs named it here first
 
-from hopper.config import Gains, GaitParams, InvalidConfig, SimConfig
+from hopper.config import TOTAL_MASS, Gains, GaitParams, InvalidConfig, SimConfig
 from hopper.interrupts import children_ignore_ctrl_c, stop_like_ctrl_c
 from hopper.scenarios import scenario
 
@@ -50,6 +50,9 @@ HOP_COLUMNS = {
     "landing_pitch_deg": "land deg",
     "saturation_time_s": "sat s",
     "peak_wheel_rpm": "wheel rpm",
+    "wheel_energy_j": "wheel J",  # electrical energy over the hop, ground and flight (hopper.control.energy)
+    "leg_energy_j": "legs J",
+    "cost_of_transport": "CoT",
 }
 # The response metrics (hopper.metrics.ResponseMetrics): from the scheduled kick, or the liftoff.
 RESPONSE_COLUMNS = {
@@ -229,7 +232,8 @@ def summary(result: dict[str, Any]) -> str:
 
         mean_distance = statistics.fmean(h["distance_m"] for h in done)
         lines.append(
-            f"mean distance {mean_distance:.3f} m/hop; worst: peak pitch {stat('peak_pitch_deg'):.2f} deg, "
+            f"mean distance {mean_distance:.3f} m/hop, {energy_means(done, s['gravity'])}; "
+            f"worst: peak pitch {stat('peak_pitch_deg'):.2f} deg, "
             f"landing pitch {stat('landing_pitch_deg'):.2f} deg, saturation {stat('saturation_time_s'):.3f} s/hop, "
             f"wheel {stat('peak_wheel_rpm'):.0f} rpm"
         )
@@ -238,6 +242,26 @@ def summary(result: dict[str, Any]) -> str:
     if law.get("fault"):
         lines.append(f"the controller failed and the PID flew on: {law['fault']}")
     return "\n".join(lines)
+
+
+def energy_per_hop(hops: list[dict[str, Any]]) -> float:
+    """Mean electrical energy (J) of the completed hops, wheel and legs (0 without one)."""
+    done = [h for h in hops if h["completed"]]
+    return statistics.fmean(h["wheel_energy_j"] + h["leg_energy_j"] for h in done) if done else 0.0
+
+
+def energy_means(done: list[dict[str, Any]], gravity: float) -> str:
+    """The completed hops' mean energy and their cost of transport: all their energy over m g times
+    all their distance."""
+    from hopper.metrics import cost_of_transport  # numba's import, not paid by --help
+
+    wheel, legs = (statistics.fmean(h[k] for h in done) for k in ("wheel_energy_j", "leg_energy_j"))
+    distance = sum(abs(h["distance_m"]) for h in done)
+    transport = cost_of_transport(len(done) * (wheel + legs), TOTAL_MASS, gravity, distance)
+    return (
+        f"energy {wheel + legs:.1f} J/hop (wheel {wheel:.1f}, legs {legs:.1f}; braking not recovered), "
+        f"cost of transport {transport:.2f}"  # NaN if they went nowhere
+    )
 
 
 def peak_deviation(result: dict[str, Any]) -> float:
@@ -316,7 +340,10 @@ def command_compare(args: argparse.Namespace) -> int:
             "hops": [hop.as_dict() for hop in r.hops],
         })  # fmt: skip
     rows, reductions = [], []
-    print(f"{'seed':>4} {'on: hops':>9} {'peak deg':>9} {'off: hops':>10} {'peak deg':>9} {'reduction':>10}")
+    print(
+        f"{'seed':>4} {'on: hops':>9} {'peak deg':>9} {'off: hops':>10} {'peak deg':>9} {'reduction':>10}"
+        f" {'on: J/hop':>10}"
+    )
     for on, off in zip(results[::2], results[1::2], strict=False):
         peak_on, peak_off = peak_deviation(on), peak_deviation(off)
         reduction = 100.0 * (peak_off - peak_on) / peak_off if peak_off > 0 else 0.0
@@ -326,7 +353,10 @@ def command_compare(args: argparse.Namespace) -> int:
         def hops(r: dict[str, Any]) -> str:
             return f"{sum(h['completed'] for h in r['hops'])}{' fell' if r['fell'] else ''}"
 
-        print(f"{on['seed']:>4} {hops(on):>9} {peak_on:9.2f} {hops(off):>10} {peak_off:9.2f} {reduction:9.1f}%")
+        print(
+            f"{on['seed']:>4} {hops(on):>9} {peak_on:9.2f} {hops(off):>10} {peak_off:9.2f} {reduction:9.1f}%"
+            f" {energy_per_hop(on['hops']):10.1f}"
+        )
     median = statistics.median(reductions)
     print(
         f"median reduction of the peak mid-air pitch deviation, wheel on vs off: {median:.1f}% "

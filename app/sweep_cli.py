@@ -71,6 +71,11 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
                           help=f"search range ({'log' if log else 'linear'}; default {low:g}:{high:g})")  # fmt: skip
     tune.add_argument("--gait", action="append", default=[], metavar="NAME=LOW:HIGH", help="also search a gait field")
     tune.add_argument("--batch", type=int, default=0, help="candidates evaluated together (default: the workers)")
+    tune.add_argument(
+        "--energy-weight", type=float, default=0.0, metavar="J",
+        help="also score the worst episode's electrical energy per hop (wheel and legs, braking not recovered): "
+        "J joules per hop count as much as a 3.5 deg landing error (default 0: energy does not count)",
+    )  # fmt: skip
     tune.add_argument("--json", type=writable_file, metavar="PATH", help="write the search and its evidence as JSON")
     executor_options(tune)
 
@@ -263,6 +268,7 @@ def command_tune(args: argparse.Namespace) -> int:
         setup = TuneSetup(
             seeds=axes.seeds, heldout=heldout, gravities=axes.gravity, hops=args.hops, terrain=args.terrain,
             sensing=args.sensing, ranges=ranges, trials=args.trials, batch=args.batch, seed=args.seed,
+            energy_weight=args.energy_weight,
         )  # fmt: skip
     except (SpecError, ValueError) as exc:
         fail(str(exc))

@@ -34,6 +34,26 @@ SATURATION_FRACTION = 0.98  # of the torque limit counts as saturated, paper Sec
 STANDARD_GRAVITY = 9.80665  # m/s^2, the "g" of datasheet units (mg, ug), not any body's gravity
 MAX_MOTOR_DELAY_TICKS = 16  # length of the kernel's wheel-command delay line (hopper.control.memory)
 
+# The motors' electrical figures, for their energy (hopper.control.energy); the simulation never reads them.
+# The paper gives neither k_t nor R. Every motor is a maxon EC 45 flat, 43.5 mm, brushless, 70 W, 24 V
+# winding: torque constant 40.4 mN m/A, terminal resistance 0.573 ohm phase to phase, speed constant
+# 236 rpm/V, stall torque 1.69 N m and stall current 42 A at 24 V, rotor inertia 181 g cm^2, max speed
+# 10,000 rpm (maxon's catalogue page, data marked provisional, read from a stored copy of it, no web
+# access; not checked against maxon's current datasheet). Against the model: the wheel's 0.983 N m
+# stall torque is 24.3 A (the drive's current limit; the winding takes 42 A) and its 12,000 rpm no-load
+# speed is 50.8 V of back-EMF (a 48 V bus reaches 11,300 rpm). The XML's back-EMF slope, 0.9833 N m over
+# 1256.6 rad/s, would be a weaker motor (R / k_t^2 of 1278 against this one's 351 W/(N m)^2): its copper
+# losses would be 3.6x these. Iron and friction losses (the no-load current) and the gearbox's are left out.
+MOTOR_TORQUE_CONSTANT = 0.0404  # N m/A, EC 45 flat 70 W, 24 V winding (above)
+MOTOR_RESISTANCE = 0.573  # ohm, phase to phase, the same winding
+# The legs' motors drive their joints through 30:1, as the wheel's does: the XML's leg actuators act
+# on the joints directly (gear 1, ctrl in N m), and 30 N m there is 1.0 N m, 24.8 A, at the motor.
+LEG_MOTOR_GEAR = 30.0  # joint torque / motor torque, ours
+# Whether the drives recover braking energy: False, a motor's negative electrical power (generating,
+# when the mechanical power it absorbs exceeds its copper loss) is burnt in its own drive (a brake
+# resistor) and counts as zero; True, it is returned to the battery, without loss, and counts negative.
+REGENERATIVE_DRIVES = False
+
 
 # Model mismatch (hopper.mismatch applies it): what each factor scales, x nominal.
 MISMATCH_FACTORS = {

@@ -38,10 +38,12 @@ class ModelLayout:
     s_com_vel: int  # subtreelinvel: (vx, vy, vz), m/s
     s_angmom: int  # subtreeangmom about the robot's CoM, pitch (y) component, kg m^2/s
     s_accel: int  # imu_accel's x axis (z is s_accel + 2): specific force in the torso frame (m/s^2)
+    s_leg_torques: tuple[int, int, int, int]  # actuatorfrc of each leg motor, LEG_JOINTS order
     a_wheel: int
     a_legs: tuple[int, int, int, int]
     torso: int  # body id
     wheel_gear: float
+    leg_gear: float  # the leg actuators' gear: joint torque per unit of actuator force (1 in the XML)
     torso_origin: tuple[float, float]  # torso (x, z) in the XML: the slide joints measure from it
 
     @classmethod
@@ -79,9 +81,19 @@ class ModelLayout:
             s_com_vel=s("com_vel"),
             s_angmom=s("angmom", 1),
             s_accel=s("imu_accel"),
+            s_leg_torques=tuple(s(f"{j}_torque") for j in LEG_JOINTS),  # type: ignore[arg-type]
             a_wheel=int(model.actuator("wheel").id),
             a_legs=tuple(int(model.actuator(j).id) for j in LEG_JOINTS),  # type: ignore[arg-type]
             torso=int(model.body("torso").id),
             wheel_gear=float(model.actuator("wheel").gear[0]),
+            leg_gear=_one_gear(model),
             torso_origin=(x, z),
         )
+
+
+def _one_gear(model: mujoco.MjModel) -> float:
+    """The leg actuators' common gear (the kernel keeps one); ValueError if they differ."""
+    gears = {float(model.actuator(j).gear[0]) for j in LEG_JOINTS}
+    if len(gears) != 1:
+        raise ValueError(f"the leg actuators must share one gear, got {sorted(gears)}")
+    return gears.pop()

@@ -7,19 +7,27 @@ import math
 
 import numpy as np
 
-from hopper.config import WHEEL_ARMATURE, WHEEL_INERTIA
+from hopper.config import TOTAL_MASS, WHEEL_ARMATURE, WHEEL_INERTIA
 from hopper.control.gait import momentum_capacity
 from hopper.control.kernel import RESPONSE_THRESHOLD, SETTLE_BAND
 from hopper.control.memory import ACC, FLIGHT_ACC, RESPONSE_ACC
 
 RAD_S_TO_RPM = 60.0 / (2.0 * math.pi)
 MIN_HOP_FLIGHT_S = 0.05  # s; a shorter flight (a foot skipping after a weak push) is no hop
+MIN_TRANSPORT_DISTANCE_M = 0.01  # m; a shorter hop transported nothing: its cost of transport is NaN
+
+
+def cost_of_transport(energy: float, mass: float, gravity: float, distance: float) -> float:
+    """Dimensionless energy / (m g |d|) from J, kg, m/s^2 and m; NaN when |d| < MIN_TRANSPORT_DISTANCE_M
+    (or without weight)."""
+    weight_distance = mass * gravity * abs(distance)
+    return energy / weight_distance if abs(distance) >= MIN_TRANSPORT_DISTANCE_M and weight_distance > 0 else math.nan
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
 class HopMetrics:
-    """One hop. Flight metrics cover liftoff to touchdown; saturation and stance time cover the
-    ground phase before the liftoff too, so that every tick belongs to exactly one hop and the
+    """One hop. Flight metrics cover liftoff to touchdown; saturation, stance time and energy cover
+    the ground phase before the liftoff too, so that every tick belongs to exactly one hop and the
     hop is final at its touchdown."""
 
     index: int
@@ -45,6 +53,11 @@ class HopMetrics:
     peak_wheel_torque_nm: float = 0.0
     peak_momentum_pct: float = 0.0
     landing_error_deg: float = 0.0
+    # Electrical energy over the hop, ground phase and flight (hopper.control.energy: copper loss plus
+    # mechanical work; braking energy is not recovered unless hopper.config.REGENERATIVE_DRIVES).
+    wheel_energy_j: float = 0.0
+    leg_energy_j: float = 0.0  # the four leg motors together
+    cost_of_transport: float = 0.0  # (wheel + leg energy) / (m g |distance|); NaN for a hop in place
 
     def as_dict(self) -> dict[str, float | int | bool]:
         return dataclasses.asdict(self)
@@ -147,9 +160,11 @@ class MetricsTracker:
         settled = abs(pitch) <= SETTLE_BAND
         last_out = acc("acc_last_out")
         settling = (last_out + self.dt - start if last_out > -math.inf else 0.0) if settled else time - start
+        distance, wheel_energy, leg_energy = x - p.last_touchdown_x, acc("acc_wheel_energy"), acc("acc_leg_energy")
+        gravity = acc("gravity")  # the config's, m/s^2
         hop = HopMetrics(
             index=len(self.hops) + 1,
-            distance_m=x - p.last_touchdown_x,
+            distance_m=distance,
             apex_height_m=acc("acc_apex_z") - p.liftoff_z,
             flight_time_s=time - p.liftoff_time,
             stance_time_s=p.liftoff_time - p.ground_start,
@@ -170,6 +185,9 @@ class MetricsTracker:
             peak_wheel_torque_nm=acc("acc_peak_torque"),
             peak_momentum_pct=100.0 * (WHEEL_INERTIA + WHEEL_ARMATURE) * acc("acc_resp_wheel") / momentum_capacity(),
             landing_error_deg=math.degrees(pitch),
+            wheel_energy_j=wheel_energy,
+            leg_energy_j=leg_energy,
+            cost_of_transport=cost_of_transport(wheel_energy + leg_energy, TOTAL_MASS, gravity, distance),
         )
         self.hops.append(hop)
         p.last_touchdown_x = x

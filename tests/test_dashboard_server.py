@@ -5,6 +5,7 @@ Browsers are stood in for by `ProbeClient`, which speaks viser's real websocket 
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 import socket
@@ -335,10 +336,12 @@ def test_hop_table_and_event_log_text() -> None:
     hop = HopMetrics(
         index=1, distance_m=0.8, apex_height_m=0.25, flight_time_s=1.2, stance_time_s=0.5, peak_pitch_deg=12.0,
         rms_pitch_rate_deg_s=40.0, landing_pitch_deg=2.0, saturation_time_s=0.3, peak_wheel_rpm=250.0,
-        liftoff_momentum=0.1, touchdown_time_s=3.0,
+        liftoff_momentum=0.1, touchdown_time_s=3.0, wheel_energy_j=26.4, leg_energy_j=34.2, cost_of_transport=5.67,
     )  # fmt: skip
     table = hop_table_html([hop])
     assert "0.80" in table and "12.0" in table and "250" in table and "hd-mean" in table
+    assert "<td>26</td><td>34</td><td>5.7</td>" in table  # the energies (J) and the cost of transport
+    assert "<td>–</td></tr>" in hop_table_html([dataclasses.replace(hop, cost_of_transport=math.nan)])
     assert "no hops yet" in hop_table_html([])
     assert describe(Event(1.0, 2, Disturbance("push_forward", 4.0, "N s"))) == "push ▶ +4 N s"
     assert describe(Event(1.0, 2, Liftoff(0.1))) is None

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from hopper.config import TOTAL_MASS
 from hopper.control.memory import MEMORY
 from hopper.metrics import MetricsTracker
 
@@ -43,3 +44,23 @@ def test_saturation_before_the_liftoff_belongs_to_the_hop() -> None:
     assert hop.saturation_time_s == pytest.approx(0.05) and hop.stance_time_s == pytest.approx(0.5)
     assert hop.landing_pitch_deg == pytest.approx(math.degrees(0.01)) and hop.liftoff_momentum == 0.1
     assert mem["acc_saturation"][0] == 0.0  # the next hop starts from nothing
+
+
+def test_the_energy_of_the_ground_phase_belongs_to_the_hop_and_sets_its_cost_of_transport() -> None:
+    mem = np.zeros(1, dtype=MEMORY)
+    mem["gravity"] = 1.625
+    tracker = MetricsTracker(mem)
+    mem["acc_wheel_energy"], mem["acc_leg_energy"] = 4.0, 20.0  # J, standing and pushing
+    tracker.liftoff(0.5, z=1.0, momentum=0.0)
+    mem["acc_wheel_energy"] += 1.0  # J
+    assert tracker.touchdown(0.52, x=0.0, pitch=0.0) is None  # a skip: its flight metrics go, not its energy
+    tracker.liftoff(0.6, z=1.0, momentum=0.0)
+    mem["acc_wheel_energy"] += 5.0  # J, in flight
+    hop = tracker.touchdown(1.5, x=0.8, pitch=0.0)
+    assert hop.wheel_energy_j == 10.0 and hop.leg_energy_j == 20.0
+    assert hop.cost_of_transport == pytest.approx(30.0 / (TOTAL_MASS * 1.625 * 0.8))
+    assert mem["acc_wheel_energy"][0] == mem["acc_leg_energy"][0] == 0.0  # the next hop starts from nothing
+    mem["acc_leg_energy"] = 25.0
+    tracker.liftoff(2.0, z=1.0, momentum=0.0)
+    in_place = tracker.touchdown(3.0, x=0.805, pitch=0.0)  # 5 mm: it went nowhere
+    assert in_place.leg_energy_j == 25.0 and math.isnan(in_place.cost_of_transport)

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from hopper.experiments.executor import InProcess
-from hopper.experiments.tune import TuneSetup, score, tune
+from hopper.experiments.tune import TuneSetup, energy_per_hop, report_lines, score, tune
 from hopper.experiments.worker import Worker
 
 pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)
@@ -53,6 +53,23 @@ def test_a_candidate_score_is_its_worst_case() -> None:
     assert both.worst_peak_deg == max(on.worst_peak_deg, fallen.row()["peak_pitch_deg"]) > 30
 
 
+def test_an_energy_weight_puts_the_worst_energy_per_hop_into_the_score_and_the_report() -> None:
+    setup = TuneSetup(
+        seeds=(0,), heldout=(1,), gravities=(1.625,), hops=2, trials=2, terrain="flat", energy_weight=50.0
+    )
+    result = tune(setup, lambda episodes: InProcess(), progress=False)
+    s = result.default_score
+    episode = Worker().run(setup.episodes(setup.defaults(), (0,))[0])
+    per_hop = sum(h.wheel_energy_j + h.leg_energy_j for h in episode.hops) / len(episode.hops)
+    assert s.worst_energy_j_per_hop == energy_per_hop(episode) == pytest.approx(per_hop) and per_hop > 10.0
+    unweighted = dataclasses.replace(s, energy_weight=0.0)
+    assert s.value - unweighted.value == pytest.approx(per_hop / 50.0), "50 J/hop count as one 3.5 deg landing"
+    lines = report_lines(setup, result)
+    assert lines[1].endswith("+ worst energy / 50 J/hop") and "J/hop" in lines[2]
+    assert f"{per_hop:.1f}" in lines[4]  # the defaults' row on the tuning seeds
+    assert result.as_dict(setup)["tuning"]["defaults"]["worst_energy_j_per_hop"] == s.worst_energy_j_per_hop
+
+
 def test_tune_searches_a_gait_field_too() -> None:
     setup = TuneSetup(seeds=(0,), heldout=(1,), gravities=(1.625,), hops=1, trials=3, terrain="flat",
                       ranges={"kp": (300.0, 600.0, False), "apex_height": (0.2, 0.3, False)})  # fmt: skip
@@ -68,6 +85,7 @@ def test_tune_searches_a_gait_field_too() -> None:
     [
         (["--seeds", "0:3", "--heldout", "2:5"], "held-out seeds overlap the tuning seeds: [2]"),
         (["--kd-range", "0:50"], "LOW > 0"),
+        (["--energy-weight", "-1"], "--energy-weight) must be a finite number of J/hop >= 0"),
     ],
 )
 def test_bad_tune_arguments_fail_in_one_line(tmp_path: Path, args: list[str], message: str) -> None:

@@ -8,7 +8,14 @@ from collections.abc import Callable
 import mujoco
 import numpy as np
 
-from hopper.config import STANDARD_GRAVITY, SimConfig
+from hopper.config import (
+    LEG_MOTOR_GEAR,
+    MOTOR_RESISTANCE,
+    MOTOR_TORQUE_CONSTANT,
+    REGENERATIVE_DRIVES,
+    STANDARD_GRAVITY,
+    SimConfig,
+)
 from hopper.control import gait as gaits
 from hopper.control import landing
 from hopper.control.memory import new_memory
@@ -30,6 +37,8 @@ class HopController:
         nothing of an earlier episode survives."""
         self.mem[0] = new_memory(self.layout)[0]
         (self.mem["x0"], self.mem["z0"]), self.mem["dt"] = self.layout.torso_origin, config.timestep
+        self.mem["leg_kt"], self.mem["motor_resistance"] = MOTOR_TORQUE_CONSTANT, MOTOR_RESISTANCE
+        self.mem["leg_motor_gear"], self.mem["regenerate"] = LEG_MOTOR_GEAR, REGENERATIVE_DRIVES
         self.configure(config)
         self.reset()
 
@@ -37,6 +46,9 @@ class HopController:
         m, g, gait = self.mem, config.gains, config.gait
         m["kp"], m["ki"], m["kd"] = g.kp, g.ki, g.kd
         m["gravity"], m["wheel_on"] = config.gravity, config.wheel
+        # The energy is the simulated robot's: a motor_torque mismatch is its wheel motor's k_t (hopper.mismatch),
+        # though the control law keeps the nominal one.
+        m["wheel_kt"] = MOTOR_TORQUE_CONSTANT * dict(config.mismatch).get("motor_torque", 1.0)
         self.gait = gaits.derive(config.gravity, gait)
         for name, value in self.gait.record().items():
             m[name] = value

@@ -14,6 +14,7 @@ from numba import njit
 
 from hopper.config import HIP_OFFSET_Z, WHEEL_NO_LOAD_SPEED
 from hopper.control.contact import debounce
+from hopper.control.energy import spend
 from hopper.control.legs import Leg, clamp, leg_angle, leg_state, swing_to_angle, swing_torques
 from hopper.control.phases import FALL_HIP_HEIGHT, FALL_PITCH, FallCause, Phase
 from hopper.control.sensing import delayed, sense
@@ -358,6 +359,7 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
     if torque >= SATURATION_TORQUE or torque <= -SATURATION_TORQUE:
         m.acc_saturation += dt
     m.acc_peak_wheel = max(m.acc_peak_wheel, abs(wheel_speed))
+    spend(m, qvel, sensors)  # every tick: the energy of a hop covers its ground phase and its flight
     if phase == FLIGHT:
         m.acc_peak_pitch = max(m.acc_peak_pitch, abs(m.pitch_true))  # the metrics are of the truth
         m.acc_rate_sq += m.rate_true * m.rate_true

@@ -54,6 +54,12 @@ _PARAMS = [
     ("tilt_kp", "f8"),  # 1/s, attitude correction per unit of horizontal specific force / g
     ("tilt_ki", "f8"),  # 1/s^2, gyro bias correction per unit of horizontal specific force / g
     ("motor_delay", "i8"),  # ticks between a wheel command and the torque
+    # The motors' energy (hopper.control.energy; figures in hopper.config).
+    ("wheel_kt", "f8"),  # N m/A, the wheel motor's torque constant (the simulated robot's: SimConfig.mismatch)
+    ("leg_kt", "f8"),  # N m/A, the leg motors'
+    ("motor_resistance", "f8"),  # ohm, every motor's winding
+    ("leg_motor_gear", "f8"),  # joint torque / motor torque at each leg joint
+    ("regenerate", "?"),  # True: braking energy is recovered (negative power counts); False: burnt
 ]
 _LAYOUT = [  # hopper.layout.ModelLayout, flattened
     *((name, "i8") for name in ("q_x", "q_z", "q_pitch", "q_wheel", "q_hip_l", "q_knee_l", "q_hip_r", "q_knee_r")),
@@ -62,8 +68,10 @@ _LAYOUT = [  # hopper.layout.ModelLayout, flattened
         (name, "i8")
         for name in ("s_gyro", "s_foot_l", "s_foot_r", "s_wheel_torque", "s_com", "s_com_vel", "s_angmom", "s_accel")
     ),
+    *((name, "i8") for name in ("s_torque_hip_l", "s_torque_knee_l", "s_torque_hip_r", "s_torque_knee_r")),
     *((name, "i8") for name in ("a_wheel", "a_hip_l", "a_knee_l", "a_hip_r", "a_knee_r")),
     ("wheel_gear", "f8"),
+    ("leg_gear", "f8"),
 ]
 _STATE = [
     ("phase", "i8"),  # hopper.control.phases.Phase
@@ -111,6 +119,8 @@ _ACC = [
     ("acc_rate_sq", "f8"),  # rad^2/s^2, sum of pitch rate squared over flight ticks
     ("acc_flight_ticks", "f8"),
     ("acc_apex_z", "f8"),  # m, highest torso z in flight
+    ("acc_wheel_energy", "f8"),  # J, the wheel motor's electrical energy, ground and flight
+    ("acc_leg_energy", "f8"),  # J, the four leg motors', ground and flight
     # The response since liftoff or the scheduled kick (hopper.metrics.ResponseMetrics defines them).
     ("acc_lobe", "f8"),  # +1 / -1: sign of the first excursion beyond RESPONSE_THRESHOLD, 0: none yet
     ("acc_crossed", "f8"),  # 1: the pitch has crossed zero after the first excursion
@@ -135,10 +145,12 @@ def new_memory(layout: ModelLayout) -> np.ndarray:
         names |= {f"q_hip_{side}": layout.q_legs[hip], f"q_knee_{side}": layout.q_legs[knee]}
         names |= {f"v_hip_{side}": layout.v_legs[hip], f"v_knee_{side}": layout.v_legs[knee]}
         names |= {f"a_hip_{side}": layout.a_legs[hip], f"a_knee_{side}": layout.a_legs[knee]}
+        torques = layout.s_leg_torques
+        names |= {f"s_torque_hip_{side}": torques[hip], f"s_torque_knee_{side}": torques[knee]}
     names |= {"s_gyro": layout.s_gyro_pitch, "s_foot_l": layout.s_foot_l, "s_foot_r": layout.s_foot_r}
     names |= {"s_wheel_torque": layout.s_wheel_torque, "a_wheel": layout.a_wheel, "wheel_gear": layout.wheel_gear}
     names |= {"s_com": layout.s_com, "s_com_vel": layout.s_com_vel, "s_angmom": layout.s_angmom}
-    names |= {"s_accel": layout.s_accel}
+    names |= {"s_accel": layout.s_accel, "leg_gear": layout.leg_gear}
     for name, value in names.items():
         mem[name] = value
     return mem

@@ -2,8 +2,11 @@
 
 A candidate's score is its worst case over every tuning seed and gravity: failures (a fall, or
 fewer hops than asked) dominate, then the worst landing error against the paper's 3.5 deg, then
-the most wheel momentum used against the capacity. The defaults are the first candidate, so the
-best is never worse than them on the tuning set; the held-out seeds say whether that generalises.
+the most wheel momentum used against the capacity, and, given an energy weight of W J/hop, the most
+electrical energy an episode spent per hop (wheel and legs, hopper.control.energy) against W, so
+that W J/hop count as much as a 3.5 deg landing error (the paper's energy-optimal future work, at
+an exchange rate of the user's). The defaults are the first candidate, so the best is never worse
+than them on the tuning set; the held-out seeds say whether that generalises.
 Candidates are evaluated in batches through an executor (hopper.experiments.executor).
 """
 
@@ -11,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import math
 import sys
 from collections.abc import Callable
 from typing import Any
@@ -41,17 +45,28 @@ class Score:
     worst_landing_deg: float
     worst_momentum_pct: float
     worst_peak_deg: float
+    worst_energy_j_per_hop: float = 0.0  # the most any episode spent per hop, J (energy_per_hop)
+    energy_weight: float = 0.0  # J/hop that count as much as a 3.5 deg landing error; 0: energy does not count
 
     @property
     def value(self) -> float:
+        energy = self.worst_energy_j_per_hop / self.energy_weight if self.energy_weight > 0 else 0.0
         return (
             FAILURE_WEIGHT * self.failures
             + self.worst_landing_deg / LANDING_LIMIT_DEG
             + self.worst_momentum_pct / 100.0
+            + energy
         )
 
 
-def score(results: list[EpisodeResult]) -> Score:
+def energy_per_hop(result: EpisodeResult) -> float:
+    """An episode's mean electrical energy per hop, wheel and legs (J): over its completed hops, or
+    over the flight that fell if none completed, 0 without a hop."""
+    hops = [h for h in result.hops if h.completed] or list(result.hops)
+    return sum(h.wheel_energy_j + h.leg_energy_j for h in hops) / len(hops) if hops else 0.0
+
+
+def score(results: list[EpisodeResult], energy_weight: float = 0.0) -> Score:
     rows = [r.row() for r in results]
     return Score(
         episodes=len(rows),
@@ -59,6 +74,8 @@ def score(results: list[EpisodeResult]) -> Score:
         worst_landing_deg=max(r["worst_landing_deg"] for r in rows),
         worst_momentum_pct=max(r["momentum_used_pct"] for r in rows),
         worst_peak_deg=max(r["peak_pitch_deg"] for r in rows),
+        worst_energy_j_per_hop=max(energy_per_hop(r) for r in results),
+        energy_weight=energy_weight,
     )
 
 
@@ -74,8 +91,12 @@ class TuneSetup:
     trials: int = 40
     batch: int = 0  # candidates per batch; 0: the executor's workers
     seed: int = 0  # the sampler's
+    energy_weight: float = 0.0  # J/hop: the worst energy per hop counts in the score in units of this; 0: not at all
 
     def __post_init__(self) -> None:
+        if not (math.isfinite(self.energy_weight) and self.energy_weight >= 0.0):
+            raise ValueError(f"the energy weight (--energy-weight) must be a finite number of J/hop >= 0 "
+                             f"(0: energy does not count), got {self.energy_weight!r}")  # fmt: skip
         if set(self.seeds) & set(self.heldout):
             raise ValueError(f"held-out seeds overlap the tuning seeds: {sorted(set(self.seeds) & set(self.heldout))}")
         for name in self.ranges:
@@ -149,7 +170,10 @@ def evaluate(
     results: dict[str, EpisodeResult] = {}
     for chunk_results in executor.map(chunks(unique, executor.workers)):
         results |= {r.episode.episode_id: r for r in chunk_results}
-    return [score([results[e.episode_id] for e in valid[i]]) if i in valid else None for i in range(len(candidates))]
+    return [
+        score([results[e.episode_id] for e in valid[i]], setup.energy_weight) if i in valid else None
+        for i in range(len(candidates))
+    ]
 
 
 def tune(setup: TuneSetup, make_executor: Callable[[list[Episode]], Executor], progress: bool = True) -> TuneResult:
@@ -198,10 +222,11 @@ def report_lines(setup: TuneSetup, result: TuneResult) -> list[str]:
     lines = [
         f"Optuna TPE (seed {setup.seed}), {setup.trials} candidates over {search}; each: seeds "
         f"{_seeds(setup.seeds)} x gravity {gravities} m/s^2, {setup.hops} hops, {setup.terrain}, {setup.sensing}",
-        f"score = {FAILURE_WEIGHT:g} x failures + worst landing / {LANDING_LIMIT_DEG:g} deg + worst momentum / 100 %",
+        f"score = {FAILURE_WEIGHT:g} x failures + worst landing / {LANDING_LIMIT_DEG:g} deg + worst momentum / 100 %"
+        + (f" + worst energy / {setup.energy_weight:g} J/hop" if setup.energy_weight > 0 else " (energy not counted)"),
         f"{'':22}"
         + "".join(f"{n:>10}" for n in names)
-        + f"{'failures':>10}{'landing deg':>13}{'momentum %':>12}{'peak deg':>10}{'score':>8}",
+        + f"{'failures':>10}{'landing deg':>13}{'momentum %':>12}{'peak deg':>10}{'J/hop':>9}{'score':>8}",
     ]
     for title, seeds, best, default in (
         ("tuning seeds", setup.seeds, result.best_score, result.default_score),
@@ -212,7 +237,7 @@ def report_lines(setup: TuneSetup, result: TuneResult) -> list[str]:
             lines.append(
                 f"{label:22}" + "".join(f"{params[n]:>10.4g}" for n in names)
                 + f"{f'{s.failures}/{s.episodes}':>10}{s.worst_landing_deg:>13.3f}{s.worst_momentum_pct:>12.1f}"
-                + f"{s.worst_peak_deg:>10.2f}{s.value:>8.3f}"
+                + f"{s.worst_peak_deg:>10.2f}{s.worst_energy_j_per_hop:>9.1f}{s.value:>8.3f}"
             )  # fmt: skip
     verdict = "at least as good as" if result.best_heldout.value <= result.default_heldout.value else "WORSE than"
     lines.append(

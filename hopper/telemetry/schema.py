@@ -45,6 +45,9 @@ HOP_DECIMALS = {
     "peak_wheel_torque_nm": 2,  # 0.01 N m
     "peak_momentum_pct": 1,  # 0.1 % of the capacity
     "landing_error_deg": 2,
+    "wheel_energy_j": 2,  # 0.01 J (hopper.control.energy)
+    "leg_energy_j": 2,
+    "cost_of_transport": 3,  # NaN for a hop in place
 }
 
 

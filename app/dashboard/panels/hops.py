@@ -21,6 +21,10 @@ COLUMNS = (
     ("landing_pitch_deg", "land", "°", "{:.1f}"),
     ("saturation_time_s", "sat", "s", "{:.2f}"),
     ("peak_wheel_rpm", "wheel", "rpm", "{:.0f}"),
+    # Electrical energy over the hop, ground and flight (hopper.control.energy), and its cost of transport.
+    ("wheel_energy_j", "E wheel", "J", "{:.0f}"),
+    ("leg_energy_j", "E legs", "J", "{:.0f}"),
+    ("cost_of_transport", "CoT", "", "{:.1f}"),  # dimensionless
 )
 # The response: from the scheduled kick (its delay after liftoff in the "kick" column) or the liftoff.
 RESPONSE_COLUMNS = (
