@@ -12,6 +12,7 @@ follows.
 from __future__ import annotations
 
 import dataclasses
+import html
 import threading
 
 import viser
@@ -56,8 +57,12 @@ class ControllerPanel:
                 self.choice.options = (*self.choice.options, law.spec)
             self.choice.value = law.spec
             compiled = " · compiled into the kernel" if law.compiled else ""
-            failed = f"<div class='hd-bad'>{fault}</div>" if fault else ""
-            self.info.content = f"<div class='hd-dim'>flying <b>{law.name}</b> ({law.spec}){compiled}</div>{failed}"
+            failed = f"<div class='hd-bad'>{html.escape(fault)}</div>" if fault else ""
+            short = html.escape(law.spec.rpartition("/")[2])  # a file spec by its file's name; the path on hover
+            self.info.content = (
+                f"<div class='hd-law' title='{html.escape(law.spec)}'><span class='hd-dim'>flying</span> "
+                f"<b>{html.escape(law.name)}</b> <span class='hd-dim'>({short}){compiled}</span>{failed}</div>"
+            )
             for slider in self.sliders.values():
                 slider.remove()
             self.sliders = {}

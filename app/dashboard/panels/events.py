@@ -26,6 +26,8 @@ SHOWN = frozenset(
         EventKind.RECORDING,
         EventKind.SENSING,
         EventKind.OPERATOR,
+        EventKind.CONTROLLER,
+        EventKind.CONTROLLER_FAILED,
     }
 )
 QUIET_RESETS = ("start", "terrain", "diverged")  # the event that caused them is shown already

@@ -1,0 +1,93 @@
+"""In a real headless Chromium: the Gains tab's selector switches to the README's example controller
+(a file outside the package, offered with --controller-choice), shows its params and the analysis'
+verdict, and a controller that fails in flight is a notice while the PID flies on.
+Skips without /usr/bin/chromium, except under CI=true. Screenshots go to tmp_path (and $HOPPER_SHOTS)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from hopper.app.dashboard.server import Dashboard
+from net import wait_until
+from test_controllers import readme_example
+from test_dashboard_e2e import browser  # noqa: F401  (the Chromium fixture)
+from test_replay_e2e import NOTES_JS, WORK_VIEWPORT, _shot
+
+from hopper.events import EventKind
+
+LOG_JS = "() => [...document.querySelectorAll('table.hd-log')].map(t => t.textContent).join(' | ')"
+FAILING = '''
+import math
+class FailsInFlight:
+    """Flies its first 200 calls (the pre-run check's 35 are undone), then answers NaN."""
+    def __init__(self):
+        self.calls = 0
+    def __call__(self, obs):
+        self.calls += 1
+        return math.nan if self.calls > 200 else 400.0 * obs.pitch + 30.0 * obs.rate
+'''
+
+
+def _open(browser, dashboard: Dashboard):  # noqa: F811
+    page = browser.new_page(viewport=WORK_VIEWPORT)
+    page.set_default_timeout(60_000)  # a bound for a loaded machine, not a pace
+    page.goto(dashboard.url)
+    page.get_by_text("Controller", exact=True).first.wait_for(timeout=30_000)
+    assert wait_until(lambda: len(dashboard.server.get_clients()) == 1, timeout=30)
+    return page
+
+
+def _pick(page, dashboard: Dashboard, option: str) -> None:
+    """Open the Controller selector and click `option`, as a person does."""
+    page.locator(f'input[id="{dashboard.layout.controller.choice._impl.uuid}"]').click()  # Mantine's Select
+    page.get_by_role("option", name=option).click()
+
+
+def test_the_selector_switches_to_a_users_controller_and_back(browser, start, tmp_path: Path) -> None:  # noqa: F811
+    user = tmp_path / "my_controller.py"
+    user.write_text(readme_example())
+    dashboard = start(controller_choice=(f"{user}:LandLevel",), speed=2.0)
+    spec = f"{user}:LandLevel"
+    page = _open(browser, dashboard)
+    try:
+        page.get_by_role("tab", name="Gains").click()
+        _pick(page, dashboard, spec)
+        assert wait_until(lambda: dashboard.sim.config.controller == spec, timeout=60), dashboard.sim.config
+        page.get_by_text("flying LandLevel").wait_for()
+        page.get_by_text("boost", exact=True).wait_for()  # its params, as sliders
+        page.get_by_text("no loop analysis: LandLevel is not a linear law").wait_for()
+        law = dashboard.sim.law
+        assert wait_until(lambda: law.calls > 500, timeout=120), "it never flew"
+        page.wait_for_function(f"() => ({LOG_JS})().includes('controller {spec} (LandLevel')")
+        _shot(page, tmp_path, "controller-user.png")
+        _pick(page, dashboard, "lqr")
+        assert wait_until(lambda: dashboard.sim.config.controller == "lqr", timeout=60)
+        page.get_by_text("LQR as state feedback").first.wait_for()
+        _shot(page, tmp_path, "controller-lqr.png")
+        assert not page.get_by_text("Kp", exact=True).first.is_visible()  # the PID's sliders wait hidden
+        _pick(page, dashboard, "pid")
+        assert wait_until(lambda: dashboard.sim.config.controller == "pid", timeout=60)
+        page.get_by_text("Kp", exact=True).first.wait_for(state="visible")
+        assert dashboard.sim.controller_fault is None and not dashboard.sim.fallen
+    finally:
+        page.close()
+
+
+def test_a_controller_failing_in_flight_is_a_notice_and_the_pid_flies_on(browser, start, tmp_path: Path) -> None:  # noqa: F811
+    bad = tmp_path / "bad.py"
+    bad.write_text(FAILING)
+    dashboard = start(controller_choice=(f"{bad}:FailsInFlight",), speed=2.0)
+    page = _open(browser, dashboard)
+    try:
+        page.get_by_role("tab", name="Gains").click()
+        _pick(page, dashboard, f"{bad}:FailsInFlight")
+        assert wait_until(lambda: dashboard.sim.controller_fault is not None, timeout=120), "it never failed"
+        page.wait_for_function(f"() => ({NOTES_JS})().includes('FailsInFlight returned nan N m')")
+        assert wait_until(lambda: dashboard.layout.controller.choice.value == "pid", timeout=30)
+        hops = len(dashboard.sim.hops)
+        assert wait_until(lambda: len(dashboard.sim.hops) > hops, timeout=120), "the PID did not fly on"
+        kinds = [e.kind for e in dashboard.sim.events]
+        assert EventKind.CONTROLLER_FAILED in kinds and not dashboard.sim.fallen
+        _shot(page, tmp_path, "controller-failed.png")
+    finally:
+        page.close()
