@@ -70,6 +70,19 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         tune.add_argument(f"--{name}-range", default=f"{low:g}:{high:g}", metavar="LOW:HIGH",
                           help=f"search range ({'log' if log else 'linear'}; default {low:g}:{high:g})")  # fmt: skip
     tune.add_argument("--gait", action="append", default=[], metavar="NAME=LOW:HIGH", help="also search a gait field")
+    tune.add_argument(
+        "--controller",
+        default="pid",
+        metavar="SPEC",
+        help="tune this controller's declared params over their ranges instead of the PID's gains",
+    )
+    tune.add_argument(
+        "--param-range",
+        action="append",
+        default=[],
+        metavar="NAME=LOW:HIGH",
+        help="search one of the controller's params over this range instead of its declared one (repeatable)",
+    )
     tune.add_argument("--batch", type=int, default=0, help="candidates evaluated together (default: the workers)")
     tune.add_argument(
         "--energy-weight", type=float, default=0.0, metavar="J",
@@ -262,13 +275,15 @@ def command_tune(args: argparse.Namespace) -> int:
         heldout = parse_spec({"seeds": flag_value("heldout", args.heldout)}).seeds
         ranges = {name: _range(f"{name}-range", getattr(args, f"{name}_range"), log) for name, (_, _, log) in
                   default_ranges().items()}  # fmt: skip
+        if args.controller != "pid":
+            ranges = controller_ranges(args)
         for text in args.gait:
             name, values = _named("gait", text)
             ranges[name] = _range(f"gait {name}", values, False)
         setup = TuneSetup(
             seeds=axes.seeds, heldout=heldout, gravities=axes.gravity, hops=args.hops, terrain=args.terrain,
             sensing=args.sensing, ranges=ranges, trials=args.trials, batch=args.batch, seed=args.seed,
-            energy_weight=args.energy_weight,
+            energy_weight=args.energy_weight, controller=args.controller,
         )  # fmt: skip
     except (SpecError, ValueError) as exc:
         fail(str(exc))
@@ -284,6 +299,42 @@ def command_tune(args: argparse.Namespace) -> int:
     if args.json:
         args.json.write_text(json.dumps(result.as_dict(setup), indent=2))
     return EXIT_OK
+
+
+def controller_ranges(args: argparse.Namespace) -> dict[str, tuple[float, float, bool]]:
+    """A controller's declared params and ranges (linear), each --param-range in place of its own."""
+    from hopper.controllers import ControllerError, load_class
+    from hopper.controllers.loading import canonical, declared_params
+
+    check_controllers_of([args.controller])
+    args.controller = canonical(args.controller)
+    try:
+        declared = {p.name: p for p in declared_params(load_class(args.controller))}
+    except ControllerError as exc:
+        fail(str(exc))
+    ranges = {name: (p.range[0], p.range[1], False) for name, p in declared.items()}
+    for text in args.param_range:
+        name, values = _named("param-range", text)
+        if name not in declared:
+            known = ", ".join(declared) or "none"
+            fail(f"--param-range: {args.controller} declares no param {name!r} (its params: {known})")
+        ranges[name] = _range(f"param-range {name}", values, False)
+    if not ranges:
+        fail(f"{args.controller} declares no params to tune")
+    return ranges
+
+
+def check_controllers_of(specs: list[str]) -> None:
+    """Each spec builds and flies a probe tick, or one line and exit 2."""
+    from hopper.config import SimConfig
+    from hopper.controllers import ControllerError, with_controller
+    from hopper.sim import Simulation
+
+    for spec in specs:
+        try:
+            Simulation(with_controller(SimConfig(), spec))
+        except ControllerError as exc:
+            fail(str(exc))
 
 
 def _range(name: str, text: str, log: bool) -> tuple[float, float, bool]:

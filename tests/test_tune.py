@@ -104,3 +104,26 @@ def test_bad_tune_arguments_fail_in_one_line(tmp_path: Path, args: list[str], me
 def test_a_search_that_cannot_start_from_the_defaults_is_refused(ranges: dict, message: str) -> None:
     with pytest.raises(ValueError, match=re.escape(message)):
         TuneSetup(seeds=(0,), heldout=(1,), gravities=(1.625,), hops=1, ranges=ranges)
+
+
+def test_tune_searches_a_users_controller_params_with_an_energy_weight(tmp_path: Path) -> None:
+    from test_controllers import readme_example
+
+    path = tmp_path / "my_controller.py"
+    path.write_text(readme_example())
+    spec = f"{path}:LandLevel"
+    setup = TuneSetup(seeds=(0,), heldout=(1,), gravities=(1.625,), hops=2, trials=3, terrain="flat",
+                      ranges={"boost": (0.0, 5.0, False), "kd": (5.0, 60.0, False)}, controller=spec,
+                      energy_weight=50.0)  # fmt: skip
+    result = tune(setup, lambda episodes: InProcess(), progress=False)
+    assert result.defaults == {"kp": 300.0, "kd": 25.0, "boost": 1.0}  # its own params, kp at its default
+    assert [set(p) for p, _ in result.history] == [{"boost", "kd"}] * 3
+    assert result.default_score.worst_energy_j_per_hop > 0 and result.default_score.energy_weight == 50.0
+    lines = report_lines(setup, result)
+    assert lines[-1].startswith(f"best: --controller {spec} --controller-param kp=")
+    assert "worst energy / 50 J/hop" in lines[1]
+    episodes = setup.episodes(result.best, (0,))
+    assert episodes[0].controller == spec and dict(episodes[0].params)["boost"] == result.best["boost"]
+    with pytest.raises(ValueError, match="cannot search 'ki': not a param of"):
+        TuneSetup(seeds=(0,), heldout=(1,), gravities=(1.625,), hops=1, ranges={"ki": (0.0, 1.0, False)},
+                  controller=spec)  # fmt: skip

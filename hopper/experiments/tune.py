@@ -1,4 +1,5 @@
-"""Gain search: Optuna's seeded TPE sampler over Kp/Ki/Kd (and gait fields) for the best worst case.
+"""Gain search: Optuna's seeded TPE sampler over Kp/Ki/Kd, or any controller's declared params (and
+gait fields), for the best worst case.
 
 A candidate's score is its worst case over every tuning seed and gravity: failures (a fall, or
 fewer hops than asked) dominate, then the worst landing error against the paper's 3.5 deg, then
@@ -20,6 +21,8 @@ from collections.abc import Callable
 from typing import Any
 
 from hopper.config import Gains, GaitParams, InvalidConfig
+from hopper.controllers import Param
+from hopper.controllers.loading import declared_params, load_class
 from hopper.experiments.executor import Executor, chunks
 from hopper.experiments.spec import GAIT_FIELDS, Episode
 from hopper.experiments.worker import EpisodeResult
@@ -70,7 +73,7 @@ def score(results: list[EpisodeResult], energy_weight: float = 0.0) -> Score:
     rows = [r.row() for r in results]
     return Score(
         episodes=len(rows),
-        failures=sum(r["fell"] or r["hops_completed"] < r["hops_target"] for r in rows),
+        failures=sum(r["fell"] or r["hops_completed"] < r["hops_target"] or bool(r["controller_fault"]) for r in rows),
         worst_landing_deg=max(r["worst_landing_deg"] for r in rows),
         worst_momentum_pct=max(r["momentum_used_pct"] for r in rows),
         worst_peak_deg=max(r["peak_pitch_deg"] for r in rows),
@@ -92,6 +95,7 @@ class TuneSetup:
     batch: int = 0  # candidates per batch; 0: the executor's workers
     seed: int = 0  # the sampler's
     energy_weight: float = 0.0  # J/hop: the worst energy per hop counts in the score in units of this; 0: not at all
+    controller: str = "pid"  # whose params are searched (hopper.controllers); the PID's are kp, ki, kd
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.energy_weight) and self.energy_weight >= 0.0):
@@ -99,21 +103,33 @@ class TuneSetup:
                              f"(0: energy does not count), got {self.energy_weight!r}")  # fmt: skip
         if set(self.seeds) & set(self.heldout):
             raise ValueError(f"held-out seeds overlap the tuning seeds: {sorted(set(self.seeds) & set(self.heldout))}")
+        declared = self.declared()
         for name in self.ranges:
-            if name not in ("kp", "ki", "kd") and name not in GAIT_FIELDS:
-                raise ValueError(f"cannot search {name!r}: not a gain nor a GaitParams field")
+            if name not in (declared or GAIN_SEARCH) and name not in GAIT_FIELDS:
+                what = f"a param of {self.controller}" if declared else "a gain"
+                raise ValueError(f"cannot search {name!r}: not {what} nor a GaitParams field")
         defaults = self.defaults()
         for name, (low, high, _) in self.ranges.items():
             if not low <= defaults[name] <= high:
                 raise ValueError(f"{name}'s range [{low:g}, {high:g}] leaves out its default {defaults[name]:g}")
 
+    def declared(self) -> dict[str, Param]:
+        """The controller's declared params by name ({} for the PID, whose params are the gains)."""
+        if self.controller == "pid":
+            return {}
+        return {p.name: p for p in declared_params(load_class(self.controller))}
+
     def defaults(self) -> dict[str, float]:
-        gains, gait = dataclasses.asdict(Gains()), dataclasses.asdict(GaitParams())
-        return {name: (gains | gait)[name] for name in (*GAIN_SEARCH, *self.ranges)}
+        gait = dataclasses.asdict(GaitParams())
+        declared = self.declared()
+        own = {n: p.default for n, p in declared.items()} if declared else dataclasses.asdict(Gains())
+        return {name: (own | gait)[name] for name in (*own, *self.ranges)}
 
     def episodes(self, params: dict[str, float], seeds: tuple[int, ...]) -> list[Episode]:
-        gains = {k: params.get(k, v) for k, v in dataclasses.asdict(Gains()).items()}
+        declared = self.declared()
+        gains = {k: v if declared else params.get(k, v) for k, v in dataclasses.asdict(Gains()).items()}
         gait = tuple((k, v) for k, v in params.items() if k in GAIT_FIELDS)
+        own = tuple((k, v) for k, v in params.items() if k in declared)
         return [
             Episode(
                 **gains,
@@ -124,6 +140,8 @@ class TuneSetup:
                 wheel=True,
                 sensing=self.sensing,
                 gait=gait,
+                controller=self.controller,
+                params=own,
             )  # fmt: skip
             for g in self.gravities
             for s in seeds
@@ -225,7 +243,7 @@ def report_lines(setup: TuneSetup, result: TuneResult) -> list[str]:
         f"score = {FAILURE_WEIGHT:g} x failures + worst landing / {LANDING_LIMIT_DEG:g} deg + worst momentum / 100 %"
         + (f" + worst energy / {setup.energy_weight:g} J/hop" if setup.energy_weight > 0 else " (energy not counted)"),
         f"{'':22}"
-        + "".join(f"{n:>10}" for n in names)
+        + "".join(f"{n:>{max(10, len(n) + 1)}}" for n in names)
         + f"{'failures':>10}{'landing deg':>13}{'momentum %':>12}{'peak deg':>10}{'J/hop':>9}{'score':>8}",
     ]
     for title, seeds, best, default in (
@@ -235,7 +253,7 @@ def report_lines(setup: TuneSetup, result: TuneResult) -> list[str]:
         lines.append(f"{title} {_seeds(seeds)}")
         for label, params, s in (("  defaults", result.defaults, default), ("  best", result.best, best)):
             lines.append(
-                f"{label:22}" + "".join(f"{params[n]:>10.4g}" for n in names)
+                f"{label:22}" + "".join(f"{params[n]:>{max(10, len(n) + 1)}.4g}" for n in names)
                 + f"{f'{s.failures}/{s.episodes}':>10}{s.worst_landing_deg:>13.3f}{s.worst_momentum_pct:>12.1f}"
                 + f"{s.worst_peak_deg:>10.2f}{s.worst_energy_j_per_hop:>9.1f}{s.value:>8.3f}"
             )  # fmt: skip
@@ -244,7 +262,12 @@ def report_lines(setup: TuneSetup, result: TuneResult) -> list[str]:
         f"on the held-out seeds the best gains are {verdict} the defaults "
         f"(score {result.best_heldout.value:.3f} vs {result.default_heldout.value:.3f})"
     )
-    lines.append("best: " + " ".join(f"--{n} {result.best[n]:.6g}" for n in names if n in ("kp", "ki", "kd")))
+    if setup.controller == "pid":
+        lines.append("best: " + " ".join(f"--{n} {result.best[n]:.6g}" for n in names if n in ("kp", "ki", "kd")))
+    else:
+        declared = setup.declared()
+        flags = " ".join(f"--controller-param {n}={result.best[n]:.6g}" for n in names if n in declared)
+        lines.append(f"best: --controller {setup.controller} {flags}")
     return lines
 
 
