@@ -18,7 +18,7 @@ from typing import Any
 from hopper.app.cli_common import EXIT_OK, fail
 from hopper.app.episode import sim_config, simulate
 
-KINDS = ("run JSON", "compare JSON", ".rrd recording", "sweep directory or Parquet")
+KINDS = ("run JSON", "compare JSON", "league JSON", ".rrd recording", "sweep directory or Parquet")
 
 
 def add_parser(commands: argparse._SubParsersAction, epilog: str) -> None:
@@ -75,6 +75,10 @@ def _json_report(path: Path, args: argparse.Namespace):  # noqa: ANN202 (hopper.
 
     try:
         document = json.loads(path.read_text())
+        if isinstance(document, dict) and document.get("kind") == "league":
+            from hopper.report.league import league_report
+
+            return league_report(document, f"Hopper league report: {path.name}")
         what = kind_of(document)
     except (OSError, ValueError) as exc:
         raise ValueError(f"{path}: {exc}") from None

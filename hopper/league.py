@@ -100,7 +100,7 @@ class Row:
     landing_max_deg: float
     peak_pitch_deg: float  # the largest mid-air |pitch| of any hop
     rms_rate_deg_s: float  # mean over hops of each flight's RMS pitch rate
-    energy_j: float  # mean electrical energy per hop (wheel and legs), nan without the energy metrics
+    energy_j: float  # mean electrical energy per hop (wheel and legs, hopper.control.energy), J
     saturation_s: float  # mean per hop
     compute_us: float  # mean per controller call (0: the compiled PID, in the kernel's ~1 us tick)
     worst: str  # the failed episode most worth a look, "" if none
@@ -117,7 +117,7 @@ def row(controller: str, results: list[EpisodeResult]) -> Row:
     ok = [not r.fell and not r.controller_fault and sum(h.completed for h in r.hops) >= r.episode.hops_target
           for r in results]  # fmt: skip
     failed = [r for r, good in zip(results, ok, strict=True) if not good]
-    energy = [getattr(h, "wheel_energy_j", math.nan) + getattr(h, "leg_energy_j", math.nan) for h in done]
+    energy = [h.wheel_energy_j + h.leg_energy_j for h in done]
     worst = ""
     if failed:
         r = failed[0]

@@ -66,6 +66,11 @@ def test_compare_stress_sweep_and_league_fly_it(example: Path) -> None:
     assert set(rows) == {"pid", SPEC} and rows[SPEC]["episodes"] == rows["pid"]["episodes"] > 10
     assert rows[SPEC]["compute_us"] > 0.0 == rows["pid"]["compute_us"]
     assert SPEC in league.stdout
+    assert all(r["energy_j"] > 0 for r in rows.values())  # electrical energy per hop, J
+    report = hopper_sim("report", str(example / "l.json"), "--out", str(example / "report"), cwd=example)
+    assert report.returncode == 0, report.stderr
+    page = (example / "report" / "report.html").read_text()
+    assert (example / "report" / "league.png").stat().st_size > 10_000 and SPEC in page and "energy (J/hop)" in page
 
 
 @pytest.mark.parametrize(

@@ -1,0 +1,65 @@
+"""The league's figure and table (`hopper-sim league --json`): one bar per controller and figure."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from matplotlib.figure import Figure
+
+from hopper.report import page, style
+from hopper.report.build import Named, Report
+
+PANELS = (  # row key, axis label (units), what a lower bar means
+    ("success_pct", "episodes passed (%)", "higher is better"),
+    ("landing_p95_deg", "landing |pitch| p95 (deg)", "lower is better"),
+    ("energy_j", "energy per hop (J)", "lower is better"),
+    ("compute_us", "compute per call (us)", "lower is better"),
+)
+CONTROLLER_COLORS = (style.WHEEL_ON, style.SECOND, style.PAPER, style.WHEEL_OFF, "#6a4c93", "#555555")
+COLUMNS = (  # row key, heading
+    ("controller", "controller"), ("success_pct", "ok (%)"), ("falls", "falls"), ("faults", "faults"),
+    ("landing_p50_deg", "landing p50 (deg)"), ("landing_p95_deg", "p95 (deg)"), ("landing_max_deg", "max (deg)"),
+    ("peak_pitch_deg", "peak pitch (deg)"), ("rms_rate_deg_s", "RMS rate (deg/s)"), ("energy_j", "energy (J/hop)"),
+    ("saturation_s", "saturation (s/hop)"), ("compute_us", "compute (us/call)"),
+)  # fmt: skip
+
+
+def name(spec: str) -> str:
+    """A controller's spec as a bar's label: a file spec by its file's name."""
+    return spec.rpartition("/")[2]
+
+
+def bars(rows: list[dict[str, Any]]) -> Figure:
+    """Success, landing p95, energy and compute per controller, side by side."""
+    fig, axes = style.new_figure(rows=len(PANELS), height=1.9, title="League: every controller on one battery")
+    labels = [name(r["controller"]) for r in rows]
+    colors = [CONTROLLER_COLORS[i % len(CONTROLLER_COLORS)] for i in range(len(rows))]
+    for ax, (key, label, better) in zip(axes, PANELS, strict=True):
+        raw = [r[key] if r[key] is not None else math.nan for r in rows]
+        values = [v if math.isfinite(v) else 0.0 for v in raw]
+        ax.bar(range(len(rows)), values, color=colors)
+        ax.set_ylabel(label, fontsize=8)
+        ax.set_title(better, fontsize=7, loc="right")
+        for i, (v, r) in enumerate(zip(raw, rows, strict=True)):
+            text = f"{v:.3g}" if math.isfinite(v) else "n/a"
+            if key == "compute_us" and r["controller"] == "pid":
+                text = "compiled (in the ~1 us kernel tick)"
+            ax.annotate(text, (i, values[i]), ha="center", va="bottom", fontsize=7)
+    axes[-1].set_xticks(range(len(rows)), labels, rotation=0, fontsize=8)
+    return fig
+
+
+def league_report(document: dict[str, Any], title: str) -> Report:
+    """The league document's figure, its table, and each controller's worst failure."""
+    rows = document["rows"]
+    table = page.Section(
+        "The league",
+        header=[h for _, h in COLUMNS],
+        rows=[[name(r[k]) if k == "controller" else r[k] for k, _ in COLUMNS] for r in rows],
+        note="; ".join(f"{name(r['controller'])}: {r['worst']}" for r in rows if r["worst"]) or "no failures",
+    )
+    episodes = rows[0]["episodes"] if rows else 0
+    figure = Named("league", "League", f"{episodes} episodes per controller, realistic sensing", bars(rows))
+    subtitle = f"{len(rows)} controllers, {episodes} episodes each (hopper-sim league, version {document['version']})"
+    return Report(title, subtitle, {"controllers": [r["controller"] for r in rows]}, [figure], [table])
