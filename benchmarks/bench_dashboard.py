@@ -1,7 +1,7 @@
 """Dashboard load: real-time factor, scene updates, chart refreshes and bandwidth with 0 to 16 clients.
 
 Run: python -m benchmarks.bench_dashboard [--seconds 10] [--speed 1] [--clients 0,1,4,16]
-         [--workbench] [--speeds 4,16,32,64] [--speed-clients 1]
+         [--workbench] [--speeds 4,16,32,64] [--speed-clients 1] [--controller SPEC]
 
 The server runs in this process at the asked speed; the clients run in a child process (browsers
 are separate processes too) and speak viser's real protocol: subprotocol handshake, a camera
@@ -114,6 +114,7 @@ def main() -> None:
     parser.add_argument("--workbench", action="store_true", help="a kick schedule on every hop, overlays on")
     parser.add_argument("--speeds", default="", help="comma-separated speeds to measure the delivered speed at")
     parser.add_argument("--speed-clients", type=int, default=1, help="clients connected while --speeds runs")
+    parser.add_argument("--controller", default="pid", help="the flight's controller (hopper-dashboard --controller)")
     parser.add_argument("--probe", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.probe:
@@ -124,7 +125,8 @@ def main() -> None:
     from hopper.app.dashboard.config import DashboardConfig
     from hopper.app.dashboard.server import Dashboard
 
-    dashboard = Dashboard(DashboardConfig(port=free_port(), speed=args.speed), verbose=False).start()
+    config = DashboardConfig(port=free_port(), speed=args.speed, controller=args.controller)
+    dashboard = Dashboard(config, verbose=False).start()
     speeds = [float(v) for v in args.speeds.split(",") if v]
     try:
         if args.workbench:

@@ -34,6 +34,7 @@ class LQR:
         self.model: AttitudeModel | None = None
         self.gain = np.zeros(3)  # N m per (rad, rad/s, rad/s)
         self._designed: tuple[float, ...] | None = None
+        self._k = (0.0, 0.0, 0.0)
 
     def configure(self, context: ControllerContext) -> None:
         self.model = attitude_model(context.config)
@@ -62,5 +63,7 @@ class LQR:
         return self.gain
 
     def __call__(self, obs: Observation) -> float:
-        k = self.state_feedback()
-        return float(k[0] * obs.pitch + k[1] * obs.rate + k[2] * obs.wheel_speed)
+        if (self.pitch_tol, self.rate_tol, self.wheel_tol, self.torque_scale) != self._designed:
+            self._k = tuple(float(v) for v in self.state_feedback())  # Python floats: a numpy scalar a tick costs
+        kp, kd, kw = self._k
+        return kp * obs.pitch + kd * obs.rate + kw * obs.wheel_speed
