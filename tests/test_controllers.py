@@ -143,7 +143,7 @@ def test_the_readme_example_loads_from_a_file_outside_the_package(tmp_path: Path
         ("/nowhere/laws.py:X", "controller file /nowhere/laws.py does not exist"),
         ("hopper.laws.pid:Nope", "hopper.laws.pid has no class 'Nope' (classes there: PaperPID)"),
         ("no_such_package.laws:X", "no module 'no_such_package.laws'"),
-        ("LAWS:TwoArgs", "TwoArgs.__call__ must take (self, obs); it is __call__(self, obs, extra)"),
+        ("LAWS:TwoArgs", "TwoArgs.__call__ must take (self, obs); it takes (obs, extra)"),
         ("LAWS:NoCall", "has no __call__(self, obs) -> float"),
         ("LAWS:BadParams", "BadParams.params must be Param(name, default, (low, high), unit) entries"),
         ("LAWS:BrokenInit", "BrokenInit() failed: ValueError: no config file"),

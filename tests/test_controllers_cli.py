@@ -89,3 +89,15 @@ def test_a_bad_controller_stops_every_command_with_one_line_and_exit_2(example: 
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("hopper-sim: error: ") and message in lines[0], lines
     assert not (example / "never").exists()
+
+
+def test_a_recording_holds_the_controller_and_its_params(example: Path) -> None:
+    from hopper.report.rrd import read_run
+
+    rrd = example / "flown.rrd"
+    result = hopper_sim("run", "--hops", "2", "--controller", SPEC, "--controller-param", "kd=20", "--rrd", str(rrd),
+                        cwd=example)  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    settings = read_run(rrd).settings  # read back with rerun's own reader
+    assert settings["controller"].endswith(SPEC)
+    assert json.loads(settings["controller_params"]) == {"kp": 300.0, "kd": 20.0, "boost": 1.0}

@@ -143,7 +143,8 @@ def test_dashboard_in_a_real_browser(browser, tmp_path: Path) -> None:
         assert wait_until(lambda: len(page.evaluate(HOP_ROWS_JS)) >= 2, timeout=60), page.evaluate(HOP_ROWS_JS)
         first, second = page.evaluate(HOP_ROWS_JS)[:2]
         assert first[0] == "1" and second[0] == "2", (first, second)
-        assert len(first) == 9 and all(math.isfinite(float(v)) for v in first[1:]), first
+        # hop, distance, apex, flight, peak, rms, landing, saturation, wheel rpm, wheel J, legs J, CoT
+        assert len(first) == 12 and all(math.isfinite(float(v)) for v in first[1:]), first
         assert 0.3 < float(first[1]) < 1.5, f"hop distance {first[1]} m"
         sim_hop = dashboard.sim.hops[0]
         assert first[1] == f"{sim_hop.distance_m:.2f}" and first[4] == f"{sim_hop.peak_pitch_deg:.1f}"

@@ -63,6 +63,7 @@ def _locked_legs_model() -> mujoco.MjModel:
     for name in ("hip_L", "knee_L", "hip_R", "knee_R"):
         spec.delete(spec.joint(name))
     for name in ("hip_L", "knee_L", "hip_R", "knee_R"):
+        spec.delete(spec.sensor(f"{name}_torque"))  # the energy metrics' actuatorfrc sensors go with them
         spec.delete(spec.actuator(name))
     for name in ("foot_L", "foot_R"):  # keep the feet out of the way of the terrain
         spec.geom(name).contype = 0

@@ -59,7 +59,8 @@ def load_class(spec: str) -> type:
         raise ControllerError(f"{where} has no class {name!r} (classes there: {', '.join(found) or 'none'})")
     if not inspect.isclass(cls):
         raise ControllerError(f"{target} is a {type(cls).__name__}, not a class")
-    _check_signature(cls, target)
+    if not any("__call__" in vars(k) for k in cls.__mro__[:-1]):
+        raise ControllerError(f"{target} has no __call__(self, obs) -> float")
     return cls
 
 
@@ -100,6 +101,7 @@ def build(spec: str, values: Mapping[str, float] | Iterable[tuple[str, float]] =
         raise
     except Exception as exc:
         raise ControllerError(f"{cls.__name__}() failed: {type(exc).__name__}: {exc}") from exc
+    _check_signature(controller, f"{spec}")
     for name, p in params.items():
         setattr(controller, name, p.check(values.get(name, p.default), cls.__name__))
     return controller
@@ -151,20 +153,19 @@ def _load_file(path: str) -> object:
     return module
 
 
-def _check_signature(cls: type, target: str) -> None:
-    """`__call__(self, obs)` and, if present, `reset(self, obs)`: each takes exactly one argument."""
+def _check_signature(controller: object, target: str) -> None:
+    """`controller(obs)` and, if it has one, `controller.reset(obs)` each take exactly one argument
+    (bound methods: a staticmethod, a classmethod or a plain function attribute pass as well)."""
     for method in ("__call__", "reset"):
-        owner = next((k for k in cls.__mro__[:-1] if method in vars(k)), None)
-        if owner is None:
-            if method == "__call__":
-                raise ControllerError(f"{target} has no __call__(self, obs) -> float")
+        fn = getattr(controller, method, None)
+        if fn is None:
             continue
-        fn = vars(owner)[method]
         try:
-            inspect.signature(fn).bind(None, None)
+            signature = inspect.signature(fn)
+        except (TypeError, ValueError):
+            continue  # a builtin without a signature: tried at the first call instead
+        try:
+            signature.bind(None)
         except TypeError:
-            raise ControllerError(
-                f"{target}.{method} must take (self, obs); it is {method}{inspect.signature(fn)}"
-            ) from None
-        except ValueError:
-            pass  # a builtin without a signature: tried at the first call instead
+            name = type(controller).__name__
+            raise ControllerError(f"{target}: {name}.{method} must take (self, obs); it takes {signature}") from None

@@ -6,6 +6,7 @@ import atexit
 import bisect
 import contextlib
 import dataclasses
+import json
 import logging
 import math
 import threading
@@ -391,6 +392,8 @@ class Telemetry:
                 kp=g.kp,
                 ki=g.ki,
                 kd=g.kd,
+                controller=c.controller,  # hopper.controllers spec, and its param values as JSON
+                controller_params=json.dumps(sim.law.values),
             ),
         )
 
