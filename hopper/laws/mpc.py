@@ -24,11 +24,15 @@ INF = math.inf
 SLACK_PRICE = 100.0  # cost per rad/s of wheel speed over its limit (exact penalty: zero whenever feasible)
 SLACK_WEIGHT = 1.0  # quadratic on the same slack, so that P has no zero on it
 STATE_SCALE = (math.radians(1.0), math.radians(10.0), WHEEL_NO_LOAD_SPEED)  # rad, rad/s, rad/s
+# Off the plan by this much (pitch, rate, wheel speed), the state was kicked: the plan is dropped and
+# the gain flies alone for recover_ms, until the legs have caught up with the torso (the model's premise).
+JUMP = (math.radians(2.0), math.radians(30.0), 0.2 * WHEEL_NO_LOAD_SPEED)
 STATS_KEPT = 2000  # solves whose time and iterations stats() sums up
 REG = 1e-6  # (scaled) on what the cost leaves free (rate, wheel speed): P stays positive definite
 # The fast loop's gain: the built-in LQR's (Bryson tolerances on hopper.laws.plant's 1 ms model, which
 # is right at the loop's frequencies: there the legs' servos do not follow and the torso is light).
 ANCILLARY_TOL = (math.radians(2.0), math.radians(40.0), WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT)
+RHO = 3e-3  # ADMM's step at the start of each solve (tuned on recorded flights: 15 iterations a replan)
 OSQP_SETTINGS = dict(  # noqa: C408 (the solver's names)
     verbose=False,
     warm_starting=True,
@@ -37,10 +41,13 @@ OSQP_SETTINGS = dict(  # noqa: C408 (the solver's names)
     eps_rel=1e-3,
     max_iter=2000,
     alpha=1.4,
-    rho=3e-3,
-    # A fixed step: a solve is then a function of its data and its warm start alone (runs, re-flies
-    # from snapshots repeat exactly), and on this problem it converged as fast as the adaptive one.
-    adaptive_rho=False,
+    rho=RHO,
+    # Adaptive, on a count of iterations (the default counts a share of the setup's time, which
+    # differs from run to run), and set back to RHO before a solve when the last one moved it: a
+    # solve is then a function of its data and its warm start alone, so runs and re-flies from
+    # snapshots repeat exactly. A fixed step took 2000 iterations after a kick; this, under 300.
+    adaptive_rho=True,
+    adaptive_rho_interval=25,
     check_termination=5,
 )
 
@@ -342,6 +349,7 @@ class MPC:
         Param("step_ms", 20.0, (2.0, 100.0), "ms"),
         Param("step_growth", 1.03, (1.0, 1.3), "x"),
         Param("horizon", 1.25, (0.1, 3.0), "x nominal flight"),
+        Param("recover_ms", 30.0, (0.0, 200.0), "ms"),
         Param("solve_deadline_ms", 20.0, (0.001, 100.0), "ms"),
     )
 
@@ -349,6 +357,7 @@ class MPC:
         self.model: PredictionModel | None = None
         self.fallbacks = {"previous_plan": 0, "gain": 0}  # replans that failed, by what flew instead
         self.solves = 0
+        self.kicks = 0  # times the state left the plan by more than JUMP (the plan dropped, see recover_ms)
         self.solve_times_us: deque[float] = deque(maxlen=STATS_KEPT)  # the last solves' wall times, us
         self.iterations: deque[int] = deque(maxlen=STATS_KEPT)  # and their ADMM iterations
         self.statuses: dict[str, int] = {}
@@ -359,6 +368,7 @@ class MPC:
         self._gain = (0.0, 0.0, 0.0)
         self._warm: tuple[np.ndarray, np.ndarray, int] | None = None  # last solution (scaled), its pinned step
         self._plan: Plan | None = None
+        self._rho_moved = False  # the last solve adapted ADMM's step
         self._ticks = 0  # calls since reset
         self._next_replan = 0  # the call at which to replan
         self._nominal = [0.0, 0.0, 0.0]  # the plan's state now
@@ -416,7 +426,7 @@ class MPC:
 
     def __deepcopy__(self, memo: dict) -> MPC:
         """Everything but the solver (a C object): the copy sets up its own at its first call."""
-        clone = MPC.__new__(MPC)
+        clone = type(self).__new__(type(self))
         state = {k: v for k, v in self.__dict__.items() if k != "_qp"}
         clone.__dict__.update(copy.deepcopy(state, memo))
         clone._qp = None
@@ -452,6 +462,12 @@ class MPC:
         u = plan.torques[self._step]
         nominal = self._nominal  # updated in place: no allocation on a tick (a GC pass inside a call costs 0.1 s)
         n0, n1, n2 = nominal
+        j0, j1, j2 = JUMP
+        if abs(x0 - n0) > j0 or abs(x1 - n1) > j1 or abs(x2 - n2) > j2:  # kicked: see the class's docstring
+            self.kicks += 1
+            self._plan = None
+            self._next_replan = self._ticks + max(0, round(self.recover_ms * 1e-3 / obs.dt) - 1)
+            return k0 * x0 + k1 * x1 + k2 * x2
         a, b = self._a, self._b
         nominal[0] = a[0] * n0 + a[1] * n1 + a[2] * n2 + b[0] * u
         nominal[1] = a[3] * n0 + a[4] * n1 + a[5] * n2 + b[1] * u
@@ -470,12 +486,15 @@ class MPC:
         solver.update(l=lo, u=hi)
         if self._plan is not None and self._warm is not None:
             solver.warm_start(*qp.warm(*self._warm, first))
-        else:  # a new flight (or a plan run out after failures): the unconstrained optimum, ~5 iterations
+        else:  # a new flight, a kick, a plan run out after failures: the unconstrained optimum from here
             solver.warm_start(*qp.guess(first, x0))
         start = time.perf_counter_ns()
+        if self._rho_moved:
+            solver.update_settings(rho=RHO)
         result = solver.solve(raise_error=False)
         self.solve_times_us.append((time.perf_counter_ns() - start) / 1e3)
         self.iterations.append(int(result.info.iter))
+        self._rho_moved = result.info.rho_updates > 0
         self.solves += 1
         status = result.info.status
         self.statuses[status] = self.statuses.get(status, 0) + 1
@@ -504,4 +523,5 @@ class MPC:
             "iterations_mean": float(np.mean(self.iterations)) if self.iterations else 0.0,
             "statuses": dict(self.statuses),
             "fallbacks": dict(self.fallbacks),
+            "kicks": self.kicks,
         }
