@@ -27,6 +27,8 @@ STATE_SCALE = (math.radians(1.0), math.radians(10.0), WHEEL_NO_LOAD_SPEED)  # ra
 # Off the plan by this much (pitch, rate, wheel speed), the state was kicked: the plan is dropped and
 # the gain flies alone for recover_ms, until the legs have caught up with the torso (the model's premise).
 JUMP = (math.radians(2.0), math.radians(30.0), 0.2 * WHEEL_NO_LOAD_SPEED)
+NO_TIME_LIMIT = 1e10  # s: OSQP's own default, i.e. none
+MAX_BACKOFF = 8  # replan periods at most between failed solves
 STATS_KEPT = 2000  # solves whose time and iterations stats() sums up
 REG = 1e-6  # (scaled) on what the cost leaves free (rate, wheel speed): P stays positive definite
 # The fast loop's gain: the built-in LQR's (Bryson tolerances on hopper.laws.plant's 1 ms model, which
@@ -39,7 +41,9 @@ OSQP_SETTINGS = dict(  # noqa: C408 (the solver's names)
     polishing=False,
     eps_abs=1e-3,  # in each row's natural units (1 deg, 10 deg/s, top speed, stall torque)
     eps_rel=1e-3,
-    max_iter=2000,
+    # A replan takes 15 iterations (~0.3 ms); with the wheel at its top speed for long, ADMM crawls
+    # (hundreds): past this the replan fails and falls back, and the next ones back off (MAX_BACKOFF).
+    max_iter=400,
     alpha=1.4,
     rho=RHO,
     # Adaptive, on a count of iterations (the default counts a share of the setup's time, which
@@ -118,6 +122,16 @@ class Plan:
     ticks: list[int]  # control ticks of each step
 
 
+@dataclasses.dataclass(frozen=True)
+class Solution:
+    """A plan as the QP found it (SI): n steps from the replan to the touchdown."""
+
+    states: np.ndarray  # (n + 1, 3) pitch rad, rate rad/s, wheel speed rad/s at each step's start, then touchdown
+    torques: np.ndarray  # (n,) N m, held over each step
+    slacks: np.ndarray  # (n + 1,) rad/s of wheel speed over its limit
+    ticks: np.ndarray  # (n,) control ticks of each step
+
+
 class QP:
     """The fixed-size QP, built once per structure (grid, weights); a replan changes vectors only.
 
@@ -132,7 +146,9 @@ class QP:
     change), and the previous solution, indexed from the touchdown, is a warm start as it stands.
     """
 
-    def __init__(self, model: PredictionModel, ticks: np.ndarray, weights: tuple[float, ...]) -> None:
+    def __init__(
+        self, model: PredictionModel, ticks: np.ndarray, weights: tuple[float, ...], deadline_s: float = NO_TIME_LIMIT
+    ) -> None:
         n = self.steps = int(ticks.size)
         self.ticks = ticks
         self.dt = model.dt
@@ -221,7 +237,7 @@ class QP:
         self.speed_rows = slice(self.row_speed, self.row_speed + 2 * (n + 1))
         self._riccati()
         self.solver = osqp.OSQP()
-        self.solver.setup(self.P, self.q, self.A, *self._relaxed(0), **OSQP_SETTINGS)
+        self.solver.setup(self.P, self.q, self.A, *self._relaxed(0), **OSQP_SETTINGS, time_limit=deadline_s)
 
     # -- the replan's data --------------------------------------------------------------------
     def first_step(self, time_to_touchdown: float) -> int | None:
@@ -329,12 +345,16 @@ class MPC:
     designed on the residualised model rang at 20 deg/s RMS with realistic sensing's delay). In the
     last half step, when no replan is left, the gain regulates to level alone.
 
-    Failures. The solver is OSQP 1.x, warm-started with the previous solution (a new flight: with
-    the unconstrained optimum and its multipliers), with a fixed ADMM step so that a solve is a
-    function of its data and warm start. A solve that does not end `solved`, or runs past
-    `solve_deadline_ms`, falls back to the previous plan's next moves, or if none is left, to the
-    gain alone (tau = K x); `fallbacks` counts each, `stats()` sums the solves up. A deadline
-    fallback depends on the machine's load: the default leaves a wide margin, so runs repeat.
+    Failures. The solver is OSQP 1.x, warm-started with the previous solution (a new flight, or a
+    kick: with the unconstrained optimum and its multipliers, from a time-varying LQR), its ADMM
+    step set back to RHO before each solve, so that a solve is a function of its data and its warm
+    start alone. A solve that does not end `solved` (OSQP's max_iter is the deterministic "too
+    slow": about 8 ms) falls back to the previous plan's next moves, or if none is left, to the
+    gain alone (tau = K x), and the next replans back off (MAX_BACKOFF); `fallbacks` counts each,
+    `stats()` sums the solves up (wall times, iterations, statuses). `solve_deadline_ms` adds
+    OSQP's wall-clock time limit, for a deployment where a late plan is a wrong one; it is off by
+    default (0) because it makes a run depend on the machine's load: a descheduled solve would
+    fall back in one run and not in the next.
 
     State: numbers and arrays; a snapshot's deep copy leaves the solver behind and the copy builds
     its own at its next call, warm-started from the copied solution: a re-fly repeats the flight.
@@ -350,7 +370,7 @@ class MPC:
         Param("step_growth", 1.03, (1.0, 1.3), "x"),
         Param("horizon", 1.25, (0.1, 3.0), "x nominal flight"),
         Param("recover_ms", 30.0, (0.0, 200.0), "ms"),
-        Param("solve_deadline_ms", 20.0, (0.001, 100.0), "ms"),
+        Param("solve_deadline_ms", 0.0, (0.0, 100.0), "ms (0: none)"),
     )
 
     def __init__(self) -> None:
@@ -369,6 +389,7 @@ class MPC:
         self._warm: tuple[np.ndarray, np.ndarray, int] | None = None  # last solution (scaled), its pinned step
         self._plan: Plan | None = None
         self._rho_moved = False  # the last solve adapted ADMM's step
+        self._backoff = 1  # replan periods to the next replan: doubled after each failed solve
         self._ticks = 0  # calls since reset
         self._next_replan = 0  # the call at which to replan
         self._nominal = [0.0, 0.0, 0.0]  # the plan's state now
@@ -395,6 +416,7 @@ class MPC:
             self.step_ms,
             self.step_growth,
             self.horizon,
+            self.solve_deadline_ms,
             self._flight_s,
         )
 
@@ -422,7 +444,8 @@ class MPC:
             1.0 / math.radians(self.landing_pitch_tol) ** 2,
             1.0 / math.radians(self.landing_rate_tol) ** 2,
         )
-        return QP(self.model, ticks, weights)
+        deadline = self.solve_deadline_ms * 1e-3 if self.solve_deadline_ms > 0 else NO_TIME_LIMIT
+        return QP(self.model, ticks, weights, deadline_s=deadline)
 
     def __deepcopy__(self, memo: dict) -> MPC:
         """Everything but the solver (a C object): the copy sets up its own at its first call."""
@@ -446,7 +469,7 @@ class MPC:
             self._qp = self._make_qp()  # a snapshot's copy: the same QP, the copied warm start
         x0, x1, x2 = obs.pitch, obs.rate, obs.wheel_speed
         if self._ticks >= self._next_replan:
-            self._next_replan = self._ticks + max(1, round(self.replan_ms * 1e-3 / obs.dt))
+            self._next_replan = self._ticks + self._backoff * max(1, round(self.replan_ms * 1e-3 / obs.dt))
             self._replan(obs)
         self._ticks += 1
         k0, k1, k2 = self._gain
@@ -503,14 +526,32 @@ class MPC:
                 self.fallbacks["previous_plan"] += 1
             else:
                 self.fallbacks["gain"] += 1
-            return  # the next solve starts again from the last good solution
+            # The next solve starts again from the last good solution, after a longer wait: a run of
+            # failed solves (each up to max_iter) would otherwise eat the control period's budget.
+            self._backoff = min(2 * self._backoff, MAX_BACKOFF)
+            return
         self._warm = (result.x.copy(), result.y.copy(), first)
+        self._backoff = 1
         z = result.x * qp.scale
         self._plan = Plan(z[qp.iu + first : qp.iu + qp.steps].tolist(), qp.ticks[first:].tolist())
         self._nominal[:] = x0.tolist()
         self._step, self._step_left = 0, self._plan.ticks[0]
 
     # -- what it did ------------------------------------------------------------------------
+    def solution(self) -> Solution | None:
+        """The last good plan in SI units (None before the first): from its pinned step to the touchdown."""
+        if self._warm is None or self._qp is None:
+            return None
+        qp, (z, _, first) = self._qp, self._warm
+        z = z * qp.scale
+        n = qp.steps
+        return Solution(
+            states=z[3 * first : 3 * (n + 1)].reshape(-1, 3),
+            torques=z[qp.iu + first : qp.iu + n],
+            slacks=z[qp.iu + n + first :],
+            ticks=qp.ticks[first:].copy(),
+        )
+
     def stats(self) -> dict[str, object]:
         """Solves, their wall times (us: mean, p99, max) and iterations over the last STATS_KEPT,
         statuses and fallbacks."""
