@@ -46,11 +46,11 @@ OSQP_SETTINGS = dict(  # noqa: C408 (the solver's names)
     max_iter=400,
     alpha=1.4,
     rho=RHO,
-    # Adaptive, on a count of iterations (the default counts a share of the setup's time, which
-    # differs from run to run), and set back to RHO before a solve when the last one moved it: a
-    # solve is then a function of its data and its warm start alone, so runs and re-flies from
-    # snapshots repeat exactly. A fixed step took 2000 iterations after a kick; this, under 300.
-    adaptive_rho=True,
+    # Adaptive on a count of iterations (OSQP 1.x's mode 1; not its time-based mode, which differs
+    # from run to run), and set back to RHO before a solve when the last one moved it: a solve is
+    # then a function of its data and its warm start alone, so runs and re-flies from snapshots
+    # repeat exactly. A fixed step took 2000 iterations after a kick; this, under 300.
+    adaptive_rho=1,
     adaptive_rho_interval=25,
     check_termination=5,
 )
