@@ -343,14 +343,18 @@ class MPC:
     measured state. K is designed on hopper.laws.plant's truncated model, which is the right one at
     the loop's frequencies (there the legs' servos do not follow and the torso is light: a gain
     designed on the residualised model rang at 20 deg/s RMS with realistic sensing's delay). In the
-    last half step, when no replan is left, the gain regulates to level alone.
+    last half step, when no replan is left, after a kick (`recover_ms`) and when every fallback is
+    spent, the gain flies alone, without its wheel-speed term: tau = K_pitch pitch + K_rate rate.
+    Pulling the wheel back toward rest is the plan's business (its speed enters through the
+    envelope); alone, that term fights the pitch correction just when the wheel is spun up (a kick
+    at 80 % of the flight landed at 2.0 deg with it, 1.2 deg without; the PID, 1.1 deg).
 
     Failures. The solver is OSQP 1.x, warm-started with the previous solution (a new flight, or a
     kick: with the unconstrained optimum and its multipliers, from a time-varying LQR), its ADMM
     step set back to RHO before each solve, so that a solve is a function of its data and its warm
     start alone. A solve that does not end `solved` (OSQP's max_iter is the deterministic "too
     slow": about 8 ms) falls back to the previous plan's next moves, or if none is left, to the
-    gain alone (tau = K x), and the next replans back off (MAX_BACKOFF); `fallbacks` counts each,
+    gain alone, and the next replans back off (MAX_BACKOFF); `fallbacks` counts each,
     `stats()` sums the solves up (wall times, iterations, statuses). `solve_deadline_ms` adds
     OSQP's wall-clock time limit, for a deployment where a late plan is a wrong one; it is off by
     default (0) because it makes a run depend on the machine's load: a descheduled solve would
@@ -481,7 +485,7 @@ class MPC:
             else:
                 self._plan = plan = None
         if plan is None:
-            return k0 * x0 + k1 * x1 + k2 * x2
+            return k0 * x0 + k1 * x1
         u = plan.torques[self._step]
         nominal = self._nominal  # updated in place: no allocation on a tick (a GC pass inside a call costs 0.1 s)
         n0, n1, n2 = nominal
@@ -490,7 +494,7 @@ class MPC:
             self.kicks += 1
             self._plan = None
             self._next_replan = self._ticks + max(0, round(self.recover_ms * 1e-3 / obs.dt) - 1)
-            return k0 * x0 + k1 * x1 + k2 * x2
+            return k0 * x0 + k1 * x1
         a, b = self._a, self._b
         nominal[0] = a[0] * n0 + a[1] * n1 + a[2] * n2 + b[0] * u
         nominal[1] = a[3] * n0 + a[4] * n1 + a[5] * n2 + b[1] * u
