@@ -76,6 +76,15 @@ class LateNaN:
     def __init__(self): self.flights = 0
     def reset(self, obs): self.flights += 1
     def __call__(self, obs): return math.nan if self.flights == 2 else 400.0 * obs.pitch + 30.0 * obs.rate
+class Paused:
+    """One call in its second flight stalls 0.2 s, as a descheduled thread or a garbage collection does."""
+    def __init__(self): self.flights, self.stalled = 0, False
+    def reset(self, obs): self.flights += 1
+    def __call__(self, obs):
+        if self.flights == 2 and not self.stalled:
+            self.stalled = True
+            time.sleep(0.2)
+        return 400.0 * obs.pitch + 30.0 * obs.rate
 class LateSlow:
     """Flies, then spends 2 ms a call from its second flight."""
     def __init__(self): self.flights = 0
@@ -206,6 +215,11 @@ def test_a_controller_failing_in_flight_hands_over_to_the_pid_and_says_why(laws:
     if name == "LateSlow":  # within the window of calls it is averaged over, after its second liftoff
         liftoffs = [e.time for e in sim.events if e.kind is EventKind.LIFTOFF]
         assert 0 < failed[0].time - liftoffs[1] <= (WARM_UP_CALLS + 2 * BUDGET_WINDOW) * 1e-3 + 1e-9
+
+
+def test_one_stalled_call_is_not_the_controllers_cost(laws: str) -> None:
+    sim = flown(with_controller(SimConfig(terrain="flat"), f"{laws}:Paused"), 3)
+    assert sim.law.controller.stalled and sim.controller_fault is None and sim.config.controller.endswith(":Paused")
 
 
 def test_a_batch_marks_the_episode_failed_with_the_cause(laws: str) -> None:
