@@ -18,6 +18,8 @@ from typing import Any
 from hopper.app.cli_common import EXIT_OK, fail
 from hopper.app.episode import sim_config, simulate
 
+from hopper.controllers import ControllerError
+
 KINDS = ("run JSON", "compare JSON", "league JSON", ".rrd recording", "sweep directory or Parquet")
 
 
@@ -29,6 +31,11 @@ def add_parser(commands: argparse._SubParsersAction, epilog: str) -> None:
     report.add_argument("input", type=Path, metavar="INPUT", help="; ".join(KINDS))
     report.add_argument("--out", type=Path, required=True, metavar="DIR", help="folder for the figures and report.html")
     report.add_argument("--seed", type=int, default=None, help="compare JSON: the seed whose time series is drawn")
+    report.add_argument(
+        "--controller",
+        metavar="SPEC",
+        help="run or compare JSON: draw the runs re-flown by this controller (their other settings kept)",
+    )
     report.add_argument(
         "--no-simulate",
         action="store_true",
@@ -69,6 +76,16 @@ def _simulated(settings: dict[str, Any], wheel: bool) -> dict[str, Any]:
     return simulate(config, int(settings["hops"]))
 
 
+def _flown_by(settings: dict[str, Any], spec: str) -> dict[str, Any]:
+    """The settings' controller and params replaced by `spec`'s defaults (ControllerError if it cannot fly)."""
+    from hopper.controllers import with_controller
+    from hopper.sim import Simulation
+
+    config = with_controller(sim_config(settings), spec)
+    Simulation(config)  # the pre-run check, before any figure
+    return {"controller": config.controller, "controller_params": list(config.controller_params)}
+
+
 def _json_report(path: Path, args: argparse.Namespace):  # noqa: ANN202 (hopper.report.build.Report)
     from hopper.report.build import run_report
     from hopper.report.runs import kind_of, run_from_result
@@ -86,7 +103,11 @@ def _json_report(path: Path, args: argparse.Namespace):  # noqa: ANN202 (hopper.
     source = f"{what} JSON"
     runs = []
     for result in results:
-        if "trace" not in result:  # written before runs carried a trace: the run is deterministic
+        if args.controller:  # the same flights by another controller
+            settings = {**result["settings"], **_flown_by(result["settings"], args.controller)}
+            result = _simulated(settings, bool(settings["wheel"]))
+            source = f"{what} JSON, re-flown by {args.controller}"
+        elif "trace" not in result:  # written before runs carried a trace: the run is deterministic
             if args.no_simulate:
                 raise ValueError(f"{path}: no trace in the result (written by an older hopper-sim); drop --no-simulate")
             result = _simulated(result["settings"], bool(result["settings"]["wheel"]))
@@ -142,7 +163,7 @@ def command_report(args: argparse.Namespace) -> int:
             report = _rrd_report(args.input)
         else:
             report = _sweep_report(args.input)
-    except (ValueError, KeyError) as exc:
+    except (ValueError, KeyError, ControllerError) as exc:
         fail(str(exc).strip("'\""))
     paths = write(report, out)
     print(f"{len(paths)} files in {out}: {', '.join(p.name for p in paths)}")

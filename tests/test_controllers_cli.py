@@ -101,3 +101,13 @@ def test_a_recording_holds_the_controller_and_its_params(example: Path) -> None:
     settings = read_run(rrd).settings  # read back with rerun's own reader
     assert settings["controller"].endswith(SPEC)
     assert json.loads(settings["controller_params"]) == {"kp": 300.0, "kd": 20.0, "boost": 1.0}
+
+
+def test_report_redraws_a_run_flown_by_another_controller(example: Path) -> None:
+    out = example / "pid.json"
+    assert hopper_sim("run", "--hops", "2", "--json", str(out), cwd=example).returncode == 0
+    result = hopper_sim("report", str(out), "--out", str(example / "by-user"), "--controller", SPEC, cwd=example)
+    assert result.returncode == 0, result.stderr
+    assert f"re-flown by {SPEC}" in (example / "by-user" / "report.html").read_text()
+    bad = hopper_sim("report", str(out), "--out", str(example / "never"), "--controller", "nope", cwd=example)
+    assert bad.returncode == 2 and "unknown controller 'nope'" in bad.stderr

@@ -60,15 +60,31 @@ def test_the_selector_switches_to_a_users_controller_and_back(browser, start, tm
         assert wait_until(lambda: law.calls > 500, timeout=120), "it never flew"
         page.wait_for_function(f"() => ({LOG_JS})().includes('controller {spec} (LandLevel')")
         _shot(page, tmp_path, "controller-user.png")
+        assert wait_until(lambda: (f := dashboard.history.last_flight) is not None and f.controller == spec, 120)
+        dashboard.layout.simulation.set_paused(True)  # the last flight stays the user's; commands still apply
         _pick(page, dashboard, "lqr")
         assert wait_until(lambda: dashboard.sim.config.controller == "lqr", timeout=60)
         page.get_by_text("LQR as state feedback").first.wait_for()
         _shot(page, tmp_path, "controller-lqr.png")
+        # Re-fly: the last flight (the user's controller's) flown again by the LQR, both in the A/B table.
+        page.get_by_role("tab", name="Replay").click()
+        page.get_by_role("button", name="Re-fly last flight with these gains and controller").click()
+        assert wait_until(lambda: dashboard.layout.replay.last is not None, timeout=60)
+        c = dashboard.layout.replay.last
+        assert c.recorded.controller == spec and c.after.controller == "lqr" and c.before_identical
+        page.wait_for_function(
+            "() => [...document.querySelectorAll('table.hd-ab')].some(t => "
+            "t.innerText.includes('my_controller.py:LandLevel') && t.innerText.includes('lqr'))"
+        )
+        _shot(page, tmp_path, "controller-refly.png")
+        dashboard.layout.simulation.set_paused(False)
+        page.get_by_role("tab", name="Gains").click()
         assert not page.get_by_text("Kp", exact=True).first.is_visible()  # the PID's sliders wait hidden
         _pick(page, dashboard, "pid")
         assert wait_until(lambda: dashboard.sim.config.controller == "pid", timeout=60)
         page.get_by_text("Kp", exact=True).first.wait_for(state="visible")
-        assert dashboard.sim.controller_fault is None and not dashboard.sim.fallen
+        events = [f"{e.time:.2f} {e.describe()}" for e in dashboard.sim.events[-12:]]
+        assert dashboard.sim.controller_fault is None and not dashboard.sim.fallen, events
     finally:
         page.close()
 

@@ -186,7 +186,11 @@ def test_every_published_frame_reaches_the_client_as_one_pose_update(dashboard: 
         client.snapshot()[2] - poses0,
         published,
     )
-    assert client.snapshot()[2] - poses0 <= dashboard.frames - frames0 + 1
+    # At most one update a frame, counted from the start: the baselines above cannot bound it, since
+    # frames published before frames0 may still be on their way to the client at poses0 (the client
+    # lags by an unknown number of frames on a loaded machine). The client's count is read first;
+    # the server's only grows. (+1: the pose the scene sends a client as it connects.)
+    assert client.snapshot()[2] <= dashboard.frames + 1
 
 
 def _badge(dashboard: Dashboard) -> str:
