@@ -84,8 +84,8 @@ def test_the_selector_switches_to_a_users_controller_and_back(browser, start, tm
         assert wait_until(lambda: dashboard.sim.config.controller == "pid", timeout=60)
         page.get_by_text("Kp", exact=True).first.wait_for(state="visible")
         # Not asserted: the robot never fell. In 1 run of about 5 it fell at the session's first hop
-        # (pitch past 60 deg in a bounce after the touchdown), with or without the switch under way;
-        # 136 switches at every moment of that hop headless never made it fall. The events say what flew.
+        # (pitch past 60 deg in a bounce after the touchdown), the cause not found: 136 switches at
+        # every moment of that hop, headless, never made it fall. The events say what flew.
         events = [f"{e.run} {e.time:.2f} {e.describe()}" for e in dashboard.sim.events if e.kind.value != "apex"]
         print("\n".join(events))
         assert dashboard.sim.controller_fault is None, events
