@@ -103,7 +103,8 @@ def _json_report(path: Path, args: argparse.Namespace):  # noqa: ANN202 (hopper.
     source = f"{what} JSON"
     runs = []
     for result in results:
-        if args.controller:  # the same flights by another controller
+        # The same flights by another controller (getattr: a Namespace may be built without the flag).
+        if getattr(args, "controller", None):
             settings = {**result["settings"], **_flown_by(result["settings"], args.controller)}
             result = _simulated(settings, bool(settings["wheel"]))
             source = f"{what} JSON, re-flown by {args.controller}"
