@@ -150,18 +150,44 @@ def add_controller_flags(p: argparse.ArgumentParser) -> None:
     )
 
 
-def with_controller_flags(config: SimConfig, args: argparse.Namespace) -> SimConfig:
-    """`config` flying the flags' controller, checked as a run would start it (one line and exit 2 if it
-    cannot: a missing file, a wrong signature, an exception, NaN, a call over budget)."""
+def checked_controller(config: SimConfig, spec: str, values: object = ()) -> SimConfig:
+    """`config` flying `spec` with param `values`, checked as a run would start it: one line and exit 2
+    if it cannot fly (a missing file, a wrong signature, an exception, NaN, a call over budget)."""
     from hopper.controllers import ControllerError, with_controller
     from hopper.sim import Simulation
 
     try:
-        config = with_controller(config, args.controller, args.controller_param)
+        config = with_controller(config, spec, values)  # type: ignore[arg-type]
         Simulation(config)  # builds, configures and probes the controller
     except ControllerError as exc:
         fail(str(exc))
     return config
+
+
+def with_controller_flags(config: SimConfig, args: argparse.Namespace) -> SimConfig:
+    """`config` flying the flags' controller (--controller, --controller-param), checked."""
+    return checked_controller(config, args.controller, args.controller_param)
+
+
+def run_all(episodes: list, executor_kind: str, workers: int, address: str | None, desc: str) -> dict:
+    """Every episode on the chosen executor with a progress bar: episode_id -> EpisodeResult."""
+    from tqdm import tqdm
+
+    from hopper.experiments.executor import ExecutorError, choose, chunks
+
+    try:
+        executor = choose(executor_kind, episodes, workers, address)  # type: ignore[arg-type]
+    except ExecutorError as exc:
+        fail(str(exc))
+    done = {}
+    try:
+        with tqdm(total=len(episodes), desc=desc, unit="ep", file=sys.stderr) as bar:
+            for chunk in executor.map(chunks(episodes, executor.workers)):
+                done |= {r.episode.episode_id: r for r in chunk}
+                bar.update(len(chunk))
+    finally:
+        executor.close()
+    return done
 
 
 def add_run_flags(p: argparse.ArgumentParser) -> None:

@@ -25,9 +25,11 @@ from hopper.app.cli_common import (
     Parser,
     add_controller_flags,
     add_run_flags,
+    checked_controller,
     fail,
     part_limit,
     rrd_file,
+    run_all,
     schedule,
     seed,
     with_controller_flags,
@@ -299,9 +301,7 @@ def command_run(args: argparse.Namespace) -> int:
 
 
 def command_compare(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
 
-    from hopper.experiments.executor import ExecutorError, choose, chunks
     from hopper.experiments.spec import Episode
 
     gait, default = scenario(args.scenario).gait, GaitParams()
@@ -319,18 +319,7 @@ def command_compare(args: argparse.Namespace) -> int:
         for seed in range(args.seeds)
         for wheel in (True, False)
     ]  # fmt: skip
-    try:
-        executor = choose(args.executor, episodes, args.workers, args.address)
-    except ExecutorError as exc:
-        fail(str(exc))
-    done = {}
-    try:
-        with tqdm(total=len(episodes), desc="runs", unit="run", file=sys.stderr) as bar:
-            for chunk in executor.map(chunks(episodes, executor.workers)):
-                done |= {r.episode.episode_id: r for r in chunk}
-                bar.update(len(chunk))
-    finally:
-        executor.close()
+    done = run_all(episodes, args.executor, args.workers, args.address, "runs")
     results = []
     for episode in episodes:
         r = done[episode.episode_id]
@@ -421,36 +410,17 @@ def command_stress(args: argparse.Namespace) -> int:
 
 
 def command_league(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
     from hopper import league
-    from hopper.controllers import ControllerError, with_controller
     from hopper.controllers.loading import canonical
-    from hopper.experiments.executor import ExecutorError, choose, chunks
-    from hopper.sim import Simulation
 
     specs = [canonical(c) for c in args.controllers.split(",") if c.strip()]
     if not specs:
         fail("--controllers: name at least one controller")
     for spec in specs:  # each flies a probe tick before any episode
-        try:
-            Simulation(with_controller(SimConfig(sensing="realistic"), spec))
-        except ControllerError as exc:
-            fail(str(exc))
+        checked_controller(SimConfig(sensing="realistic"), spec)
     entries = league.battery(quick=args.quick)
     episodes = [e for spec in specs for e in league.episodes(spec, (), entries)]
-    try:
-        executor = choose(args.executor, episodes, args.workers, args.address)
-    except ExecutorError as exc:
-        fail(str(exc))
-    done = {}
-    try:
-        with tqdm(total=len(episodes), desc="league", unit="ep", file=sys.stderr) as bar:
-            for chunk in executor.map(chunks(episodes, executor.workers)):
-                done |= {r.episode.episode_id: r for r in chunk}
-                bar.update(len(chunk))
-    finally:
-        executor.close()
+    done = run_all(episodes, args.executor, args.workers, args.address, "league")
     rows = [league.row(spec, [done[e.episode_id] for e in episodes if e.controller == spec]) for spec in specs]
     print(f"league: {len(entries)} episodes per controller, realistic sensing; landing |pitch| in deg")
     print("\n".join(league.table(rows)))

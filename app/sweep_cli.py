@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from hopper.app.cli_common import EXIT_OK, fail, writable_file
+from hopper.app.cli_common import EXIT_OK, checked_controller, fail, writable_file
 
 SWEEP_EPILOG = (
     "exit status: 0 finished (falls are results), 2 bad spec or arguments, 130 interrupted "
@@ -190,15 +190,10 @@ def spec_overrides(args: argparse.Namespace) -> dict[str, Any]:
 def check_controllers(spec: Any) -> None:  # noqa: ANN401 (hopper.experiments.spec.SweepSpec)
     """Every controller of the sweep builds and flies a probe tick, or one line and exit 2 before any work."""
     from hopper.config import SimConfig
-    from hopper.controllers import ControllerError, with_controller
-    from hopper.sim import Simulation
 
     first = [(name, values[0]) for name, values in spec.params]
     for controller in spec.controller:
-        try:
-            Simulation(with_controller(SimConfig(), controller, [] if controller == "pid" else first))
-        except ControllerError as exc:
-            fail(str(exc))
+        checked_controller(SimConfig(), controller, [] if controller == "pid" else first)
 
 
 def check_out(out: Path) -> None:
@@ -303,10 +298,11 @@ def command_tune(args: argparse.Namespace) -> int:
 
 def controller_ranges(args: argparse.Namespace) -> dict[str, tuple[float, float, bool]]:
     """A controller's declared params and ranges (linear), each --param-range in place of its own."""
+    from hopper.config import SimConfig
     from hopper.controllers import ControllerError, load_class
     from hopper.controllers.loading import canonical, declared_params
 
-    check_controllers_of([args.controller])
+    checked_controller(SimConfig(), args.controller)
     args.controller = canonical(args.controller)
     try:
         declared = {p.name: p for p in declared_params(load_class(args.controller))}
@@ -322,19 +318,6 @@ def controller_ranges(args: argparse.Namespace) -> dict[str, tuple[float, float,
     if not ranges:
         fail(f"{args.controller} declares no params to tune")
     return ranges
-
-
-def check_controllers_of(specs: list[str]) -> None:
-    """Each spec builds and flies a probe tick, or one line and exit 2."""
-    from hopper.config import SimConfig
-    from hopper.controllers import ControllerError, with_controller
-    from hopper.sim import Simulation
-
-    for spec in specs:
-        try:
-            Simulation(with_controller(SimConfig(), spec))
-        except ControllerError as exc:
-            fail(str(exc))
 
 
 def _range(name: str, text: str, log: bool) -> tuple[float, float, bool]:

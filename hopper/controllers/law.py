@@ -150,7 +150,7 @@ class FlightLaw:
     def probe(self, obs: Observation) -> float:
         """The pre-run check on a typical flight tick: it answers, with a finite number, within the
         budget (median of PROBE_CALLS calls). Raises ControllerError; leaves the law freshly reset."""
-        saved = self._copy_state()
+        saved = self.state()
         try:
             times = []
             for i in range(WARM_UP_CALLS + PROBE_CALLS):
@@ -160,7 +160,10 @@ class FlightLaw:
         except ControllerFault as fault:
             raise ControllerError(f"{self.spec}: {fault}") from None
         finally:
-            self._restore_state(saved)
+            self.set_state(saved)  # what the probe's calls did to it is undone
+            self.needs_reset = True
+            self.calls = self.compute_ns = 0
+            self._window = []
         median_us = statistics.median(times[WARM_UP_CALLS:]) / 1e3
         if median_us * 1e3 > self.budget_ns:
             raise ControllerError(
@@ -186,12 +189,3 @@ class FlightLaw:
         controller, self.needs_reset = state
         self.controller = copy.deepcopy(controller)
         self._reset = getattr(self.controller, "reset", None)
-
-    def _copy_state(self) -> object | None:
-        return self.state()
-
-    def _restore_state(self, saved: object | None) -> None:
-        self.set_state(saved)
-        self.needs_reset = True
-        self.calls = self.compute_ns = 0
-        self._window = []
