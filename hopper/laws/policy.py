@@ -19,7 +19,7 @@ import numpy as np
 
 from hopper.config import WHEEL_TORQUE_LIMIT
 from hopper.controllers.api import ControllerError, Observation
-from hopper.controllers.features import LAYOUT, SIZE, features
+from hopper.controllers.features import LAYOUT, SCALES, SIZE, features
 
 FORMAT = "hopper-policy/1"
 WEIGHTS_FILE = "policy_weights.json"  # in the package hopper.laws (package-data)
@@ -57,8 +57,6 @@ class Weights:
     def pd(cls, kp: float, kd: float, hidden: int = 16, scale: float = 0.01, seed: int = 0) -> Weights:
         """The PD `kp * pitch + kd * rate` (N m/rad, N m s/rad) on the skip path, small random hidden weights."""
         rng = np.random.default_rng(seed)
-        from hopper.controllers.features import SCALES
-
         lin = np.zeros(SIZE)
         lin[0], lin[1] = kp * SCALES[0] / WHEEL_TORQUE_LIMIT, kd * SCALES[1] / WHEEL_TORQUE_LIMIT
         w1 = rng.normal(0.0, 1.0 / math.sqrt(SIZE), (hidden, SIZE))
