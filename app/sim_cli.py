@@ -126,9 +126,9 @@ def parser() -> Parser:
     )
     league.add_argument(
         "--controllers",
-        default="pid,lqr,mpc",
+        default="pid,lqr,mpc,policy",
         metavar="SPECS",
-        help="comma-separated: pid, lqr, mpc, FILE.py:Class, module:Class, tcp://... (default pid,lqr,mpc)",
+        help="comma-separated: pid, lqr, mpc, policy, FILE.py:Class, module:Class, tcp://... (default: the built-ins)",
     )
     league.add_argument("--quick", action="store_true", help="a few episodes of each group (what the tests run)")
     league.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")

@@ -1,0 +1,204 @@
+"""A Gymnasium environment for the flight attitude task: `gymnasium.make("hopper/FlightAttitude-v0")`
+after `import hopper.gym_env` (README, "Learned control").
+
+The agent flies the wheel in flight through the controller API, as any controller does: the
+simulation's flight law is an EnvLaw whose `__call__` returns the agent's pending action. One
+env step runs the simulation tick by tick up to the next flight tick that asks for a command;
+the ground phases (landing, stance, push) are flown by our gait in between. The torque chosen on
+an observation acts at the next control tick (1 ms later: the API's call returns before the agent
+is asked); the first tick of each flight gets 0 N m.
+
+Observation: hopper.controllers.features (8 float32, normalised; FIELDS documents each).
+Action: (1,) float32 in [-1, 1], the wheel torque / 29.5 N m (the motor's envelope clamps it).
+Reward, per step: -(pitch / 2 deg)^2 * dt * W_PITCH - a^2 * dt * W_TORQUE - W_ENERGY * (electrical
+J); at each touchdown -min((pitch / 1 deg)^2 + (rate / 20 deg/s)^2, 25) (true pitch and rate);
+a fall ends the episode with FALL_PENALTY.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any, Literal
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from hopper.config import (
+    GRAVITY_PRESETS,
+    MOTOR_RESISTANCE,
+    MOTOR_TORQUE_CONSTANT,
+    WHEEL_GEAR,
+    WHEEL_TORQUE_LIMIT,
+    SensingParams,
+    SimConfig,
+)
+from hopper.control import EV_FALL, EV_LIFTOFF, EV_TOUCHDOWN
+from hopper.control.gait import momentum_capacity
+from hopper.controllers.api import Observation
+from hopper.controllers.features import HIGH, LOW, SIZE, features
+from hopper.sim import Simulation
+
+ENV_ID = "hopper/FlightAttitude-v0"
+W_PITCH, W_TORQUE, W_ENERGY = 1.0, 0.1, 0.01  # per s of (pitch / 2 deg)^2, per s of a^2, per J
+LAND_PITCH_DEG, LAND_RATE_DEG_S, LAND_CAP = 1.0, 20.0, 25.0
+FALL_PENALTY = -100.0
+SPEC = "hopper.gym_env:EnvLaw"
+# Model randomisation (hopper.mismatch factors, x nominal), drawn uniformly when `randomise`.
+MISMATCH_RANGES = {
+    "torso_mass": (0.8, 1.25),
+    "wheel_inertia": (0.8, 1.2),
+    "motor_torque": (0.85, 1.15),
+    "leg_mass": (0.8, 1.3),
+    "friction": (0.6, 1.2),
+}
+GYRO_BIAS_RANGE = (0.0, 1.0)  # deg/s turn-on bias, drawn when `randomise` (realistic sensing)
+
+
+class EnvLaw:
+    """The env's flight law: returns the agent's pending torque (N m), keeps the observation it was called with."""
+
+    def __init__(self) -> None:
+        self.torque = 0.0
+        self.obs: Observation | None = None
+        self.calls = 0
+
+    def __call__(self, obs: Observation) -> float:
+        self.obs, self.calls = obs, self.calls + 1
+        return self.torque
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class EnvOptions:
+    """What an episode is made of; `reset(options=...)` may override any field for one episode."""
+
+    gravity: float | tuple[float, float] = GRAVITY_PRESETS["moon"]  # m/s^2, or a (low, high) log-uniform range
+    terrain: Literal["crater", "flat"] = "crater"
+    terrain_seeds: tuple[int, int] = (10_000, 20_000)  # drawn in [low, high); the league's seeds are below
+    sensing: Literal["ideal", "realistic"] = "ideal"
+    flights: int = 1  # flights an episode lasts
+    kick_probability: float = 0.0  # per flight: a pitch kick at a random time (0.1-0.8 of the flight)
+    kick_fraction: float = 0.5  # the largest kick, x the wheel's momentum capacity (1.51 N m s)
+    randomise: bool = False  # mismatch factors (MISMATCH_RANGES) and the gyro's turn-on bias
+
+    def __post_init__(self) -> None:
+        if self.flights < 1 or not 0.0 <= self.kick_probability <= 1.0:
+            raise ValueError("flights must be >= 1 and kick_probability in [0, 1]")
+
+
+class FlightAttitudeEnv(gym.Env):
+    """The wheel in flight, on hopper.sim.Simulation; see the module docstring for spaces and reward."""
+
+    metadata = {"render_modes": []}
+
+    def __init__(self, **options: Any) -> None:
+        self.options = EnvOptions(**options)
+        self.observation_space = spaces.Box(LOW, HIGH, (SIZE,), np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
+        self.sim: Simulation | None = None
+        self._kick_at = math.inf
+
+    # -- gymnasium ------------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
+        super().reset(seed=seed)
+        o = dataclasses.replace(self.options, **(options or {}))
+        self._episode = o
+        config = self._draw_config(o)
+        if self.sim is None:
+            self.sim = Simulation(config)
+        else:
+            self.sim.start_over(config)
+        self.law: EnvLaw = self.sim.law.controller
+        self.flights, self.kicks = 0, 0
+        self._kick_at = math.inf
+        obs, _, terminated, truncated, info = self._advance()
+        if terminated or truncated:  # fell before its first flight: only a broken gait does that
+            raise RuntimeError(f"episode ended before a flight: {info}")
+        return obs, info
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
+        a = float(np.clip(np.asarray(action, dtype=float).reshape(-1)[0], -1.0, 1.0))
+        low, high = self.law.obs.torque_bounds
+        tau = min(max(a * WHEEL_TORQUE_LIMIT, low), high)
+        self.law.torque = a * WHEEL_TORQUE_LIMIT
+        obs, reward, terminated, truncated, info = self._advance()
+        dt = self.sim.config.timestep
+        current = tau / (WHEEL_GEAR * MOTOR_TORQUE_CONSTANT)  # A
+        watts = max(current * current * MOTOR_RESISTANCE + tau * self.law.obs.wheel_speed, 0.0)  # no regeneration
+        pitch = self.law.obs.pitch / math.radians(2.0)
+        reward -= (W_PITCH * pitch * pitch + W_TORQUE * a * a) * dt + W_ENERGY * watts * dt
+        return obs, reward, terminated, truncated, info
+
+    # -- inside ---------------------------------------------------------------------------
+    def _draw_config(self, o: EnvOptions) -> SimConfig:
+        rng = self.np_random
+        g = o.gravity
+        if isinstance(g, (tuple, list)):
+            g = float(math.exp(rng.uniform(math.log(g[0]), math.log(g[1]))))
+        mismatch, sensor = (), SensingParams()
+        if o.randomise:
+            mismatch = tuple((k, float(rng.uniform(*r))) for k, r in MISMATCH_RANGES.items())
+            sensor = SensingParams(gyro_turn_on_bias=float(rng.uniform(*GYRO_BIAS_RANGE)))
+        seed = int(rng.integers(*o.terrain_seeds))
+        return SimConfig(seed=seed, terrain=o.terrain, gravity=float(g), sensing=o.sensing, sensor=sensor,
+                         controller=SPEC, mismatch=mismatch)  # fmt: skip
+
+    def _advance(self) -> tuple[np.ndarray, float, bool, bool, dict]:
+        """Step ticks until the law's next call (an observation), a touchdown of the last flight, a
+        fall or the time limit. Returns (obs, reward of landings and falls, terminated, truncated, info)."""
+        sim, law, o = self.sim, self.law, self._episode
+        if law.obs is not None and law.obs.time_since_liftoff >= self._kick_at:
+            self._kick_at = math.inf
+            self.kicks += 1
+            sim.disturb("pitch_kick", float(self.np_random.uniform(-1.0, 1.0)) * o.kick_fraction * momentum_capacity())
+        calls, reward, limit = law.calls, 0.0, sim.time_limit(o.flights)
+        while True:
+            events = sim.step()
+            if events & EV_FALL or sim.fallen:
+                return self._obs(), reward + FALL_PENALTY, True, False, self._info(fell=True)
+            if events & EV_TOUCHDOWN:
+                self.flights += 1
+                law.torque = 0.0
+                reward += self._landing()
+                if self.flights >= o.flights:
+                    return self._obs(), reward, True, False, self._info()
+            if events & EV_LIFTOFF:
+                self._flight_started()
+            if law.calls != calls:
+                return self._obs(), reward, False, False, self._info()
+            if sim.time >= limit:
+                return self._obs(), reward, False, True, self._info()
+
+    def _flight_started(self) -> None:
+        o, rng = self._episode, self.np_random
+        kick = o.kick_probability > 0.0 and rng.uniform() < o.kick_probability
+        g = self.sim.config.gravity
+        flight = 2.0 * math.sqrt(2.0 * g * self.sim.config.gait.apex_height) / g  # s, the gait's nominal
+        self._kick_at = float(rng.uniform(0.1, 0.8)) * flight if kick else math.inf
+
+    def _landing(self) -> float:
+        s = self.sim.state()
+        p = math.degrees(s.pitch) / LAND_PITCH_DEG
+        r = math.degrees(s.pitch_rate) / LAND_RATE_DEG_S
+        return -min(p * p + r * r, LAND_CAP)
+
+    def _obs(self) -> np.ndarray:
+        obs = self.law.obs if self.law.obs is not None else self.sim.observation()
+        return features(obs).astype(np.float32)
+
+    def _info(self, fell: bool = False) -> dict:
+        info = {"flights": self.flights, "fell": fell, "time": self.sim.time, "kicks": self.kicks}
+        hops = self.sim.hops
+        if hops and hops[-1].completed:
+            info["landing_error_deg"] = hops[-1].landing_error_deg  # signed, deg, the last touchdown's
+        return info
+
+
+def make_vector(n: int, **options: Any) -> gym.vector.SyncVectorEnv:
+    """n environments stepped together in this process (gymnasium.vector.SyncVectorEnv)."""
+    return gym.vector.SyncVectorEnv([lambda: FlightAttitudeEnv(**options) for _ in range(n)])
+
+
+if ENV_ID not in gym.registry:
+    gym.register(id=ENV_ID, entry_point="hopper.gym_env:FlightAttitudeEnv", max_episode_steps=None)

@@ -1,0 +1,87 @@
+"""The learned controller: the shipped weights fly through the API; other layouts and damaged files are refused."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import pytest
+
+from hopper.config import SimConfig
+from hopper.controllers import ControllerError, build, with_controller
+from hopper.controllers.features import LAYOUT
+from hopper.laws.policy import Policy, Weights, load_weights
+from hopper.sim import Simulation
+
+SHIPPED = Path(__file__).resolve().parent.parent / "hopper" / "laws" / "policy_weights.json"
+
+
+@pytest.mark.parametrize("seed", [0, 5])
+def test_the_policy_flies_seven_hops_without_a_fall(seed: int) -> None:
+    sim = Simulation(with_controller(SimConfig(seed=seed), "policy"))
+    hops = sim.run(7)
+    assert not sim.fallen and len(hops) == 7 and sim.controller_fault is None
+    assert max(abs(h.landing_error_deg) for h in hops) < 2.0
+    assert type(sim.law.controller) is Policy
+
+
+def test_the_policy_is_a_controller_like_any_other() -> None:
+    policy = build("policy")
+    assert isinstance(policy, Policy) and callable(policy)
+
+
+def test_the_weights_round_trip(tmp_path: Path) -> None:
+    w = Weights.pd(450.0, 30.0, hidden=4, seed=1)
+    w.save(tmp_path / "w.json")
+    back = load_weights(tmp_path / "w.json")
+    assert (back.flat() == w.flat()).all() and back.hidden == 4
+    assert (Weights.unflat(w.flat(), 4).flat() == w.flat()).all()
+
+
+def _refused(path: Path) -> str:
+    with pytest.raises(ControllerError) as info:
+        load_weights(path)
+    message = str(info.value)
+    assert "\n" not in message and str(path) in message
+    return message
+
+
+def test_weights_for_another_observation_layout_are_refused_in_one_line(tmp_path: Path) -> None:
+    doc = json.loads(SHIPPED.read_text())
+    doc["layout"] = {**LAYOUT, "version": 0, "fields": ["pitch", "rate"], "hash": "0123456789ab"}
+    (tmp_path / "old.json").write_text(json.dumps(doc))
+    assert "layout '0123456789ab'" in _refused(tmp_path / "old.json")
+
+
+@pytest.mark.parametrize(
+    ("damage", "cause"),
+    [
+        (lambda text: text[: len(text) // 2], "unreadable"),
+        (lambda text: text.replace('"w2"', '"w3"'), "damaged"),
+        (lambda text: json.dumps({**json.loads(text), "b2": "nan"}), "damaged"),
+        (lambda text: "[]", "not a hopper-policy"),
+    ],
+)
+def test_a_damaged_weights_file_is_refused_in_one_line(tmp_path: Path, damage, cause: str) -> None:
+    (tmp_path / "bad.json").write_text(damage(SHIPPED.read_text()))
+    assert cause in _refused(tmp_path / "bad.json")
+
+
+def test_a_missing_weights_file_is_refused(tmp_path: Path) -> None:
+    assert "unreadable" in _refused(tmp_path / "none.json")
+
+
+@pytest.mark.integration
+def test_a_short_training_runs_and_one_seed_gives_the_same_weights(tmp_path: Path) -> None:
+    if os.environ.get("CI") != "true":  # under CI the [test] extra installs cma: never skip there
+        pytest.importorskip("cma", reason="the [rl] extra (cma) is not installed")
+    from hopper.app.train_policy import main
+
+    runs = []
+    for name in ("a.json", "b.json"):
+        out = tmp_path / name
+        assert main(["--seed", "3", "--generations", "2", "--episodes", "1", "--popsize", "3", "--out", str(out)]) == 0
+        runs.append(load_weights(out))
+    assert json.loads(out.read_text())["meta"]["generations"] == 2 and runs[0].hidden == 16
+    assert (runs[0].flat() == runs[1].flat()).all()
