@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
 from hopper.app.cli_common import fail
+from hopper.app.recordings import WHOLE_FILE, FileLimits
 
 from hopper.config import SimConfig
 from hopper.interrupts import held, raise_if_stop_requested, stop_requested, wait_for_stop
@@ -69,7 +70,7 @@ def simulate(
     viewer: str = "off",
     report: Callable[[dict[str, Any]], None] | None = None,
     trace: bool = True,
-    rrd_options: dict[str, Any] | None = None,
+    limits: FileLimits = WHOLE_FILE,
     kicks: KickSchedule | None = None,
 ) -> dict[str, Any]:
     """Run one episode (optionally recorded), `report` its JSON-ready result and return it.
@@ -77,7 +78,7 @@ def simulate(
     With a served viewer the recording stays open, served, after the report until Ctrl-C.
     `trace` adds the 100 Hz time series `hopper-sim report` draws (hopper.trace): a Python call
     every tick, ~10 % of a run's wall time here; leave it out where only the metrics count.
-    `rrd_options` go to Telemetry (max_bytes, max_seconds: rollover into numbered parts).
+    `limits` cut the file into numbered parts (hopper.app.recordings.FileLimits).
     """
     from hopper.sim import Simulation  # keeps `--help` and argument errors fast
     from hopper.trace import TraceRecorder
@@ -92,23 +93,13 @@ def simulate(
     with held():
         try:
             if rrd is not None or viewer != "off":
-                from hopper.app.rerun_viewer import ViewerError, open_viewer
-
-                from hopper.telemetry import Telemetry
+                from hopper.app.recordings import open_recording
+                from hopper.app.rerun_viewer import ViewerError
 
                 try:
-                    live = open_viewer(viewer)
+                    telemetry, url = open_recording(sim, rrd, viewer, limits, on_stop=_recording_stopped)
                 except ViewerError as exc:
                     fail(str(exc))
-                telemetry = Telemetry(  # attaches itself to sim
-                    sim,
-                    path=rrd,
-                    sinks=live.sinks,
-                    on_close=live.close,
-                    on_stop=_recording_stopped,
-                    **(rrd_options or {}),
-                )
-                url = live.url
                 if url:
                     print(f"rerun web viewer: {url}", file=sys.stderr)
             start = time.perf_counter()
@@ -129,7 +120,7 @@ def simulate(
             }
             if recorder is not None:
                 result["trace"] = recorder.as_dict()
-            if telemetry is not None and rrd_options and any(v is not None for v in rrd_options.values()):
+            if telemetry is not None and limits.rolls:
                 result["rrd_parts"] = [str(p) for p in telemetry.parts]  # only with rollover: the numbered files
             if report is not None:
                 report(result)

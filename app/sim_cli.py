@@ -37,6 +37,7 @@ from hopper.app.cli_common import (
 )
 from hopper.app.episode import settings, simulate, version
 from hopper.app.episode import sim_config as sim_config  # re-exported: results' docs named it here first
+from hopper.app.recordings import FileLimits
 
 from hopper.config import TOTAL_MASS, Gains, GaitParams, InvalidConfig, SimConfig
 from hopper.interrupts import children_ignore_ctrl_c, stop_like_ctrl_c
@@ -281,15 +282,11 @@ def command_run(args: argparse.Namespace) -> int:
         if args.json:
             args.json.write_text(json.dumps(result, indent=2))
 
-    rolls = args.rrd_max_mb is not None or args.rrd_max_min is not None
-    if rolls and (args.rrd is None or args.rerun_viewer != "off"):
+    limits = FileLimits(max_mb=args.rrd_max_mb, max_min=args.rrd_max_min)
+    if limits.rolls and (args.rrd is None or args.rerun_viewer != "off"):
         fail("--rrd-max-mb and --rrd-max-min need --rrd and cannot be combined with --rerun-viewer")
-    options = {
-        "max_bytes": round(args.rrd_max_mb * 1e6) if args.rrd_max_mb is not None else None,
-        "max_seconds": args.rrd_max_min * 60.0 if args.rrd_max_min is not None else None,
-    }
     config = make_config(args, args.seed, wheel=not args.no_wheel)
-    result = simulate(config, args.hops, args.rrd, args.rerun_viewer, report, rrd_options=options, kicks=args.schedule)
+    result = simulate(config, args.hops, args.rrd, args.rerun_viewer, report, limits=limits, kicks=args.schedule)
     if result["short"] is not None:
         print(f"hopper-sim: error: {result['short']}", file=sys.stderr)
         return EXIT_SHORT

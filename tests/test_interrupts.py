@@ -8,7 +8,8 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from hopper.app import episode
+from hopper.app import episode, recordings
+from hopper.app.recordings import FileLimits
 from rrd import verify
 
 from hopper import interrupts
@@ -16,7 +17,7 @@ from hopper.config import SimConfig
 from hopper.telemetry import recorder, scene, writer
 
 # The code a stop can cut short with a file open: the CLI's run, the recorder, its writer.
-WATCHED = {m.__file__ for m in (episode, interrupts, recorder, scene, writer)}
+WATCHED = {m.__file__ for m in (episode, interrupts, recordings, recorder, scene, writer)}
 
 
 @pytest.fixture
@@ -30,7 +31,7 @@ def stop_handlers() -> Iterator[None]:
     interrupts.clear()
 
 
-def record(path: Path, names: list[str], at: int | None = None, **rrd_options: float) -> None:
+def record(path: Path, names: list[str], at: int | None = None, **limits: float) -> None:
     """A recorded one-hop run that sends SIGTERM at its `at`-th line executed in WATCHED;
     the function of each line executed is appended to `names`."""
 
@@ -46,7 +47,7 @@ def record(path: Path, names: list[str], at: int | None = None, **rrd_options: f
 
     sys.settrace(tracer)
     try:
-        episode.simulate(SimConfig(terrain="flat"), 1, path, trace=False, rrd_options=rrd_options or None)
+        episode.simulate(SimConfig(terrain="flat"), 1, path, trace=False, limits=FileLimits(**limits))
     finally:
         sys.settrace(None)
 
@@ -55,7 +56,7 @@ def record(path: Path, names: list[str], at: int | None = None, **rrd_options: f
 def test_a_stop_at_any_line_of_a_recorded_run_leaves_files_that_verify(
     tmp_path: Path, stop_handlers: None, rollover: bool
 ) -> None:
-    options = {"max_seconds": 0.4} if rollover else {}  # a 1.5 s hop in four parts: each switch is a moment
+    options = {"max_min": 0.4 / 60} if rollover else {}  # a 1.5 s hop in four parts: each switch is a moment
     dry: list[str] = []
     record(tmp_path / "dry.rrd", dry, **options)
     assert len(dry) > 1000 and "_open_part" in dry, len(dry)

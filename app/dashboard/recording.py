@@ -9,6 +9,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Literal
 
+from hopper.app.recordings import FileLimits, open_recording
+
 from hopper.events import Recording as RecordingEvent
 from hopper.sim import Command, Simulation
 
@@ -24,22 +26,6 @@ def telemetry_module() -> Any:
     except ImportError as exc:
         raise ValueError(f"recording needs hopper.telemetry, which is not available ({exc})") from None
     return telemetry
-
-
-@dataclasses.dataclass(frozen=True, kw_only=True)
-class FileLimits:
-    """How recordings are cut into files and how often they are flushed (hopper.telemetry.Telemetry)."""
-
-    max_mb: float | None = None  # MB (1e6 bytes) per part; None: no size limit
-    max_min: float | None = None  # minutes of simulation per part; None: no duration limit
-    flush_s: float = 1.0  # s of wall time between flushes
-
-    def telemetry_options(self) -> dict[str, Any]:
-        return {
-            "max_bytes": round(self.max_mb * 1e6) if self.max_mb is not None else None,
-            "max_seconds": self.max_min * 60.0 if self.max_min is not None else None,
-            "flush_s": self.flush_s,
-        }
 
 
 @dataclasses.dataclass(frozen=True)
@@ -119,21 +105,16 @@ class Recorder:
 
     def attach(self, sim: Simulation, path: Path | None, viewer: Viewer = "off", name: str | None = None) -> None:
         """Start recording now; on the loop thread (AttachRecording) or before the loop starts."""
-        from hopper.app.rerun_viewer import open_viewer
-
         try:
-            live = open_viewer(viewer)
-            options = self.limits.telemetry_options() if path is not None else {}
             mine: list[Any] = []  # this recording, for callbacks that may come after a newer one started
-            recording = telemetry_module().Telemetry(
+            recording, url = open_recording(
                 sim,
-                path=path,
-                sinks=live.sinks,
-                on_close=live.close,
-                recording_name=name,
+                path,
+                viewer,
+                self.limits,
+                name,
                 on_part=lambda finished, started: self._next_part(sim, finished, started),
                 on_stop=lambda message: self._stopped(sim, mine, message),
-                **options,
             )
         except Exception as exc:
             self._changed(sim, "failed", f"{type(exc).__name__}: {exc}")
@@ -142,7 +123,7 @@ class Recorder:
             self._pending = False
         mine.append(recording)
         self._telemetry = recording
-        self.viewer_url = live.url
+        self.viewer_url = url
         self.path = recording.path
         self._changed(sim, "recording")
 

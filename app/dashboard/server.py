@@ -25,7 +25,7 @@ from hopper.app.dashboard.panels import PanelContext
 from hopper.app.dashboard.panels.status import Status
 from hopper.app.dashboard.physics import PhysicsView, bind_drag
 from hopper.app.dashboard.plots import PLOT_SAMPLE_S
-from hopper.app.dashboard.recording import FileLimits, Recorder
+from hopper.app.dashboard.recording import Recorder
 from hopper.app.dashboard.roles import Roles
 from hopper.app.dashboard.scene import (
     CameraFollow,
@@ -38,6 +38,7 @@ from hopper.app.dashboard.scene import (
     saturation,
 )
 from hopper.app.dashboard.wire import guard_gui_updates
+from hopper.app.recordings import FileLimits
 
 from hopper.config import WHEEL_NO_LOAD_SPEED
 from hopper.control.gait import momentum_capacity
