@@ -9,7 +9,7 @@ report, then they receive and decode the full stream (zstd + msgpack + binary bu
 browser would, without rendering it. Everything is measured in this one run.
 
 Per client it reports the bytes received per second split into charts (uPlot data), poses (the
-scene nodes' transforms) and other (status, trail, tables, ...), as benchmarks/probe.py attributes
+scene nodes' transforms) and other (status, trail, tables, ...), as app/dashboard/probe.py attributes
 them, the scene updates per second (frames that moved the robot) and the chart refreshes per
 second (data updates of the least refreshed chart).
 
@@ -43,7 +43,7 @@ def free_port() -> int:
 
 def probe_main(url: str, clients: int, settle: float, seconds: float) -> None:
     """Child process: connect `clients`, wait out the initial scene, measure, print JSON."""
-    from benchmarks.probe import ProbeClient
+    from hopper.app.dashboard.probe import ProbeClient
 
     probes = [ProbeClient(url) for _ in range(clients)]
     for p in probes:

@@ -1,7 +1,7 @@
 """Shared parts of the load and soak runs: headless clients in child processes, error capture, RTF windows.
 
 Clients run in child processes (browsers are separate processes too), a thread per client slot,
-each speaking viser's real protocol through benchmarks.probe.ProbeClient. A slot that stays keeps
+each speaking viser's real protocol through hopper.app.dashboard.probe.ProbeClient. A slot that stays keeps
 one connection for the whole run; the others connect, stay a random while and leave, again and
 again. Each child prints one JSON line: every session with its scene updates per second.
 """
@@ -27,7 +27,7 @@ MEASURE_AFTER_S = 1.0  # s after a session's first pose before its rate is measu
 # -- the child: client slots ---------------------------------------------------------------------
 def _slot(url: str, index: int, stay: bool, seed: int, start: float, settle: float, end: float) -> dict:
     """One client slot until `end` (time.monotonic()): its sessions and errors."""
-    from benchmarks.probe import ProbeClient
+    from hopper.app.dashboard.probe import ProbeClient
 
     rng = random.Random(seed * 1000 + index)
     sessions: list[dict[str, Any]] = []

@@ -7,10 +7,10 @@ from pathlib import Path
 
 import pytest
 from hopper.app.dashboard.config import DashboardConfig
+from hopper.app.dashboard.probe import ProbeClient
 from hopper.app.dashboard.server import Dashboard
 from net import free_port, wait_until
 
-from benchmarks.probe import ProbeClient
 from hopper.config import SimConfig
 from hopper.sim import Simulation
 

@@ -19,11 +19,11 @@ import websockets.exceptions
 import websockets.sync.client as ws_client
 from hopper.app.dashboard.access import Access, is_loopback, page_url
 from hopper.app.dashboard.config import DashboardConfig
+from hopper.app.dashboard.probe import ProbeClient
 from net import free_port, wait_until
 from rerun.chunk import RrdReader
 from rrd import verify
 
-from benchmarks.probe import ProbeClient
 from hopper.config import InvalidConfig
 
 pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)

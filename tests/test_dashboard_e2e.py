@@ -119,11 +119,14 @@ def test_dashboard_in_a_real_browser(browser, tmp_path: Path) -> None:
             close_notice.first.click()
         scene = page.locator("canvas").nth(page.evaluate(LARGEST_CANVAS_JS))
         shot, colours = tmp_path / "canvas.png", 0
-        deadline = time.monotonic() + 60
-        while colours < MIN_CANVAS_COLOURS and time.monotonic() < deadline:
-            time.sleep(1.0)
+
+        def drawn() -> bool:
+            nonlocal colours
             scene.screenshot(path=str(shot))
             colours = distinct_colours(shot)
+            return colours >= MIN_CANVAS_COLOURS
+
+        wait_until(drawn, timeout=60)
         print(f"\n3D canvas: {colours} distinct colours ({elapsed()})")
         assert colours >= MIN_CANVAS_COLOURS, f"the 3D canvas looks blank ({colours} colours)"
 

@@ -18,11 +18,11 @@ from hopper.app.dashboard import feedback
 from hopper.app.dashboard.config import DashboardConfig
 from hopper.app.dashboard.feedback import Refused, format_number, notify, parse_number
 from hopper.app.dashboard.plots import LivePlots
+from hopper.app.dashboard.probe import ProbeClient
 from hopper.app.dashboard.scene import LOOK_OFFSET
 from hopper.app.dashboard.server import Dashboard
 from net import free_port, wait_until
 
-from benchmarks.probe import ProbeClient
 from hopper.commands import Reset, SetWheel
 from hopper.config import GAIN_RANGES, WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT
 from hopper.events import Event

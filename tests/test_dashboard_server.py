@@ -19,10 +19,10 @@ from hopper.app.dashboard.feedback import notify_all
 from hopper.app.dashboard.pacing import MAX_LAG_S, Pacer
 from hopper.app.dashboard.panels.events import describe
 from hopper.app.dashboard.panels.hops import hop_table_html
-from hopper.app.dashboard.server import FRAME_S, STATUS_S, Dashboard, PortInUse
+from hopper.app.dashboard.probe import ProbeClient
+from hopper.app.dashboard.server import FALL_RESET_S, FRAME_S, STATUS_S, Dashboard, PortInUse
 from net import free_port, port_is_free, wait_until
 
-from benchmarks.probe import ProbeClient
 from hopper.events import Disturbance, Event, EventKind, Liftoff
 from hopper.metrics import HopMetrics
 
@@ -156,7 +156,7 @@ def test_commands_apply_while_paused(dashboard: Dashboard, client: ProbeClient) 
     assert wait_until(lambda: dashboard.sim.gains.kp == 700.0)
     client.set_gui_value("Step", "+10 ms")
     assert wait_until(lambda: abs(dashboard.sim.time - (t + 0.010)) < 1e-9)
-    time.sleep(0.3)
+    _rounds(dashboard, 10)  # ten rounds of the loop, each of which would have stepped a running one
     assert abs(dashboard.sim.time - (t + 0.010)) < 1e-9, "a paused simulation must not advance on its own"
     client.set_gui_value("Resume", True)
     assert wait_until(lambda: dashboard.sim.time > t + 0.2)
@@ -241,7 +241,11 @@ def test_a_fall_is_notified_and_reset_unless_stay_fallen(dashboard: Dashboard, c
     dashboard.sim.submit(Call(topple))
     assert client.wait_for(lambda p: "The robot fell" in titles(p))
     assert "stays down" in client.notifications[-1]["body"]
-    time.sleep(2.5)
+    fell = time.monotonic()
+    # The auto reset comes FALL_RESET_S of wall time after a fall, at the loop's next round: wait
+    # that long, then for rounds after it, each of which would have reset the robot.
+    assert wait_until(lambda: time.monotonic() - fell > FALL_RESET_S, timeout=FALL_RESET_S + 5)
+    _rounds(dashboard, 5)
     assert dashboard.sim.fallen, "Stay fallen must keep the robot down"
     client.set_gui_value("Stay fallen", False)
     assert wait_until(lambda: not dashboard.sim.fallen, timeout=5.0), "no auto reset after the fall"
@@ -267,7 +271,7 @@ def test_eight_clients_coming_and_going_leave_the_simulation_in_real_time(dashbo
         clients = [ProbeClient(dashboard.url) for _ in range(8)]
         assert all(c.wait_for(lambda p: p.pose_frames > 0, timeout=15) for c in clients)
         connected += len(clients)
-        time.sleep(0.3)
+        assert all(c.wait_for(lambda p: p.pose_frames > 5, timeout=15) for c in clients)  # served a while
         for c in clients:
             c.close()
     wall = time.perf_counter() - start_wall
@@ -286,7 +290,8 @@ def test_record_and_stop_write_a_session_file(dashboard: Dashboard, client: Prob
     path = dashboard.recorder.path
     assert path.parent == (dashboard.config.sessions_dir).absolute() and path.suffix == ".rrd"
     assert wait_until(lambda: "Recording to" in dashboard.layout.record.info.content)
-    time.sleep(1.0)
+    t = dashboard.sim.time
+    assert wait_until(lambda: dashboard.sim.time > t + 1.0)  # a second of simulation recorded
     client.set_gui_value("Stop recording", True)
     assert client.wait_for(lambda p: "Recording saved" in titles(p), timeout=30)
     assert path.stat().st_size > 10_000
@@ -388,16 +393,16 @@ def test_realistic_sensing_is_switched_from_the_gains_tab(dashboard: Dashboard, 
     assert wait_until(lambda: dashboard.sim.config.sensing == "ideal")
 
 
+def _rounds(dashboard: Dashboard, count: int) -> None:
+    """Wait for `count` more rounds of the dashboard's loop (each publishes a frame)."""
+    start = dashboard.frames
+    assert wait_until(lambda: dashboard.frames >= start + count, timeout=30)
+
+
 def _settled_time(dashboard: Dashboard) -> float:
-    """The simulation time once the loop has stopped stepping (equal over 0.2 s)."""
-    seen: list[float] = []
-
-    def still() -> bool:
-        seen.append(dashboard.sim.time)
-        time.sleep(0.2)
-        return dashboard.sim.time == seen[-1]
-
-    assert wait_until(still, timeout=30)
+    """The simulation time once a paused loop has stopped stepping: a batch begun before the pause
+    breaks off at the tick that applied it, so two whole rounds after it nothing steps."""
+    _rounds(dashboard, 2)
     return dashboard.sim.time
 
 
@@ -407,9 +412,9 @@ def test_at_64x_the_camera_keeps_the_robot_in_view(dashboard: Dashboard) -> None
     dashboard.set_speed(64.0)
     assert wait_until(lambda: dashboard.sim.time > 5.0, timeout=30)
     offsets = []
-    for _ in range(40):
+    for _ in range(40):  # one sample a frame: the camera moves once per published frame
         offsets.append(abs(float(dashboard.camera.shown_robot()[0])))
-        time.sleep(0.05)
+        _rounds(dashboard, 1)
     assert sorted(offsets)[len(offsets) // 2] < 0.5, offsets  # the median frame: the robot near the centre
     assert dashboard.pacer.real_time_factor() > 16.0  # it did fast-forward
 

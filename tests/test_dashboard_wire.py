@@ -20,11 +20,11 @@ from hopper.app.dashboard.plots import (
     LivePlots,
     simplify,
 )
+from hopper.app.dashboard.probe import CATEGORIES, ProbeClient
 from hopper.app.dashboard.scene import ROBOT, WORLD, RobotView, kinematic_parents, local_poses
 from hopper.app.dashboard.server import Dashboard
 from net import free_port
 
-from benchmarks.probe import CATEGORIES, ProbeClient
 from hopper.config import WHEEL_TORQUE_LIMIT, SimConfig
 from hopper.control import Phase
 from hopper.meshes import body_meshes, body_poses

@@ -13,11 +13,10 @@ from pathlib import Path
 
 import pytest
 from hopper.app.dashboard.config import DashboardConfig
+from hopper.app.dashboard.probe import ProbeClient
 from hopper.app.dashboard.server import Dashboard
 from net import free_port, wait_until
 from rrd import signal_times, verify
-
-from benchmarks.probe import ProbeClient
 
 pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)
 

@@ -17,10 +17,9 @@ from pathlib import Path
 
 import msgspec
 import pytest
+from hopper.app.dashboard.probe import ProbeClient
 from net import free_port, wait_until
 from rrd import RERUN_BINARY, signal_times, verify
-
-from benchmarks.probe import ProbeClient
 
 pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)
 

@@ -10,10 +10,10 @@ import msgspec
 import pytest
 import viser
 import websockets.sync.client as ws_client
+from hopper.app.dashboard.probe import ProbeClient
 from hopper.app.dashboard.server import Dashboard
 from net import wait_until
 
-from benchmarks.probe import ProbeClient
 from hopper.config import GAIN_RANGES
 
 pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)

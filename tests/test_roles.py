@@ -10,10 +10,10 @@ from collections.abc import Callable
 
 import pytest
 from hopper.app.dashboard import viser_compat as compat
+from hopper.app.dashboard.probe import ProbeClient
 from hopper.app.dashboard.server import Dashboard
 from net import wait_until
 
-from benchmarks.probe import ProbeClient
 from hopper.events import EventKind, OperatorChanged
 
 pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)

@@ -200,7 +200,9 @@ def test_a_signal_mid_run_exits_130_with_a_finalized_recording(tmp_path: Path, s
     pytest.importorskip("hopper.telemetry")
     rrd = tmp_path / "run.rrd"
     process = subprocess.Popen(
-        [sys.executable, "-m", "hopper.app.sim_cli", "run", "--hops", "30", "--rrd", str(rrd)],
+        # Flat ground and more hops than any machine flies in a test: the run is still going at the
+        # moment of the signal, however fast the machine (30 crater hops took under 1.5 s on one).
+        [sys.executable, "-m", "hopper.app.sim_cli", "run", "--terrain", "flat", "--hops", "100000", "--rrd", str(rrd)],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -247,7 +249,7 @@ def test_ctrl_c_during_compare_exits_130_without_worker_tracebacks() -> None:
         progress = ""
         while "/60 [" not in progress and process.poll() is None:  # the workers are running their first runs
             progress += process.stderr.read(1)
-        time.sleep(2.0)
+        time.sleep(2.0)  # not a wait: the moment of the Ctrl-C, inside the workers' runs (any moment must do)
         os.killpg(process.pid, signal.SIGINT)
         out, err = process.communicate(timeout=60)
     finally:

@@ -261,7 +261,7 @@ def test_interrupt_leaves_a_verified_recording(tmp_path: Path, signum: int) -> N
     child = subprocess.Popen([sys.executable, "-c", script, str(path)], stdout=subprocess.PIPE, text=True, env=env)
     try:
         assert child.stdout is not None and child.stdout.readline().strip() == "ready"
-        time.sleep(1.0)
+        time.sleep(1.0)  # not a wait: the moment of the signal, mid-recording (any moment must do)
         child.send_signal(signum)
         code = child.wait(timeout=60)
         steps = int(child.stdout.read().split()[-1])

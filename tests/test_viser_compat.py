@@ -21,9 +21,9 @@ import viser
 import websockets.exceptions
 import websockets.sync.client as ws_client
 from hopper.app.dashboard import viser_compat as compat
+from hopper.app.dashboard.probe import ProbeClient
 from net import wait_until
 
-from benchmarks.probe import ProbeClient
 from hopper.errors import HopperError
 from hopper.versions import UnsupportedVersion
 

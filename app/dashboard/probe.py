@@ -1,4 +1,7 @@
-"""A headless viser client for tests and benchmarks: the browser's handshake and wire format, no DOM.
+"""A headless client of a running dashboard: the browser's handshake and wire format, no DOM.
+
+What the tests and benchmarks/ watch a session with, and what measures a stream's bytes per client
+(bench_dashboard) without a browser.
 
 It connects with the `viser-v<version>` subprotocol, reports a camera (the server only registers a
 client after its first camera message), and decodes every frame the server sends: 16-byte header,
