@@ -383,7 +383,7 @@ def groups(text: str) -> tuple[str, ...]:
 def command_stress(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from hopper.stress import battery, run_case, table
+    from hopper.experiments.stress import battery, run_case, table
 
     flown = with_controller_flags(SimConfig(), args)
     cases = battery(seeds=args.seeds, gravity_seeds=args.gravity_seeds, quick=args.quick, controller=flown)
@@ -407,8 +407,8 @@ def command_stress(args: argparse.Namespace) -> int:
 
 
 def command_league(args: argparse.Namespace) -> int:
-    from hopper import league
     from hopper.controllers.loading import canonical
+    from hopper.experiments import league
 
     specs = [canonical(c) for c in args.controllers.split(",") if c.strip()]
     if not specs:
@@ -453,9 +453,9 @@ def command_envelope(args: argparse.Namespace) -> int:
     """Fly the envelope's grid on all cores; print its table, write the figure and JSON if asked."""
     from tqdm import tqdm
 
-    from hopper import envelope
+    from hopper.analysis import envelope
     from hopper.disturbances import DISTURBANCE_LIMITS
-    from hopper.stress import LANDING_LIMIT_DEG, run_case
+    from hopper.experiments.stress import LANDING_LIMIT_DEG, run_case
 
     top = DISTURBANCE_LIMITS["pitch_kick"][0]
     if not all(0 < v <= top for v in args.sizes):

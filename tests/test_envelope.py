@@ -12,7 +12,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from hopper import envelope
+from hopper.analysis import envelope
 from hopper.config import (
     LEG_TORQUE_LIMIT,
     WHEEL_ARMATURE,
@@ -23,9 +23,9 @@ from hopper.config import (
 )
 from hopper.control import Phase
 from hopper.control.gait import LEG_SHARE, momentum_capacity
+from hopper.experiments.stress import LANDING_LIMIT_DEG, run_case
 from hopper.model import build_model
 from hopper.sim import Simulation
-from hopper.stress import LANDING_LIMIT_DEG, run_case
 
 FLAT = SimConfig(terrain="flat")
 

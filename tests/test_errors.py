@@ -12,7 +12,7 @@ import hopper.terrain
 from hopper.errors import HopperError
 
 # Exceptions used for control flow, not errors a user sees.
-NOT_ERRORS = {"hopper.linearize.Cancelled"}
+NOT_ERRORS = {"hopper.analysis.linearize.Cancelled"}
 
 
 def product_exceptions() -> list[type[BaseException]]:

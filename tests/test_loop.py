@@ -1,4 +1,4 @@
-"""Loop analysis and gain design (hopper.loop, hopper.linearize, hopper.design), checked against
+"""Loop analysis and gain design (hopper.analysis: loop, linearize, design), checked against
 closed forms on the reduced model and against the full simulation's response to a kick in flight."""
 
 from __future__ import annotations
@@ -7,11 +7,11 @@ import math
 
 import pytest
 
+from hopper.analysis.design import lqr_bryson, place_poles, reduced_placement
+from hopper.analysis.identify import fit_modes, kick_in_flight
+from hopper.analysis.linearize import flight_plant, settled_flight
+from hopper.analysis.loop import analyse, dominant_pair, pitch_inertia, reduced_plant
 from hopper.config import WHEEL_TORQUE_LIMIT, Gains, SimConfig
-from hopper.design import lqr_bryson, place_poles, reduced_placement
-from hopper.identify import fit_modes, kick_in_flight
-from hopper.linearize import flight_plant, settled_flight
-from hopper.loop import analyse, dominant_pair, pitch_inertia, reduced_plant
 from hopper.sim import Simulation
 
 WHEEL_ARMATURE = 0.0045  # kg m^2, models/hopper.xml

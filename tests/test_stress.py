@@ -14,8 +14,8 @@ import pytest
 from hopper.config import GRAVITY_PRESETS, SimConfig
 from hopper.control import Phase
 from hopper.control.gait import momentum_capacity
+from hopper.experiments.stress import Case, Schedule, battery, run_case
 from hopper.sim import TORQUE_PULSE_S
-from hopper.stress import Case, Schedule, battery, run_case
 
 pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)
 

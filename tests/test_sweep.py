@@ -23,10 +23,10 @@ from hopper.experiments.executor import InProcess, chunks
 from hopper.experiments.runner import run_sweep
 from hopper.experiments.spec import SpecError, parse_spec
 from hopper.experiments.store import RESULT_COLUMNS, SETTING_COLUMNS, SweepStore
+from hopper.experiments.stress import Case, Schedule, run_case
 from hopper.experiments.worker import Worker
 from hopper.metrics import HopMetrics
 from hopper.model import build_model, set_terrain, terrain_heights
-from hopper.stress import Case, Schedule, run_case
 
 pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)
 

@@ -11,7 +11,7 @@ from hopper.app.dashboard.server import Dashboard
 from net import wait_until
 from test_dashboard_e2e import browser, open_workbench  # noqa: F401  (the Chromium fixture)
 
-from hopper.loop import analyse
+from hopper.analysis.loop import analyse
 
 ANALYSIS_JS = "() => document.querySelector('.hd-analysis') ? document.querySelector('.hd-analysis').innerText : ''"
 LOG_JS = "() => [...document.querySelectorAll('table.hd-log')].map(t => t.textContent).join(' | ')"

@@ -13,12 +13,12 @@ from __future__ import annotations
 
 import collections
 import dataclasses
+import importlib.metadata
 import threading
 import time
 from typing import Any
 
 import msgspec
-import viser
 import websockets.sync.client as ws_client
 import zstandard
 
@@ -89,7 +89,7 @@ class ProbeClient:
         ws_url = url.replace("http://", "ws://", 1)
         self._socket = ws_client.connect(
             ws_url,
-            subprotocols=[f"viser-v{viser.__version__}"],  # type: ignore[list-item]
+            subprotocols=[f"viser-v{importlib.metadata.version('viser')}"],  # type: ignore[list-item]
             open_timeout=open_timeout,
             max_size=None,
             compression=None,

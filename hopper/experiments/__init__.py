@@ -1,1 +1,2 @@
-"""Experiments at scale: sweep specs, episodes run by reusable workers, executors (local or Ray), Parquet, tuning."""
+"""Experiments at scale: sweep specs, episodes run by reusable workers, executors (local or Ray), Parquet,
+tuning, the stress battery and the league of controllers."""

@@ -43,7 +43,7 @@ from hopper.controllers import ControllerError, load_class, with_controller
 from hopper.controllers.loading import canonical, declared_params
 from hopper.disturbances import DISTURBANCE_LIMITS
 from hopper.errors import HopperError
-from hopper.stress import Schedule
+from hopper.experiments.stress import Schedule
 
 AXES = ("kp", "ki", "kd", "gravity", "seeds", "hops", "terrain", "wheel", "sensing")
 GAIT_FIELDS = tuple(f.name for f in dataclasses.fields(GaitParams))

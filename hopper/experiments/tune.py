@@ -25,8 +25,8 @@ from hopper.controllers import Param
 from hopper.controllers.loading import declared_params, load_class
 from hopper.experiments.executor import Executor, chunks
 from hopper.experiments.spec import GAIT_FIELDS, Episode
+from hopper.experiments.stress import LANDING_LIMIT_DEG
 from hopper.experiments.worker import EpisodeResult
-from hopper.stress import LANDING_LIMIT_DEG
 
 # Search ranges (low, high, log scale): a decade around PHYSICS.md's LQR range (kp 340 to 850,
 # kd 17 to 31) and the defaults; ki only trims model error in flight.

@@ -14,9 +14,9 @@ from typing import Any
 from hopper.config import WHEEL_NO_LOAD_SPEED, SimConfig
 from hopper.controllers import ControllerError
 from hopper.experiments.spec import Episode
+from hopper.experiments.stress import run_episode
 from hopper.metrics import HopMetrics
 from hopper.sim import Simulation
-from hopper.stress import run_episode
 
 
 @dataclasses.dataclass(frozen=True)

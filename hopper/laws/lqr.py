@@ -20,7 +20,7 @@ class LQR:
     torque_scale. Weighting the wheel's speed makes the law spend the wheel's momentum with care:
     in flight the total momentum is conserved, so the wheel's speed is only what the torso's
     motion leaves it, and the law trades pitch against a full wheel. The design assumes no command
-    delay; with realistic sensing the motor's delay lowers its margins (hopper.loop measures them).
+    delay; with realistic sensing the motor's delay lowers its margins (hopper.analysis.loop measures them).
     """
 
     params = (

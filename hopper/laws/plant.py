@@ -1,6 +1,6 @@
 """The attitude plant a model-based controller designs on: pitch, pitch rate and wheel speed.
 
-From hopper.linearize's flight plant (the whole MuJoCo model linearized in flight with the leg
+From hopper.analysis.linearize's flight plant (the whole MuJoCo model linearized in flight with the leg
 servos closed), the rows and columns of the three states an API controller observes. The hip
 servos' springs stay in it (the pitch row's restoring term); the legs' own states are dropped.
 """
@@ -12,9 +12,9 @@ import functools
 
 import numpy as np
 
+from hopper.analysis.linearize import flight_plant, settled_flight
+from hopper.analysis.loop import Plant
 from hopper.config import SimConfig
-from hopper.linearize import flight_plant, settled_flight
-from hopper.loop import Plant
 
 
 @dataclasses.dataclass(frozen=True)

@@ -6,9 +6,9 @@ from pathlib import Path
 
 import numpy as np
 
-from hopper.envelope import Moment, physical_limit, wheel_reach
+from hopper.analysis.envelope import Moment, physical_limit, wheel_reach
+from hopper.experiments.stress import LANDING_LIMIT_DEG, Outcome
 from hopper.report import style
-from hopper.stress import LANDING_LIMIT_DEG, Outcome
 
 KINDS = (  # outcome, marker, colour, label
     ("landed", "o", "#2e8b57", f"landed within {LANDING_LIMIT_DEG:g} deg"),

@@ -1,6 +1,6 @@
 """Loop analysis beside the gains, and the design helpers that write them.
 
-The analysis is of the flight plant (hopper.linearize): the whole model linearized early in a
+The analysis is of the flight plant (hopper.analysis.linearize): the whole model linearized early in a
 flight of the present configuration, computed on a worker thread whenever gravity, terrain or
 sensing change; a gain change only re-closes the loop (about 60 ms), so it follows every change,
 on a worker thread of its own: never on the simulation's 1 kHz loop, which reports gain changes.
@@ -20,12 +20,12 @@ import viser
 from hopper.app.dashboard.feedback import guarded, notify
 from hopper.app.dashboard.panels.entry import NumberEntry
 
+from hopper.analysis.design import lqr_bryson, place_poles
+from hopper.analysis.linearize import Cancelled, flight_plant, settled_flight
+from hopper.analysis.loop import LoopAnalysis, Plant, analyse
 from hopper.config import WHEEL_TORQUE_LIMIT, Gains, SimConfig
 from hopper.control.gait import momentum_capacity
 from hopper.controllers import FlightLaw
-from hopper.design import lqr_bryson, place_poles
-from hopper.linearize import Cancelled, flight_plant, settled_flight
-from hopper.loop import LoopAnalysis, Plant, analyse
 
 log = logging.getLogger(__name__)
 

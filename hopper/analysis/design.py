@@ -1,6 +1,6 @@
 """Gain design for the flight PID: pole placement on the flight plant, and Bryson's LQR.
 
-Both start from the reduced model `J theta_ddot = -tau_w` (hopper.loop). Pole placement then
+Both start from the reduced model `J theta_ddot = -tau_w` (hopper.analysis.loop). Pole placement then
 corrects the gains on the plant given (the linearized flight, where the leg servos make the torso
 lighter than J at the loop's frequencies) until its dominant pair is the one asked for.
 """
@@ -13,8 +13,8 @@ import control as ct
 import numpy as np
 from scipy.optimize import least_squares
 
+from hopper.analysis.loop import Plant, close, dominant_pair, pitch_modes
 from hopper.config import GAIN_RANGES, Gains
-from hopper.loop import Plant, close, dominant_pair, pitch_modes
 
 # The integral's real pole at this fraction of wn: slow (it only trims model error in flight, where
 # no steady torque acts) and far enough below the pair not to move it.

@@ -27,14 +27,14 @@ import math
 
 import numpy as np
 
+from hopper.analysis.loop import pitch_inertia
 from hopper.config import LEG_TORQUE_LIMIT, WHEEL_INERTIA, WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT, SimConfig
 from hopper.control import Phase
 from hopper.control.gait import LANDING_POSE_TOLERANCE, momentum_capacity
 from hopper.control.wheel import wheel_torque_bound
-from hopper.loop import pitch_inertia
+from hopper.experiments.stress import LANDING_LIMIT_DEG, Case, Outcome, Schedule
 from hopper.sim import Simulation
 from hopper.state import angular_momentum
-from hopper.stress import LANDING_LIMIT_DEG, Case, Outcome, Schedule
 
 KICKED_HOP = 2  # the kick comes in the second flight (the first starts from the standing pose)
 

@@ -4,10 +4,10 @@ The wheel law `tau_w = kp theta + kd theta_dot + ki int theta` is state feedback
 with a zero-order hold and `delay` ticks of command latency (0 in ideal sensing, the motor delay in
 realistic mode). It closes around a Plant: the sampled dynamics from the wheel torque to the state.
 Two plants exist: `reduced_plant`, PHYSICS.md's `J theta_ddot = -tau_w` with the legs held rigid, and
-hopper.linearize's flight plant, the whole MuJoCo model linearized with the leg servos closed. The
+hopper.analysis.linearize's flight plant, the whole MuJoCo model linearized with the leg servos closed. The
 legs hold their angle in the world, not on the torso, so at the wheel loop's frequencies they are
 partly decoupled and the reduced model's wn and zeta are off by 20 to 60 %; the flight plant is what
-the simulation does (checked by hopper.identify).
+the simulation does (checked by hopper.analysis.identify).
 """
 
 from __future__ import annotations

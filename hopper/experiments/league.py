@@ -18,9 +18,9 @@ from hopper.config import GRAVITY_PRESETS, SimConfig
 from hopper.control.gait import momentum_capacity
 from hopper.control.phases import Phase
 from hopper.experiments.spec import Episode
+from hopper.experiments.stress import Schedule
 from hopper.experiments.worker import EpisodeResult
 from hopper.sim import TORQUE_PULSE_S
-from hopper.stress import Schedule
 
 GRAVITIES = (
     0.2,

@@ -1,6 +1,6 @@
 """The flight loop identified from the simulation: a small kick in flight, and the modes fitted to it.
 
-Checks hopper.loop's analysis against the full simulation. Two identical runs are stepped to the
+Checks hopper.analysis.loop's analysis against the full simulation. Two identical runs are stepped to the
 same moment of the first flight (the legs in their landing pose); one is kicked; the difference of
 their pitch is the loop's response to the kick alone, free of the flight's own motion.
 """
@@ -11,10 +11,10 @@ import dataclasses
 
 import numpy as np
 
+from hopper.analysis.linearize import flight_plant, settled_flight
+from hopper.analysis.loop import Mode, Plant, modes
 from hopper.commands import Disturb
 from hopper.config import SimConfig
-from hopper.linearize import flight_plant, settled_flight
-from hopper.loop import Mode, Plant, modes
 
 KICK = 0.02  # N m s: about 10 deg/s on the torso, a linear response far below the torque limit
 WINDOW_S = 0.3  # s of response fitted, inside what is left of a lunar flight

@@ -4,7 +4,7 @@ The legs' servos (hopper.control.legs) hold each leg's angle in the world, so a 
 the torso against the hip servos' springs, not against a rigid robot. Linearizing the simulation
 itself captures that: MuJoCo's finite-differenced transition (mjd_transitionFD) for the physics,
 and central differences of the controller's kernel for the legs' torques. The wheel's torque is
-left as the plant's input; hopper.loop closes the flight PID around it.
+left as the plant's input; hopper.analysis.loop closes the flight PID around it.
 """
 
 from __future__ import annotations
@@ -14,10 +14,10 @@ from collections.abc import Callable
 import mujoco
 import numpy as np
 
+from hopper.analysis.loop import Plant, pitch_inertia
 from hopper.config import WHEEL_TORQUE_LIMIT, SimConfig
 from hopper.control.kernel import EV_APEX, control_tick
 from hopper.control.wheel import WHEEL_DAMPING
-from hopper.loop import Plant, pitch_inertia
 from hopper.sim import Simulation
 
 EPS = 1e-6  # finite-difference step (rad, m, rad/s, m/s)
