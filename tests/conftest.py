@@ -73,6 +73,10 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         if item.path.name.endswith("_e2e.py"):
             item.add_marker(pytest.mark.browser)
+            # Under `-n 2 --dist loadgroup` the browser tests share one worker: each page keeps
+            # Chromium's software WebGL busy on about a core, and two at once on two cores starved
+            # the servers they were testing (a page load once took over 30 s).
+            item.add_marker(pytest.mark.xdist_group("browser"))
         elif SERVED & set(getattr(item, "fixturenames", ())):
             item.add_marker(pytest.mark.integration)
         if not any(item.get_closest_marker(m) for m in ("browser", "integration")):

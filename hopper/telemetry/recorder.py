@@ -186,6 +186,10 @@ class Telemetry:
         if self._rolls and sinks:
             raise ValueError("a size or duration limit (rollover) cannot be combined with a live rerun viewer")
         self._max_bytes = max_bytes if max_bytes is not None else math.inf
+        # A size limit is checked against the bytes on disk, which trail what was sent by however
+        # many batches rerun and the writer are behind: on a loaded machine a 2 MB part grew to
+        # 3.1 MB. With a size limit each batch waits until it is written (~1 ms a batch).
+        self._wait_each_batch = max_bytes is not None
         self._max_ns = round(max_seconds * 1e9) if max_seconds is not None else math.inf
         self._flush_s = flush_s
 
@@ -414,7 +418,7 @@ class Telemetry:
             p += self._xpos_view
             p += self._xquat_view
             if n >= self._batch or time.monotonic() >= self._flush_due:
-                self._flush(wait=False)
+                self._flush(wait=self._wait_each_batch)
 
     def event(self, sim: Simulation, event: Event) -> None:
         """Buffer an event's text (and a finished hop's metrics); a reset sends the ticks before it."""
