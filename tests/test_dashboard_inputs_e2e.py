@@ -15,7 +15,7 @@ from hopper.app.dashboard.plots import LIMIT_COLOR
 from hopper.app.dashboard.server import Dashboard
 from net import free_port, wait_until
 from PIL import Image
-from test_dashboard_e2e import LARGEST_CANVAS_JS, browser  # noqa: F401  (browser: the Chromium fixture)
+from test_dashboard_e2e import LARGEST_CANVAS_JS, PAGE_LOAD_MS, browser  # noqa: F401  (browser: the Chromium fixture)
 
 from hopper.config import Gains
 
@@ -39,7 +39,7 @@ HIDE_SCENE = ":not(.u-wrap) > canvas { display: none !important; }"
 def open_page(browser, dashboard: Dashboard, *, scene: bool = True):  # noqa: F811
     page = browser.new_page(viewport=VIEWPORT)
     page.goto(dashboard.url)
-    page.get_by_text("Kp", exact=True).first.wait_for(timeout=30_000)
+    page.get_by_text("Kp", exact=True).first.wait_for(timeout=PAGE_LOAD_MS)
     assert wait_until(lambda: len(dashboard.server.get_clients()) == 1, timeout=30)
     close_notice = page.locator(".mantine-Notification-root").get_by_role("button")  # viser's software-GL notice
     if close_notice.count():

@@ -8,7 +8,7 @@ import time
 
 from hopper.app.dashboard.server import Dashboard
 from net import wait_until
-from test_dashboard_e2e import browser  # noqa: F401  (the Chromium fixture)
+from test_dashboard_e2e import PAGE_LOAD_MS, browser  # noqa: F401  (the Chromium fixture)
 from test_workbench_e2e import _type
 
 from hopper.schedule import KickSchedule
@@ -43,7 +43,7 @@ def test_a_schedule_set_in_the_page_kicks_every_second_flight_and_fills_the_resp
     page.set_default_timeout(60_000)  # a bound for a loaded machine, not a pace
     try:
         page.goto(dashboard.url)
-        page.get_by_text("Kp", exact=True).first.wait_for(timeout=30_000)
+        page.get_by_text("Kp", exact=True).first.wait_for(timeout=PAGE_LOAD_MS)
         assert wait_until(lambda: len(dashboard.server.get_clients()) == 1, timeout=30)
         page.wait_for_function(f"() => ({RESPONSE_JS})().includes('no hops yet')", timeout=30_000)
 

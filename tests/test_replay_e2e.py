@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 from hopper.app.dashboard.server import Dashboard
 from net import wait_until
-from test_dashboard_e2e import browser  # noqa: F401  (the Chromium fixture)
+from test_dashboard_e2e import PAGE_LOAD_MS, browser  # noqa: F401  (the Chromium fixture)
 from test_workbench_e2e import _type
 
 from hopper import keyframes
@@ -53,7 +53,7 @@ def _open(browser, dashboard: Dashboard):  # noqa: F811
     page = browser.new_page(viewport=WORK_VIEWPORT)
     page.set_default_timeout(60_000)  # a bound for a loaded machine, not a pace
     page.goto(dashboard.url)
-    page.get_by_role("tab", name="Replay").wait_for(timeout=30_000)
+    page.get_by_role("tab", name="Replay").wait_for(timeout=PAGE_LOAD_MS)
     assert wait_until(lambda: len(dashboard.server.get_clients()) == 1, timeout=30)
     page.get_by_role("tab", name="Replay").click()
     return page

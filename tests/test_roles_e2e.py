@@ -11,7 +11,7 @@ from pathlib import Path
 from hopper.app.dashboard.access import page_url
 from hopper.app.dashboard.server import Dashboard
 from net import wait_until
-from test_dashboard_e2e import MIN_CANVAS_COLOURS, browser, distinct_colours  # noqa: F401  (browser: a fixture)
+from test_dashboard_e2e import MIN_CANVAS_COLOURS, PAGE_LOAD_MS, browser, distinct_colours  # noqa: F401  (browser: a fixture)
 from test_dashboard_inputs_e2e import HIDE_SCENE, box, notice, start, type_into
 
 from hopper.events import EventKind
@@ -31,8 +31,8 @@ def open_page(browser, d: Dashboard, clients: int):  # noqa: F811
     """A page that has the dashboard and its own Control widgets."""
     page = browser.new_page(viewport=VIEWPORT)
     page.add_init_script(HIDE_FROM_START)
-    page.goto(d.url, timeout=120_000)
-    page.get_by_text("Kp", exact=True).first.wait_for(timeout=120_000)  # minutes on a loaded machine
+    page.goto(d.url, timeout=PAGE_LOAD_MS)
+    page.get_by_text("Kp", exact=True).first.wait_for(timeout=PAGE_LOAD_MS)
     assert wait_until(lambda: len(d.roles.seated) == clients, timeout=60), "the page was never seated"
     page.locator(".hd-role").wait_for(timeout=60_000)
     close_notice = page.locator(".mantine-Notification-root").get_by_role("button")  # viser's software-GL notice
@@ -127,13 +127,13 @@ def test_off_loopback_the_printed_url_opens_the_dashboard_and_the_bare_address_g
         url = page_url("127.0.0.1", d.server.get_port(), d.config.token)
         with_token = browser.new_page(viewport=VIEWPORT)
         with_token.add_init_script(HIDE_FROM_START)
-        with_token.goto(url, timeout=120_000)
-        with_token.get_by_text("Kp", exact=True).first.wait_for(timeout=120_000)
+        with_token.goto(url, timeout=PAGE_LOAD_MS)
+        with_token.get_by_text("Kp", exact=True).first.wait_for(timeout=PAGE_LOAD_MS)
         assert wait_until(lambda: d.roles.operator is not None, timeout=60), "the token holder does not operate"
 
         without = browser.new_page(viewport=VIEWPORT)
         refused = d.gatekeeper.refused
-        without.goto(f"http://127.0.0.1:{d.server.get_port()}/", timeout=120_000)
+        without.goto(f"http://127.0.0.1:{d.server.get_port()}/", timeout=PAGE_LOAD_MS)
         assert wait_until(lambda: d.gatekeeper.refused > refused, timeout=60), "the bare page was never refused"
         assert without.get_by_text("Kp", exact=True).count() == 0 and len(d.roles.seated) == 1
     finally:
