@@ -254,3 +254,16 @@ def test_the_momentum_gauge_fills_from_the_centre_toward_the_wheels_side() -> No
     ahead = gauge_html(0.9, 2.0)
     assert "left:50.0%;width:45.0%" in ahead and "hd-bad" in ahead
     assert "hd-ok" in gauge_html(0.1, 2.0) and "width:50.0%" in gauge_html(-3.0, 2.0)  # clipped at the capacity
+
+
+@pytest.mark.parametrize(
+    ("controller", "shown"), [("policy", "Policy is not a linear law"), ("lqr", "LQR as state feedback")]
+)
+def test_a_controller_given_at_start_gets_its_own_loop_analysis(tmp_path: Path, controller: str, shown: str) -> None:
+    """Not the PID's: the analysis followed only a switch in the page (seen with --controller policy)."""
+    config = DashboardConfig(port=free_port(), sessions_dir=tmp_path / "s", controller=controller)
+    with Dashboard(config, verbose=False) as dashboard:
+        assert shown in dashboard.layout.analysis.note
+        assert wait_until(lambda: shown in dashboard.layout.analysis.html.content), (
+            dashboard.layout.analysis.html.content
+        )

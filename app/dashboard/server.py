@@ -152,6 +152,7 @@ class Dashboard:
             controller_choices=config.controller_choice,
         )
         self.layout.controller.show(sim.law)
+        self.layout.analysis.show_law(sim.law, sim.config)  # a controller given at start: its analysis, or why none
         self.recorder.listeners.append(self._recording_changed)
         guard_gui_updates(self.server)  # malformed browser updates never reach a setting
         sim.listeners.append(self)
