@@ -78,7 +78,7 @@ class EnvOptions:
     terrain_seeds: tuple[int, int] = (10_000, 20_000)  # drawn in [low, high); the league's seeds are below
     sensing: Literal["ideal", "realistic"] = "ideal"
     flights: int = 1  # flights an episode lasts
-    kick_probability: float = 0.0  # per flight: a pitch kick at a random time (0.1-0.8 of the flight)
+    kick_probability: float = 0.0  # per flight: a pitch kick at a random moment, 0.1-0.8 of the predicted flight
     kick_fraction: float = 0.5  # the largest kick, x the wheel's momentum capacity (1.51 N m s)
     randomise: bool = False  # mismatch factors (MISMATCH_RANGES) and the gyro's turn-on bias
 
@@ -97,7 +97,7 @@ class FlightAttitudeEnv(gym.Env):
         self.observation_space = spaces.Box(LOW, HIGH, (SIZE,), np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
         self.sim: Simulation | None = None
-        self._kick_at = math.inf
+        self._kick_at, self._kick_size = math.inf, 0.0
 
     # -- gymnasium ------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
@@ -148,10 +148,12 @@ class FlightAttitudeEnv(gym.Env):
         """Step ticks until the law's next call (an observation), a touchdown of the last flight, a
         fall or the time limit. Returns (obs, reward of landings and falls, terminated, truncated, info)."""
         sim, law, o = self.sim, self.law, self._episode
-        if law.obs is not None and law.obs.time_since_liftoff >= self._kick_at:
+        if law.obs is not None and law.obs.time_since_liftoff >= self._kick_at * (
+            law.obs.time_since_liftoff + law.obs.time_to_touchdown
+        ):
             self._kick_at = math.inf
             self.kicks += 1
-            sim.disturb("pitch_kick", float(self.np_random.uniform(-1.0, 1.0)) * o.kick_fraction * momentum_capacity())
+            sim.disturb("pitch_kick", self._kick_size)
         calls, reward, limit = law.calls, 0.0, sim.time_limit(o.flights)
         while True:
             events = sim.step()
@@ -171,11 +173,14 @@ class FlightAttitudeEnv(gym.Env):
                 return self._obs(), reward, False, True, self._info()
 
     def _flight_started(self) -> None:
+        # Every draw happens here, whatever the policy does next, so candidates compared on one
+        # seed meet the same kicks (common random numbers). The moment is a fraction of the flight
+        # the observation predicts, not of the nominal one: on a crater a flight may end early,
+        # and a kick 1 ms before touchdown (or after it) makes the return a lottery on timing.
         o, rng = self._episode, self.np_random
-        kick = o.kick_probability > 0.0 and rng.uniform() < o.kick_probability
-        g = self.sim.config.gravity
-        flight = 2.0 * math.sqrt(2.0 * g * self.sim.config.gait.apex_height) / g  # s, the gait's nominal
-        self._kick_at = float(rng.uniform(0.1, 0.8)) * flight if kick else math.inf
+        kick, at, size = rng.uniform() < o.kick_probability, rng.uniform(0.1, 0.8), rng.uniform(-1.0, 1.0)
+        self._kick_at = float(at) if kick else math.inf  # fraction of the predicted flight
+        self._kick_size = float(size) * o.kick_fraction * momentum_capacity()  # N m s
 
     def _landing(self) -> float:
         s = self.sim.state()
