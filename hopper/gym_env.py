@@ -8,7 +8,8 @@ the ground phases (landing, stance, push) are flown by our gait in between. The 
 an observation acts at the next control tick (1 ms later: the API's call returns before the agent
 is asked); the first tick of each flight gets 0 N m.
 
-Observation: hopper.controllers.features (8 float32, normalised; FIELDS documents each).
+Observation: hopper.controllers.features (9 float32, normalised; FIELDS documents each), the last
+the integral of pitch since liftoff that the paper's PID keeps, integrated on the agent's actions.
 Action: (1,) float32 in [-1, 1], the wheel torque / 29.5 N m (the motor's envelope clamps it).
 Reward, per step: -(pitch / 2 deg)^2 * dt * W_PITCH - a^2 * dt * W_TORQUE - W_ENERGY * (electrical
 J); at each touchdown -min((pitch / 1 deg)^2 + (rate / 20 deg/s)^2, 25) (true pitch and rate);
@@ -37,7 +38,7 @@ from hopper.config import (
 from hopper.control import EV_FALL, EV_LIFTOFF, EV_TOUCHDOWN
 from hopper.control.gait import momentum_capacity
 from hopper.controllers.api import Observation
-from hopper.controllers.features import HIGH, LOW, SIZE, features
+from hopper.controllers.features import HIGH, LOW, SIZE, PitchIntegral, features
 from hopper.sim import Simulation
 
 ENV_ID = "hopper/FlightAttitude-v0"
@@ -57,12 +58,17 @@ GYRO_BIAS_RANGE = (0.0, 1.0)  # deg/s turn-on bias, drawn when `randomise` (real
 
 
 class EnvLaw:
-    """The env's flight law: returns the agent's pending torque (N m), keeps the observation it was called with."""
+    """The env's flight law: returns the agent's pending torque (N m), keeps the observation it was
+    called with and the agent's pitch integral (reset at each liftoff, as a controller's)."""
 
     def __init__(self) -> None:
         self.torque = 0.0
         self.obs: Observation | None = None
         self.calls = 0
+        self.integral = PitchIntegral()
+
+    def reset(self, obs: Observation) -> None:
+        self.integral.reset()
 
     def __call__(self, obs: Observation) -> float:
         self.obs, self.calls = obs, self.calls + 1
@@ -122,6 +128,7 @@ class FlightAttitudeEnv(gym.Env):
         low, high = self.law.obs.torque_bounds
         tau = min(max(a * WHEEL_TORQUE_LIMIT, low), high)
         self.law.torque = a * WHEEL_TORQUE_LIMIT
+        self.law.integral.update(self.law.obs, self.law.torque)  # as a Policy does on its own command
         obs, reward, terminated, truncated, info = self._advance()
         dt = self.sim.config.timestep
         current = tau / (WHEEL_GEAR * MOTOR_TORQUE_CONSTANT)  # A
@@ -190,7 +197,7 @@ class FlightAttitudeEnv(gym.Env):
 
     def _obs(self) -> np.ndarray:
         obs = self.law.obs if self.law.obs is not None else self.sim.observation()
-        return features(obs).astype(np.float32)
+        return features(obs, self.law.integral.value).astype(np.float32)
 
     def _info(self, fell: bool = False) -> dict:
         info = {"flights": self.flights, "fell": fell, "time": self.sim.time, "kicks": self.kicks}
