@@ -3,18 +3,24 @@
     pip install -e ".[rl]"
     python -m hopper.app.train_policy --seed 0 --out hopper/laws/policy_weights.json
 
-The search starts at the paper's PD (kp 450 N m/rad, kd 30 N m s/rad) on the policy's linear skip
-path. Each generation flies every candidate on the same fresh episodes (common random numbers;
-`--fixed` keeps one set for the whole run, a deterministic objective):
-gravity log-uniform in 0.2-10 m/s^2, crater terrain seeds 10,000-19,999 (the league's and the
-acceptance runs' seeds are below), ideal and realistic sensing, random pitch kicks, and a robot
-randomised by hopper.mismatch factors and the gyro's bias. Held-out validation episodes judge the
-start and the result. Seeded: one seed, the same weights (whatever --workers).
+The search starts at the paper's PID exactly (hopper.config.Gains: kp, kd, ki on the policy's
+linear skip path, the hidden layer's output weights zero). Episodes: gravity log-uniform in
+0.2-10 m/s^2, crater terrain seeds 10,000-19,999 (the league's and the acceptance runs' seeds are
+below), ideal and realistic sensing alternately, random pitch kicks, and a robot randomised by
+hopper.mismatch factors and the gyro's bias. Three disjoint sets of episode seeds:
+- training: each generation every candidate flies the same fresh episodes (common random numbers);
+- validation: a fixed set on which the start and the search's mean every few generations are
+  scored; the best of them is kept (the start among them, so the result never scores below it);
+- test: a fixed set used once at the end, on the start and the result alike (paired): the
+  reported improvement, as validation has been used for selection.
+Seeded: one seed, the same weights (whatever --workers).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import math
 import multiprocessing
 import sys
 import time
@@ -22,10 +28,15 @@ from pathlib import Path
 
 import numpy as np
 
+from hopper.config import Gains
+from hopper.controllers.features import NAMES, SIZE
 from hopper.gym_env import FlightAttitudeEnv
 from hopper.laws.policy import Weights
 
 EPISODE = {"gravity": (0.2, 10.0), "flights": 2, "kick_probability": 0.5, "randomise": True}
+SENSING = ("ideal", "realistic")  # alternately, by an episode's place in its set
+# Episode seeds of the three sets: disjoint ranges.
+TRAIN_SEEDS, VALIDATION_SEEDS, TEST_SEEDS = (0, 1 << 30), (1 << 30, 1 << 31), (1 << 31, 3 << 30)
 _ENV: FlightAttitudeEnv | None = None
 
 
@@ -42,23 +53,52 @@ def episode_return(weights: Weights, seed: int, sensing: str) -> float:
     return total
 
 
-def fitness(job: tuple[np.ndarray, int, list[int]]) -> float:
-    """Minus the mean return of flat parameters over the episode seeds (CMA-ES minimises)."""
+def returns(job: tuple[np.ndarray, int, list[int]]) -> list[float]:
+    """The returns of flat parameters on each episode seed, in order."""
     theta, hidden, seeds = job
     w = Weights.unflat(theta, hidden)
-    return -float(np.mean([episode_return(w, s, ("ideal", "realistic")[i % 2]) for i, s in enumerate(seeds)]))
+    return [episode_return(w, s, SENSING[i % 2]) for i, s in enumerate(seeds)]
+
+
+def fitness(job: tuple[np.ndarray, int, list[int]]) -> float:
+    """Minus the mean return (CMA-ES minimises)."""
+    return -float(np.mean(returns(job)))
+
+
+def paired(start: list[float], trained: list[float]) -> dict:
+    """Mean returns and the mean paired difference with its 95 % interval (normal, n >= 30)."""
+    d = np.asarray(trained) - np.asarray(start)
+    half = 1.96 * float(d.std(ddof=1)) / math.sqrt(len(d))
+    return {"episodes": len(d), "start": float(np.mean(start)), "trained": float(np.mean(trained)),
+            "difference": float(d.mean()), "ci95": [float(d.mean()) - half, float(d.mean()) + half]}  # fmt: skip
+
+
+def step_scales(hidden: int) -> np.ndarray:
+    """CMA-ES's step per parameter, x --sigma, in Weights.flat's order. A torque offset tilts the
+    landing by offset / kp (1 N m: 0.13 deg), so what adds one (skip weights of the inputs that are
+    not errors, the hidden units' output weights, b2) steps 10 x less than the gains on pitch, rate
+    and integral; at the full step a random draw of those cost 0.01-0.9 of return, the gains' 0.01."""
+    lin = np.full(SIZE, 0.1)
+    lin[[NAMES.index(n) for n in ("pitch", "rate", "pitch_integral")]] = 1.0
+    return Weights(np.ones((hidden, SIZE)), np.ones(hidden), np.full(hidden, 0.1), 0.1, lin).flat()
+
+
+def draw(rng: np.random.Generator, bounds: tuple[int, int], n: int) -> list[int]:
+    return [int(s) for s in rng.integers(*bounds, n)]
 
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m hopper.app.train_policy", description=__doc__.splitlines()[0])
     p.add_argument("--seed", type=int, default=0, help="seeds CMA-ES and the episodes")
     p.add_argument("--out", type=Path, default=Path("policy_weights.json"), help="weights file to write")
-    p.add_argument("--generations", type=int, default=40)
-    p.add_argument("--episodes", type=int, default=8, help="training episodes per candidate per generation")
-    p.add_argument("--fixed", action="store_true", help="the same training episodes every generation")
+    p.add_argument("--generations", type=int, default=20)
+    p.add_argument("--episodes", type=int, default=12, help="training episodes per candidate per generation")
     p.add_argument("--popsize", type=int, default=12)
     p.add_argument("--sigma", type=float, default=0.05, help="CMA-ES initial step (parameters are O(1))")
     p.add_argument("--hidden", type=int, default=16)
+    p.add_argument("--validation", type=int, default=64, help="validation episodes")
+    p.add_argument("--every", type=int, default=4, help="validate the search's mean every this many generations")
+    p.add_argument("--test", type=int, default=150, help="test episodes, flown once by the start and the result")
     p.add_argument("--workers", type=int, default=1, help="processes evaluating candidates")
     args = p.parse_args(argv)
     try:
@@ -67,35 +107,44 @@ def main(argv: list[str] | None = None) -> int:
         print("train_policy: needs cma: pip install 'hopper-dashboard[rl]'", file=sys.stderr)
         return 2
     start = time.perf_counter()
-    x0 = Weights.pd(450.0, 30.0, args.hidden, seed=args.seed).flat()
-    es = cma.CMAEvolutionStrategy(x0, args.sigma, {"seed": args.seed + 1, "popsize": args.popsize, "verbose": -9})
+    gains = Gains()
+    x0 = Weights.pid(gains.kp, gains.kd, gains.ki, args.hidden, seed=args.seed).flat()
+    options = {"seed": args.seed + 1, "popsize": args.popsize, "CMA_stds": step_scales(args.hidden), "verbose": -9}
+    es = cma.CMAEvolutionStrategy(x0, args.sigma, options)
     rng = np.random.default_rng(args.seed)
-    validation = [int(s) for s in rng.integers(1 << 30, 1 << 31, 16)]
-    seeds = [int(s) for s in rng.integers(0, 1 << 30, args.episodes)] if args.fixed else []
+    validation, test = draw(rng, VALIDATION_SEEDS, args.validation), draw(rng, TEST_SEEDS, args.test)
     pool = multiprocessing.get_context("spawn").Pool(args.workers) if args.workers > 1 else None
     run = pool.map if pool else lambda f, jobs: list(map(f, jobs))
-    pd_score = fitness((x0, args.hidden, validation))
-    print(f"PD start: validation return {-pd_score:.3f}", flush=True)
-    for gen in range(args.generations):
-        if not args.fixed:
-            seeds = [int(s) for s in rng.integers(0, 1 << 30, args.episodes)]
+    best_score, best, best_gen = fitness((x0, args.hidden, validation)), x0, 0
+    print(f"PID start: validation return {-best_score:.4f}", flush=True)
+    for gen in range(1, args.generations + 1):
+        seeds = draw(rng, TRAIN_SEEDS, args.episodes)
         candidates = es.ask()
         scores = run(fitness, [(np.asarray(c), args.hidden, seeds) for c in candidates])
         es.tell(candidates, scores)
-        print(f"gen {gen + 1:3d}  best {-min(scores):8.3f}  mean {-np.mean(scores):8.3f}  "
-              f"sigma {es.sigma:.4f}  {time.perf_counter() - start:6.0f} s", flush=True)  # fmt: skip
-    final = np.asarray(es.mean)
-    if args.fixed and es.result.fbest < fitness((final, args.hidden, seeds)):
-        final = np.asarray(es.result.xbest)  # the best candidate flown beats the search's mean
-    score = fitness((final, args.hidden, validation))
+        line = f"gen {gen:3d}  best {-min(scores):8.4f}  mean {-np.mean(scores):8.4f}  sigma {es.sigma:.4f}"
+        if gen % args.every == 0 or gen == args.generations:
+            mean = np.array(es.mean)
+            score = fitness((mean, args.hidden, validation))
+            line += f"  validation {-score:8.4f}"
+            if score < best_score:
+                best_score, best, best_gen = score, mean, gen
+        print(f"{line}  {time.perf_counter() - start:6.0f} s", flush=True)
+    # The test set, once: start and result on the same episodes, one process per side if there are two.
+    start_returns, trained_returns = run(returns, [(x0, args.hidden, test), (best, args.hidden, test)])
     if pool:
         pool.close()
+    judged = paired(start_returns, trained_returns)
     elapsed = time.perf_counter() - start
-    print(f"trained: validation return {-score:.3f} (PD start {-pd_score:.3f}), {elapsed:.0f} s", flush=True)
+    lo, hi = judged["ci95"]
+    print(f"kept generation {best_gen} (validation {-best_score:.4f}); test on {args.test} episodes: "
+          f"start {judged['start']:.4f}, trained {judged['trained']:.4f}, paired difference "
+          f"{judged['difference']:+.4f} (95 % {lo:+.4f} to {hi:+.4f}); {elapsed:.0f} s", flush=True)  # fmt: skip
     meta = {"seed": args.seed, "generations": args.generations, "episodes": args.episodes, "popsize": args.popsize,
-            "sigma": args.sigma, "fixed": args.fixed, "train_s": round(elapsed, 1), "validation_return": -score,
-            "pd_validation_return": -pd_score, "episode": {k: v for k, v in EPISODE.items()}}  # fmt: skip
-    Weights.unflat(final, args.hidden).save(args.out, meta)
+            "sigma": args.sigma, "validation": args.validation, "every": args.every, "kept_generation": best_gen,
+            "validation_return": -best_score, "test": judged, "start": {"pid": dataclasses.asdict(gains)},
+            "train_s": round(elapsed, 1), "episode": dict(EPISODE)}  # fmt: skip
+    Weights.unflat(best, args.hidden).save(args.out, meta)
     print(f"wrote {args.out}")
     return 0
 

@@ -8,7 +8,8 @@ the ground phases (landing, stance, push) are flown by our gait in between. The 
 an observation acts at the next control tick (1 ms later: the API's call returns before the agent
 is asked); the first tick of each flight gets 0 N m.
 
-Observation: hopper.controllers.features (8 float32, normalised; FIELDS documents each).
+Observation: hopper.controllers.features (9 float32, normalised; FIELDS documents each), the last
+the integral of pitch since liftoff that the paper's PID keeps, integrated on the agent's actions.
 Action: (1,) float32 in [-1, 1], the wheel torque / 29.5 N m (the motor's envelope clamps it).
 Reward, per step: -(pitch / 2 deg)^2 * dt * W_PITCH - a^2 * dt * W_TORQUE - W_ENERGY * (electrical
 J); at each touchdown -min((pitch / 1 deg)^2 + (rate / 20 deg/s)^2, 25) (true pitch and rate);
@@ -37,7 +38,7 @@ from hopper.config import (
 from hopper.control import EV_FALL, EV_LIFTOFF, EV_TOUCHDOWN
 from hopper.control.gait import momentum_capacity
 from hopper.controllers.api import Observation
-from hopper.controllers.features import HIGH, LOW, SIZE, features
+from hopper.controllers.features import HIGH, LOW, SIZE, PitchIntegral, features
 from hopper.sim import Simulation
 
 ENV_ID = "hopper/FlightAttitude-v0"
@@ -57,12 +58,17 @@ GYRO_BIAS_RANGE = (0.0, 1.0)  # deg/s turn-on bias, drawn when `randomise` (real
 
 
 class EnvLaw:
-    """The env's flight law: returns the agent's pending torque (N m), keeps the observation it was called with."""
+    """The env's flight law: returns the agent's pending torque (N m), keeps the observation it was
+    called with and the agent's pitch integral (reset at each liftoff, as a controller's)."""
 
     def __init__(self) -> None:
         self.torque = 0.0
         self.obs: Observation | None = None
         self.calls = 0
+        self.integral = PitchIntegral()
+
+    def reset(self, obs: Observation) -> None:
+        self.integral.reset()
 
     def __call__(self, obs: Observation) -> float:
         self.obs, self.calls = obs, self.calls + 1
@@ -78,7 +84,7 @@ class EnvOptions:
     terrain_seeds: tuple[int, int] = (10_000, 20_000)  # drawn in [low, high); the league's seeds are below
     sensing: Literal["ideal", "realistic"] = "ideal"
     flights: int = 1  # flights an episode lasts
-    kick_probability: float = 0.0  # per flight: a pitch kick at a random time (0.1-0.8 of the flight)
+    kick_probability: float = 0.0  # per flight: a pitch kick at a random moment, 0.1-0.8 of the predicted flight
     kick_fraction: float = 0.5  # the largest kick, x the wheel's momentum capacity (1.51 N m s)
     randomise: bool = False  # mismatch factors (MISMATCH_RANGES) and the gyro's turn-on bias
 
@@ -97,7 +103,7 @@ class FlightAttitudeEnv(gym.Env):
         self.observation_space = spaces.Box(LOW, HIGH, (SIZE,), np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
         self.sim: Simulation | None = None
-        self._kick_at = math.inf
+        self._kick_at, self._kick_size = math.inf, 0.0
 
     # -- gymnasium ------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
@@ -122,6 +128,7 @@ class FlightAttitudeEnv(gym.Env):
         low, high = self.law.obs.torque_bounds
         tau = min(max(a * WHEEL_TORQUE_LIMIT, low), high)
         self.law.torque = a * WHEEL_TORQUE_LIMIT
+        self.law.integral.update(self.law.obs, self.law.torque)  # as a Policy does on its own command
         obs, reward, terminated, truncated, info = self._advance()
         dt = self.sim.config.timestep
         current = tau / (WHEEL_GEAR * MOTOR_TORQUE_CONSTANT)  # A
@@ -148,10 +155,12 @@ class FlightAttitudeEnv(gym.Env):
         """Step ticks until the law's next call (an observation), a touchdown of the last flight, a
         fall or the time limit. Returns (obs, reward of landings and falls, terminated, truncated, info)."""
         sim, law, o = self.sim, self.law, self._episode
-        if law.obs is not None and law.obs.time_since_liftoff >= self._kick_at:
+        if law.obs is not None and law.obs.time_since_liftoff >= self._kick_at * (
+            law.obs.time_since_liftoff + law.obs.time_to_touchdown
+        ):
             self._kick_at = math.inf
             self.kicks += 1
-            sim.disturb("pitch_kick", float(self.np_random.uniform(-1.0, 1.0)) * o.kick_fraction * momentum_capacity())
+            sim.disturb("pitch_kick", self._kick_size)
         calls, reward, limit = law.calls, 0.0, sim.time_limit(o.flights)
         while True:
             events = sim.step()
@@ -171,11 +180,14 @@ class FlightAttitudeEnv(gym.Env):
                 return self._obs(), reward, False, True, self._info()
 
     def _flight_started(self) -> None:
+        # Every draw happens here, whatever the policy does next, so candidates compared on one
+        # seed meet the same kicks (common random numbers). The moment is a fraction of the flight
+        # the observation predicts, not of the nominal one: on a crater a flight may end early,
+        # and a kick 1 ms before touchdown (or after it) makes the return a lottery on timing.
         o, rng = self._episode, self.np_random
-        kick = o.kick_probability > 0.0 and rng.uniform() < o.kick_probability
-        g = self.sim.config.gravity
-        flight = 2.0 * math.sqrt(2.0 * g * self.sim.config.gait.apex_height) / g  # s, the gait's nominal
-        self._kick_at = float(rng.uniform(0.1, 0.8)) * flight if kick else math.inf
+        kick, at, size = rng.uniform() < o.kick_probability, rng.uniform(0.1, 0.8), rng.uniform(-1.0, 1.0)
+        self._kick_at = float(at) if kick else math.inf  # fraction of the predicted flight
+        self._kick_size = float(size) * o.kick_fraction * momentum_capacity()  # N m s
 
     def _landing(self) -> float:
         s = self.sim.state()
@@ -185,7 +197,7 @@ class FlightAttitudeEnv(gym.Env):
 
     def _obs(self) -> np.ndarray:
         obs = self.law.obs if self.law.obs is not None else self.sim.observation()
-        return features(obs).astype(np.float32)
+        return features(obs, self.law.integral.value).astype(np.float32)
 
     def _info(self, fell: bool = False) -> dict:
         info = {"flights": self.flights, "fell": fell, "time": self.sim.time, "kicks": self.kicks}

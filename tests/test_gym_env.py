@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-from hopper.controllers.features import SIZE
+from hopper.controllers.features import NAMES, SCALES, SIZE
 from hopper.gym_env import ENV_ID, FALL_PENALTY, FlightAttitudeEnv, make_vector
 
 PD = np.array([450.0 * 0.1, 30.0]) / 29.5  # the paper's PD on the normalised pitch and rate
@@ -71,3 +71,32 @@ def test_the_vector_env_steps() -> None:
 def test_bad_options_are_refused() -> None:
     with pytest.raises(ValueError, match="flights"):
         FlightAttitudeEnv(flights=0)
+
+
+def test_every_kick_drawn_lands_inside_its_flight() -> None:
+    # The kick's moment is a fraction of the flight the observation predicts: a crater flight that
+    # ends early still gets its kick, never one in its last milliseconds or after its touchdown.
+    env = FlightAttitudeEnv(kick_probability=1.0, flights=3, gravity=(0.5, 5.0))
+    for seed in range(6):  # seed 4 lost its last kick when the moment was the nominal flight's
+        obs, _ = env.reset(seed=seed)
+        done = False
+        while not done:
+            obs, reward, terminated, truncated, info = env.step(pd(obs))
+            done = terminated or truncated
+        assert info["kicks"] == info["flights"] == 3 and not info["fell"]
+
+
+def test_the_last_feature_is_the_pitch_integral_since_liftoff() -> None:
+    env = FlightAttitudeEnv(flights=2, sensing="realistic")
+    obs, _ = env.reset(seed=4)
+    integral, last_since, done, liftoffs = 0.0, -1.0, False, 0
+    while not done:
+        raw = env.law.obs
+        if raw.time_since_liftoff < last_since:  # a new flight: the integral starts again
+            integral, liftoffs = 0.0, liftoffs + 1
+        last_since = raw.time_since_liftoff
+        assert obs[NAMES.index("pitch_integral")] == pytest.approx(integral / SCALES[-1], abs=1e-4)
+        obs, reward, terminated, truncated, info = env.step(pd(obs))  # PD's torque: far from saturation
+        integral += raw.pitch * raw.dt
+        done = terminated or truncated
+    assert liftoffs == 1 and integral != 0.0

@@ -31,8 +31,34 @@ def test_the_policy_is_a_controller_like_any_other() -> None:
     assert isinstance(policy, Policy) and callable(policy)
 
 
+LAWS = """
+from hopper.config import Gains
+from hopper.laws.pid import PaperPID
+from hopper.laws.policy import Policy, Weights
+
+class StartPolicy(Policy):  # the training's start: the paper's PID on the skip path
+    def __init__(self):
+        g = Gains()
+        super().__init__(Weights.pid(g.kp, g.kd, g.ki, seed=2))
+
+class PythonPID(PaperPID):
+    compiled = None  # through the API, as the policy flies
+"""
+
+
+@pytest.mark.parametrize("sensing", ["ideal", "realistic"])
+def test_the_trainings_start_is_the_papers_pid_integral_and_all(tmp_path: Path, sensing: str) -> None:
+    (tmp_path / "laws.py").write_text(LAWS)
+    landings = []
+    for name, values in (("StartPolicy", {}), ("PythonPID", {}), ("PythonPID", {"ki": 0.0})):
+        sim = Simulation(with_controller(SimConfig(seed=3, sensing=sensing), f"{tmp_path}/laws.py:{name}", values))
+        landings.append([h.landing_error_deg for h in sim.run(3)])
+    assert landings[0] == pytest.approx(landings[1], abs=1e-9)
+    assert landings[0] != pytest.approx(landings[2], abs=1e-6)  # the integral is there and it matters
+
+
 def test_the_weights_round_trip(tmp_path: Path) -> None:
-    w = Weights.pd(450.0, 30.0, hidden=4, seed=1)
+    w = Weights.pid(450.0, 30.0, 50.0, hidden=4, seed=1)
     w.save(tmp_path / "w.json")
     back = load_weights(tmp_path / "w.json")
     assert (back.flat() == w.flat()).all() and back.hidden == 4
@@ -52,6 +78,15 @@ def test_weights_for_another_observation_layout_are_refused_in_one_line(tmp_path
     doc["layout"] = {**LAYOUT, "version": 0, "fields": ["pitch", "rate"], "hash": "0123456789ab"}
     (tmp_path / "old.json").write_text(json.dumps(doc))
     assert "layout '0123456789ab'" in _refused(tmp_path / "old.json")
+
+
+def test_weights_for_layout_1_without_the_integral_are_refused_in_one_line(tmp_path: Path) -> None:
+    doc = json.loads(SHIPPED.read_text())
+    fields = ["pitch", "rate", "wheel_speed", "time_to_touchdown", "time_since_liftoff", "headroom_up",
+              "headroom_down", "gravity"]  # fmt: skip
+    doc["layout"] = {"version": 1, "fields": fields, "hash": "8034a004e976"}  # the first shipped file's
+    (tmp_path / "v1.json").write_text(json.dumps(doc))
+    assert "layout '8034a004e976', this build reads" in _refused(tmp_path / "v1.json")
 
 
 @pytest.mark.parametrize(
@@ -81,7 +116,9 @@ def test_a_short_training_runs_and_one_seed_gives_the_same_weights(tmp_path: Pat
     runs = []
     for name in ("a.json", "b.json"):
         out = tmp_path / name
-        assert main(["--seed", "3", "--generations", "2", "--episodes", "1", "--popsize", "3", "--out", str(out)]) == 0
+        small = ["--generations", "2", "--episodes", "1", "--popsize", "3", "--validation", "2", "--test", "2"]
+        assert main(["--seed", "3", *small, "--every", "1", "--out", str(out)]) == 0
         runs.append(load_weights(out))
-    assert json.loads(out.read_text())["meta"]["generations"] == 2 and runs[0].hidden == 16
+    meta = json.loads(out.read_text())["meta"]
+    assert meta["generations"] == 2 and runs[0].hidden == 16 and meta["test"]["episodes"] == 2
     assert (runs[0].flat() == runs[1].flat()).all()

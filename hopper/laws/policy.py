@@ -1,10 +1,11 @@
 """A learned flight wheel law: a small MLP with a linear skip path, inference in numpy, shipped weights.
 
-    torque = 29.5 N m * clip(lin . x + w2 . tanh(w1 x + b1) + b2, -1, 1),  x = features(obs)
+    torque = 29.5 N m * clip(lin . x + w2 . tanh(w1 x + b1) + b2, -1, 1),  x = features(obs, integral)
 
-x is hopper.controllers.features' layout (8 normalised fields). The skip path makes a PD exactly
-representable: training (hopper.app.train_policy) starts from the paper's PD and the hidden layer
-learns what a PD cannot (the landing's timing, the wheel's momentum, gravity).
+x is hopper.controllers.features' layout (9 normalised fields, the last the integral of pitch since
+liftoff, kept here as the paper's PID keeps it). The skip path makes that PID exactly representable:
+training (hopper.app.train_policy) starts from it and the hidden layer learns what a PID cannot
+(the landing's timing, the wheel's momentum, gravity).
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import numpy as np
 
 from hopper.config import WHEEL_TORQUE_LIMIT
 from hopper.controllers.api import ControllerError, Observation
-from hopper.controllers.features import LAYOUT, SCALES, SIZE, features
+from hopper.controllers.features import LAYOUT, NAMES, SCALES, SIZE, PitchIntegral, features
 
 FORMAT = "hopper-policy/1"
 WEIGHTS_FILE = "policy_weights.json"  # in the package hopper.laws (package-data)
@@ -54,17 +55,23 @@ class Weights:
         return cls(w1, b1, w2, b2, lin)
 
     @classmethod
-    def pd(cls, kp: float, kd: float, hidden: int = 16, scale: float = 0.01, seed: int = 0) -> Weights:
-        """The PD `kp * pitch + kd * rate` (N m/rad, N m s/rad) on the skip path, small random hidden weights."""
+    def pid(cls, kp: float, kd: float, ki: float, hidden: int = 16, seed: int = 0) -> Weights:
+        """The PID `kp pitch + kd rate + ki integral` (N m/rad, N m s/rad, N m/(rad s)) on the skip
+        path, exactly: the hidden units' input weights are random, their output weights zero."""
         rng = np.random.default_rng(seed)
         lin = np.zeros(SIZE)
-        lin[0], lin[1] = kp * SCALES[0] / WHEEL_TORQUE_LIMIT, kd * SCALES[1] / WHEEL_TORQUE_LIMIT
+        for name, gain in (("pitch", kp), ("rate", kd), ("pitch_integral", ki)):
+            lin[NAMES.index(name)] = gain * SCALES[NAMES.index(name)] / WHEEL_TORQUE_LIMIT
         w1 = rng.normal(0.0, 1.0 / math.sqrt(SIZE), (hidden, SIZE))
-        return cls(w1, np.zeros(hidden), rng.normal(0.0, scale, hidden), 0.0, lin)
+        return cls(w1, np.zeros(hidden), np.zeros(hidden), 0.0, lin)
+
+    def raw(self, x: np.ndarray) -> float:
+        """The normalised torque for features x, before the clip to [-1, 1]."""
+        return float(self.lin @ x + self.w2 @ np.tanh(self.w1 @ x + self.b1) + self.b2)
 
     def act(self, x: np.ndarray) -> float:
         """The normalised torque in [-1, 1] for features x."""
-        a = float(self.lin @ x + self.w2 @ np.tanh(self.w1 @ x + self.b1) + self.b2)
+        a = self.raw(x)
         return -1.0 if a < -1.0 else 1.0 if a > 1.0 else a
 
     def save(self, path: str | Path, meta: dict | None = None) -> None:
@@ -105,13 +112,20 @@ def load_weights(path: str | Path | None = None) -> Weights:
 
 
 class Policy:
-    """The shipped learned law (`--controller policy`): stateless, about 10 us a call."""
+    """The shipped learned law (`--controller policy`), about 10 us a call. Its one state is the
+    pitch integral, reset at each liftoff and integrated unless the command saturates, as PaperPID's."""
 
     weights_path: str | None = None  # a subclass may point at other weights; None: the shipped file
 
     def __init__(self, weights: Weights | None = None) -> None:
         self.weights = weights if weights is not None else load_weights(self.weights_path)
+        self.integral = PitchIntegral()
+
+    def reset(self, obs: Observation) -> None:
+        self.integral.reset()
 
     def __call__(self, obs: Observation) -> float:
         """The wheel motor's torque command, N m (the kernel's sign convention)."""
-        return WHEEL_TORQUE_LIMIT * self.weights.act(features(obs))
+        command = WHEEL_TORQUE_LIMIT * self.weights.raw(features(obs, self.integral.value))
+        self.integral.update(obs, command)  # on the unclipped command, as PaperPID tests its own
+        return min(max(command, -WHEEL_TORQUE_LIMIT), WHEEL_TORQUE_LIMIT)
