@@ -22,7 +22,8 @@ LEFT_M = 5.0  # m of window left on the side the robot came from after a move
 class Field(Protocol):
     """Heights of grid columns (hopper.terrain.field's CraterField and FlatField)."""
 
-    vertical_range: tuple[float, float]
+    params: CraterParams
+    vertical_range: tuple[float, float]  # m, the hfield's fixed scale
 
     def columns(self, first: int, count: int) -> np.ndarray: ...
 
@@ -48,6 +49,11 @@ class Window:
     def x1(self) -> float:
         """World x (m) of the window's +x edge."""
         return (self.first + self.ncol - 1) * self.params.cell
+
+    def tiles(self) -> range:
+        """The field's tiles (hopper.terrain.field) the window overlaps, for meshes drawn tile by tile."""
+        n = round(self.params.tile / self.params.cell)
+        return range(self.first // n, (self.first + self.ncol - 1) // n + 1)
 
     def place(self, first: int) -> bool:
         """Put the window's first column at `first`; True if it moved."""
