@@ -27,7 +27,7 @@ FLAT_RANGE = (0.0, 1e-3)  # m: a level field's hfield scale (MuJoCo needs a posi
 class TileDraws:
     """What one tile's generator drew."""
 
-    noise: np.ndarray  # (nrow + 2 pad, n): white noise, with `pad` rows beyond each edge for the kernel
+    rows: np.ndarray  # (nrow, n): its white noise through the kernel along y (drawn with pad rows beyond each edge)
     craters: np.ndarray  # (count, 5): centre x, centre y, radius, depth, rim height; m
 
 
@@ -53,8 +53,11 @@ def draw_tile(params: CraterParams, seed: int, k: int) -> TileDraws:
     """
     rng = np.random.default_rng(np.random.SeedSequence((seed, _zigzag(k))))
     nrow, n = params.shape[0], round(params.tile / params.cell)
-    pad = len(noise_kernel(params)) // 2
-    noise = rng.standard_normal((nrow + 2 * pad, n))
+    kernel = noise_kernel(params)
+    noise = rng.standard_normal((nrow + len(kernel) - 1, n))
+    rows = np.zeros((nrow, n))
+    for t, h in enumerate(kernel):  # along y here: a tile's rows beyond the field's edges are its own
+        rows += h * noise[t : t + nrow]
     count = int(rng.poisson(params.density * params.tile * params.width))
     radius = sample_diameters(rng, count, *params.diameter_range) / 2
     cx = (k + rng.random(count)) * params.tile
@@ -62,7 +65,7 @@ def draw_tile(params: CraterParams, seed: int, k: int) -> TileDraws:
     depth = 2 * radius * rng.uniform(*params.depth_ratio_range, count)
     rim = 2 * radius * rng.uniform(*params.rim_ratio_range, count)
     keep = np.abs(cx) >= params.clear_radius + 2 * radius
-    return TileDraws(noise, np.stack([cx, cy, radius, depth, rim], axis=1)[keep])
+    return TileDraws(rows, np.stack([cx, cy, radius, depth, rim], axis=1)[keep])
 
 
 def tile_heights(params: CraterParams, k: int, draws: tuple[TileDraws, TileDraws, TileDraws]) -> np.ndarray:
@@ -76,13 +79,7 @@ def tile_heights(params: CraterParams, k: int, draws: tuple[TileDraws, TileDraws
     nrow, n = params.shape[0], round(params.tile / params.cell)
     kernel = noise_kernel(params)
     gain = params.roughness / float(np.sum(kernel**2))  # sqrt(sum h^2) per axis: unit variance out
-    blocks = []
-    for d in draws:  # along y, each tile's block alone: its rows beyond the edges are its own
-        rows = np.zeros((nrow, n))
-        for t, h in enumerate(kernel):
-            rows += h * d.noise[t : t + nrow]
-        blocks.append(rows)
-    wide = np.concatenate(blocks, axis=1)  # (nrow, 3n): tiles k-1, k, k+1
+    wide = np.concatenate([d.rows for d in draws], axis=1)  # (nrow, 3n): tiles k-1, k, k+1, filtered along y
     reach = len(kernel) // 2
     heights = np.zeros((nrow, n))
     for t, h in enumerate(kernel):

@@ -96,7 +96,7 @@ def test_impulses_change_the_velocities_they_should(flat_sim: Simulation) -> Non
     vx = flat_sim.data.joint("root_x").qvel[0]
     flat_sim.disturb("push_backward", 4.0)
     assert flat_sim.data.joint("root_x").qvel[0] - vx == pytest.approx(-4.0 / 8.2, rel=0.25)
-    assert [e.payload for e in flat_sim.events[-2:]] == [
+    assert [e.payload for e in list(flat_sim.events)[-2:]] == [
         Disturbance("pitch_kick", 0.5, "N m s"),
         Disturbance("push_backward", 4.0, "N s"),
     ]
@@ -168,3 +168,24 @@ def test_the_crater_strip_holds_twenty_hops() -> None:
     craters = sim.config.craters
     assert sim.state().x < craters.x0 + craters.length - 2.0  # still on the strip, with room to spare
     assert max(hop.landing_pitch_deg for hop in sim.hops) < 3.5
+
+
+def test_the_event_record_keeps_the_newest_and_listeners_see_every_one(flat_sim: Simulation) -> None:
+    """A run of days must not grow without end (benchmarks/soak_terrain.py: +8 % RSS in 10,000 hops)."""
+    from hopper.events import Touchdown
+    from hopper.sim import EVENT_RECORD
+
+    seen = []
+
+    class Count:
+        def tick(self, sim: Simulation) -> None:
+            pass
+
+        def event(self, sim: Simulation, event: object) -> None:
+            seen.append(event)
+
+    flat_sim.listeners.append(Count())
+    for _ in range(EVENT_RECORD + 5):
+        flat_sim.emit(Touchdown(None))
+    assert len(flat_sim.events) == EVENT_RECORD and len(seen) == EVENT_RECORD + 5
+    assert flat_sim.events[-1] is seen[-1] and flat_sim.events[0] is seen[5]
