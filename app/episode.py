@@ -154,11 +154,9 @@ def shortfall(sim: Simulation, hops: int) -> str | None:
     done = sum(h.completed for h in sim.hops)
     if sim.fallen or done >= hops:
         return None
-    x, end = sim.state().x, sim.config.craters.x0 + sim.config.craters.length
-    where = f"the torso at x = {x:.2f} m"
-    if sim.config.terrain == "crater" and x > end:
-        where += f", past the end of the crater strip at x = {end:.2f} m"
-    return f"{done} of {hops} hops done when the run's limit of {sim.time:.0f} s simulated ran out ({where})"
+    x = sim.state().x  # world x: the terrain has no end (hopper.terrain.window)
+    limit = f"the run's limit of {sim.time:.0f} s simulated"
+    return f"{done} of {hops} hops done when {limit} ran out (the torso at x = {x:.2f} m)"
 
 
 def _recording_stopped(message: str) -> None:

@@ -27,6 +27,7 @@ from hopper.app.cli_common import (
     add_run_flags,
     checked_controller,
     fail,
+    finite,
     part_limit,
     rrd_file,
     run_all,
@@ -38,10 +39,13 @@ from hopper.app.cli_common import (
 from hopper.app.episode import settings, simulate, version
 from hopper.app.episode import sim_config as sim_config  # re-exported: results' docs named it here first
 from hopper.app.recordings import FileLimits
+from hopper.terrain import CraterParams
 
 from hopper.config import TOTAL_MASS, Gains, GaitParams, InvalidConfig, SimConfig
 from hopper.interrupts import children_ignore_ctrl_c, stop_like_ctrl_c
 from hopper.scenarios import scenario
+
+CRATER_DEFAULTS = CraterParams()
 
 # The JSON keys of a hop, in table order, with their column headings.
 HOP_COLUMNS = {
@@ -159,6 +163,10 @@ def parser() -> Parser:
     )
     export.add_argument("--seed", type=seed, default=0, help="terrain seed (default 0)")
     export.add_argument("--png", type=writable_file, required=True, metavar="PATH", help="16-bit grayscale PNG")
+    export.add_argument(
+        "--x0", type=finite, default=CRATER_DEFAULTS.x0, metavar="M",
+        help=f"world x (m) of the window's -x edge; the field has no end (default {CRATER_DEFAULTS.x0:g}, the start)",
+    )  # fmt: skip
     report_cli.add_parser(commands, EXIT_STATUSES)
     return top
 
@@ -356,14 +364,16 @@ def command_compare(args: argparse.Namespace) -> int:
 
 
 def command_terrain(args: argparse.Namespace) -> int:
-    from hopper.terrain import CraterParams, generate, write_png
+    from hopper.terrain import CraterField, CraterParams, write_png
 
     params = CraterParams()
-    heights = generate(params, np.random.default_rng(args.seed))
+    first = math.floor(args.x0 / params.cell)  # the field's grid column at or before --x0
+    heights = CraterField(params, args.seed).columns(first, params.shape[1])
     write_png(heights, args.png)
     print(
         f"{args.png}: {heights.shape[1]} x {heights.shape[0]} cells of {params.cell} m "
-        f"({params.length} m x {params.width} m), relief {np.ptp(heights):.3f} m, seed {args.seed}"
+        f"({params.length} m x {params.width} m from x = {first * params.cell:g} m), "
+        f"relief {np.ptp(heights):.3f} m, seed {args.seed}"
     )
     return 0
 

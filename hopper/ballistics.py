@@ -15,10 +15,10 @@ import numpy as np
 
 from hopper.config import FOOT_RADIUS
 from hopper.control.landing import FOOT_Y
-from hopper.terrain import CraterParams
+from hopper.terrain import Window
 
 STEP_S = 0.005  # s between predicted points
-DROP_M = 3.0  # m: the prediction gives up this far below the start (off the strip, a fall)
+DROP_M = 3.0  # m: the prediction gives up this far below the start (a fall into nothing)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -38,11 +38,16 @@ class Arc:
 
 
 class Ground:
-    """The terrain's height under each foot's line (y = +-FOOT_Y), vectorised in x."""
+    """The terrain's height under each foot's line (y = +-FOOT_Y) in a window, vectorised in x.
 
-    def __init__(self, heights: np.ndarray, params: CraterParams) -> None:
+    The simulation keeps AHEAD_M of window ahead of the robot (hopper.terrain.window), more than
+    any flight's arc spans; beyond the window's edges the edge heights are used."""
+
+    def __init__(self, window: Window) -> None:
+        heights, params = window.heights, window.params
+        self.heights = heights  # the window's array this was built from (a moved window has a new one)
         nrow, ncol = heights.shape
-        self.xs = params.x0 + params.cell * np.arange(ncol)
+        self.xs = window.x0 + params.cell * np.arange(ncol)
         rows = []
         for y in (FOOT_Y, -FOOT_Y):  # bilinear in y between the two grid rows around the foot's line
             fy = min(max((y + params.width / 2) / params.cell, 0.0), nrow - 1.000001)
@@ -51,7 +56,7 @@ class Ground:
         self.profiles = rows
 
     def height(self, foot: int, x: np.ndarray) -> np.ndarray:
-        """Terrain height (m) under foot 0 (left) or 1 (right) at world x (m); the edge beyond the strip."""
+        """Terrain height (m) under foot 0 (left) or 1 (right) at world x (m); the edge beyond the window."""
         return np.interp(x, self.xs, self.profiles[foot])
 
 

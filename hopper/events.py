@@ -88,7 +88,7 @@ class Fall:
 @dataclasses.dataclass(frozen=True)
 class Reset:
     kind: ClassVar[EventKind] = EventKind.RESET
-    reason: str  # start, user, terrain, diverged, after fall, end of terrain, error
+    reason: str  # start, user, terrain, diverged, after fall, off the terrain, error
 
     def describe(self) -> str:
         return f"reset ({self.reason})"

@@ -25,8 +25,8 @@ from hopper.sim import Simulation
 from hopper.snapshot import Pending, Snapshot, SnapshotMismatch
 
 FORMAT = "hopper-keyframe"
-VERSION = 2  # 2: the loop's pending disturbances and the hop in progress as named fields
-READS = (1, 2)  # versions read (1: the same state as three lists, read into the named fields)
+VERSION = 3  # 3: where the terrain window stood; 2: the loop's pending disturbances and the hop in progress by name
+READS = (1, 2, 3)  # versions read (1: the same state as three lists; 1 and 2 were made on the start window)
 MAX_FILE_BYTES = 1_000_000  # a keyframe is ~4 KB; anything far larger is not one
 MAX_NAME = 60  # characters
 
@@ -97,6 +97,7 @@ def to_json(keyframe: Keyframe) -> str:
         "pending": dataclasses.asdict(s.pending),  # inf (nothing scheduled) as the JSON extension Infinity
         "schedule": dataclasses.asdict(s.schedule) if s.schedule else None,
         "progress": dataclasses.asdict(s.progress),
+        "terrain_first": s.terrain_first,
         "state": {
             "physics": _b64(physics),
             "sensors": _b64(sensors),
@@ -140,7 +141,7 @@ def _fields(value: object, cls: type, what: str) -> dict:
 
 def _loop_state(doc: dict) -> tuple[Pending, HopInProgress]:
     """The loop's pending disturbances and the hop in progress, from a version 2 or 1 file."""
-    if doc.get("version") == 2:
+    if doc.get("version") in (2, 3):
         return Pending(**_fields(doc.get("pending"), Pending, "pending")), HopInProgress(
             **_fields(doc.get("progress"), HopInProgress, "progress")
         )
@@ -199,6 +200,9 @@ def from_json(text: str | bytes, sim: Simulation) -> Keyframe:
     if len(physics) % 8 or len(sensors) % 8:
         raise KeyframeError("state arrays have a wrong length")
     pending, progress = _loop_state(doc)
+    terrain_first = doc.get("terrain_first") if doc.get("version") == 3 else None  # 1, 2: the 30 m strip
+    if terrain_first is not None and (not isinstance(terrain_first, int) or isinstance(terrain_first, bool)):
+        raise KeyframeError(f"field 'terrain_first' must be an integer grid column, got {terrain_first!r}")
     schedule = doc.get("schedule")
     try:
         schedule = KickSchedule(**schedule) if schedule is not None else None
@@ -214,6 +218,7 @@ def from_json(text: str | bytes, sim: Simulation) -> Keyframe:
         hops=None,
         config=config,
         schedule=schedule,
+        terrain_first=terrain_first,
     )
     try:
         sim.check_fits(snap)

@@ -9,6 +9,7 @@ import numpy as np
 import trimesh
 
 from hopper.terrain import CraterParams
+from hopper.terrain.window import Field
 
 VISUAL_BODIES = ("torso", "wheel", "thigh_L", "shank_L", "thigh_R", "shank_R")
 
@@ -74,32 +75,43 @@ def body_poses(model: mujoco.MjModel, data: mujoco.MjData, meshes: list[BodyMesh
 
 
 def terrain_colors(heights: np.ndarray, cell: float) -> np.ndarray:
-    """Per-vertex RGBA (uint8), shape (nrow * ncol, 4): regolith grey shaded by a low sun.
+    """Per-vertex RGBA (uint8), shape (nrow * (ncol - 2), 4), of every column but the first and
+    the last (they only give the slopes at the others): regolith grey shaded by a low sun.
 
     Hillshading (light from -x, 20 deg above the horizon, as in lunar morning images) makes crater
-    bowls and rims readable from any camera; depth below the mean tints the floors darker.
+    bowls and rims readable from any camera; depth below the level start tints the floors darker.
+    Each vertex's colour depends on its neighbours alone, so tiles meet without a seam.
     """
-    gy, gx = np.gradient(heights, cell)
+    gy, gx = (g[:, 1:-1] for g in np.gradient(heights, cell))
+    heights = heights[:, 1:-1]
     normal = np.stack([-gx, -gy, np.ones_like(gx)], axis=-1)
     normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
     sun = np.array([-np.cos(np.radians(20)), 0.25, np.sin(np.radians(20))])
     sun /= np.linalg.norm(sun)
     shade = np.clip(normal @ sun, 0.0, 1.0)
-    depth = np.clip((heights - heights.mean()) / 0.15, -1.0, 1.0)
+    depth = np.clip(heights / 0.15, -1.0, 1.0)
     grey = 0.30 + 0.55 * shade + 0.10 * depth
     rgb = np.stack([grey * 0.98, grey * 0.96, grey * 0.92], axis=-1)
     alpha = np.ones_like(grey)[..., None]
     return (np.clip(np.concatenate([rgb, alpha], axis=-1), 0, 1) * 255).astype(np.uint8).reshape(-1, 4)
 
 
-def terrain_mesh(heights: np.ndarray, params: CraterParams) -> trimesh.Trimesh:
-    """The heightfield as a triangle mesh in world coordinates, from the physics' own heights.
+def terrain_tile(field: Field, k: int) -> trimesh.Trimesh:
+    """Tile k of the field (hopper.terrain.field) as a triangle mesh in world coordinates, from the
+    physics' own heights: its columns and the next tile's first, so that tiles join.
 
-    Vertex (row i, col j) sits at x = x0 + j cell, y = -width/2 + i cell, z = heights[i, j]: the
-    same grid MuJoCo's hfield uses (row 0 = -y).
+    Vertex (row i, column j) sits at x = j cell, y = -width/2 + i cell, z = the field's height: the
+    grid of MuJoCo's hfield (row 0 = -y), wherever the window is.
     """
+    params = field.params
+    n = round(params.tile / params.cell)
+    padded = field.columns(k * n - 1, n + 3)  # one column more each side, for the slopes
+    return _grid_mesh(padded[:, 1:-1], k * n, params, terrain_colors(padded, params.cell))
+
+
+def _grid_mesh(heights: np.ndarray, first: int, params: CraterParams, colors: np.ndarray) -> trimesh.Trimesh:
     nrow, ncol = heights.shape
-    xs = params.x0 + np.arange(ncol) * params.cell
+    xs = (first + np.arange(ncol)) * params.cell
     ys = -params.width / 2 + np.arange(nrow) * params.cell
     gx, gy = np.meshgrid(xs, ys)
     vertices = np.stack([gx, gy, heights], axis=-1).reshape(-1, 3)
@@ -107,5 +119,5 @@ def terrain_mesh(heights: np.ndarray, params: CraterParams) -> trimesh.Trimesh:
     a, b, c, d = idx[:-1, :-1], idx[:-1, 1:], idx[1:, :-1], idx[1:, 1:]
     faces = np.concatenate([np.stack([a, b, d], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)])
     mesh = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
-    mesh.visual.vertex_colors = terrain_colors(heights, params.cell)
+    mesh.visual.vertex_colors = colors
     return mesh

@@ -15,53 +15,65 @@ MODEL_XML = resources.files("hopper.models") / "hopper.xml"  # models/hopper.xml
 WHEEL_ACTUATOR_GROUP = 1  # models/hopper.xml: disabling this group turns the wheel off
 
 
+def terrain_window(config: SimConfig) -> terrain.Window:
+    """The config's endless terrain (seeded, so repeatable), its window at the start."""
+    params = config.craters
+    field = terrain.FlatField(params) if config.terrain == "flat" else terrain.CraterField(params, config.seed)
+    return terrain.Window(field, params)
+
+
 def terrain_heights(config: SimConfig) -> np.ndarray:
-    """The config's terrain in metres, shape (nrow, ncol); seeded, so repeatable."""
-    if config.terrain == "flat":
-        return terrain.flat(config.craters)
-    return terrain.generate(config.craters, np.random.default_rng(config.seed))
+    """The config's terrain under the start window in metres, shape (nrow, ncol)."""
+    return terrain_window(config).heights
 
 
-def build_model(config: SimConfig, heights: np.ndarray | None = None) -> mujoco.MjModel:
-    """Compile models/hopper.xml with the config's gravity, timestep and terrain."""
-    if heights is None:
-        heights = terrain_heights(config)
+def build_model(config: SimConfig, window: terrain.Window | None = None) -> mujoco.MjModel:
+    """Compile models/hopper.xml with the config's gravity, timestep and terrain (`window`, by
+    default the start window of the config's)."""
+    if window is None:
+        window = terrain_window(config)
     spec = mujoco.MjSpec.from_string(MODEL_XML.read_text(encoding="utf-8"))
     params = config.craters
     field = spec.hfield("terrain")
-    field.nrow, field.ncol = heights.shape
-    data, elevation, offset = terrain.to_hfield(heights)
+    field.nrow, field.ncol = window.heights.shape
+    data, elevation, offset = terrain.to_hfield(window.heights, window.field.vertical_range)
     # Base depth under the lowest point only matters for rendering; keep it a thin slab.
     field.size = [params.length / 2, params.width / 2, elevation, 0.1]
     field.userdata = data.ravel().tolist()
     geom = spec.geom("terrain")
-    geom.pos = [params.x0 + params.length / 2, 0.0, offset]
+    geom.pos = [window.x0 + params.length / 2, 0.0, offset]
     spec.option.gravity = [0.0, 0.0, -config.gravity]
     spec.option.timestep = config.timestep
     model = spec.compile()
+    set_terrain(model, window)  # the compiler rescales hfield data to span [0, 1]; the field's scale is fixed
     set_wheel_enabled(model, config.wheel)
     return model
 
 
-def set_terrain(model: mujoco.MjModel, heights: np.ndarray) -> None:
-    """Hot-swap the heightfield in a compiled model (same grid shape), with the bounds the compiler
-    derives from it.
+def set_terrain(model: mujoco.MjModel, window: terrain.Window) -> None:
+    """Write the window into a compiled model's heightfield in place (same grid shape) and move the
+    terrain geom under it, with the bounds the compiler derives from them: a new terrain, or the
+    window moved along its field.
 
     The terrain geom's size, bounding sphere and boxes follow its elevation; left at the old
     terrain's, a higher new terrain could be missed by the broad phase. These are MuJoCo's compile
     rules for an hfield geom (size z = size[2]/4 + base/2; box from -base to size[2]); the tests
-    check the swapped model against a freshly compiled one, array by array.
+    check the swapped model against a freshly compiled one, array by array. The field's scale is
+    fixed (its vertical_range), so a moved window's float32 data decode to the same heights.
     """
     hid = model.hfield("terrain").id
     nrow, ncol = model.hfield_nrow[hid], model.hfield_ncol[hid]
-    if heights.shape != (nrow, ncol):
-        raise ValueError(f"terrain shape {heights.shape} does not match the model's ({nrow}, {ncol})")
-    data, elevation, offset = terrain.to_hfield(heights)
+    if window.heights.shape != (nrow, ncol):
+        raise ValueError(f"terrain shape {window.heights.shape} does not match the model's ({nrow}, {ncol})")
+    data, elevation, offset = terrain.to_hfield(window.heights, window.field.vertical_range)
     adr = model.hfield_adr[hid]
     model.hfield_data[adr : adr + nrow * ncol] = data.ravel()
     model.hfield_size[hid, 2] = elevation
     geom = model.geom("terrain").id
-    model.geom_pos[geom, 2] = offset
+    sx = model.hfield_size[hid, 0]
+    model.geom_pos[geom] = (window.x0 + sx, 0.0, offset)
+    if model.geom_sameframe[geom] == mujoco.mjtSameFrame.mjSAMEFRAME_BODY:  # compiled at the origin
+        model.geom_sameframe[geom] = mujoco.mjtSameFrame.mjSAMEFRAME_BODYROT  # or kinematics ignores geom_pos
     sx, sy, top, base = model.hfield_size[hid]
     model.geom_size[geom] = (sx, sy, 0.25 * top + 0.5 * base)
     model.geom_aabb[geom] = (0.0, 0.0, 0.5 * (top - base), sx, sy, 0.5 * (top + base))

@@ -30,7 +30,7 @@ from hopper.config import (
 )
 from hopper.control import EV_APEX, EV_FALL, EV_LIFTOFF, EV_TOUCHDOWN, HopController, Phase, control_tick
 from hopper.control.kernel import EV_WHEEL, finish_wheel
-from hopper.control.landing import FOOT_Y, ground_height
+from hopper.control.landing import FOOT_Y
 from hopper.control.memory import MEMORY
 from hopper.control.wheel import WHEEL_DAMPING
 from hopper.controllers import (
@@ -68,7 +68,7 @@ from hopper.events import (
 from hopper.layout import ModelLayout
 from hopper.metrics import HopMetrics, MetricsTracker
 from hopper.mismatch import Nominal
-from hopper.model import build_model, set_terrain, set_wheel_enabled, terrain_heights
+from hopper.model import build_model, set_terrain, set_wheel_enabled, terrain_window
 from hopper.perturb import Pull
 from hopper.schedule import KickSchedule
 from hopper.snapshot import STATE_SPEC, Pending, Snapshot, SnapshotMismatch
@@ -81,6 +81,9 @@ TORQUE_PULSE_DELAY_S = 0.15  # s after liftoff, when armed on the ground
 PROBE_PITCH, PROBE_RATE = 0.02, 0.2  # rad, rad/s: the pre-run check's flight tick (hopper.controllers.law)
 HEALTH_CHECK_TICKS = 50  # ticks between checks for a diverged state
 STOP_POLL_TICKS = 100  # ticks between two asks of run()'s stop(): a Ctrl-C ends a run within 0.1 s simulated
+# The newest events kept in sim.events (listeners see every one): ~3,300 hops, ~6 MB at the ~590 B
+# an event that benchmarks/soak_terrain.py measured; unbounded, a 10,000-hop run grew 8 % by them.
+EVENT_RECORD = 10_000
 
 
 class Command(Protocol):
@@ -101,13 +104,15 @@ class Simulation:
     """One robot on one terrain, stepped one control tick at a time.
 
     `config` is the live configuration: gain, wheel, gravity and terrain changes replace it, so
-    whatever reads it (recordings, run reports) sees what the robot runs now.
+    whatever reads it (recordings, run reports) sees what the robot runs now. The terrain is
+    endless: `terrain` is the window of it in the model's heightfield, moved (in place, no
+    recompile) at a flight's apex when the robot nears its edge, sooner if it must (_follow).
     """
 
     def __init__(self, config: SimConfig) -> None:
         self.config = config
-        self.heights = terrain_heights(config)
-        self.model = build_model(config, self.heights)
+        self.terrain = terrain_window(config)
+        self.model = build_model(config, self.terrain)
         self._nominal = Nominal.of(self.model)  # what a mismatch scales (hopper.mismatch)
         if config.mismatch:
             self._nominal.apply(self.model, config.mismatch)
@@ -115,7 +120,7 @@ class Simulation:
         self.layout = ModelLayout.of(self.model)
         self.controller = HopController(self.layout, config)
         self.metrics = MetricsTracker(self.controller.mem)
-        self.events: list[Event] = []
+        self.events: collections.deque[Event] = collections.deque(maxlen=EVENT_RECORD)  # the newest
         self.listeners: list[Listener] = []
         self.run_index = -1  # counts resets: the one at construction makes it 0
         self._commands: collections.deque[Command] = collections.deque()
@@ -126,6 +131,7 @@ class Simulation:
         # Views the observation reads each flight tick of an API controller (hopper.controllers).
         self._pitch_est, self._rate_est = self._mem["pitch_est"], self._mem["rate_est"]
         self._v_wheel = self.layout.v_wheel
+        self._q_x = self.layout.q_x
         self.ticks = 0  # control ticks stepped since construction
         self.schedule: KickSchedule | None = None  # the repeatable test's kick (hopper.schedule)
         self.pending = Pending()  # the torque pulse and scheduled kick under way (hopper.snapshot)
@@ -160,6 +166,18 @@ class Simulation:
     def fallen(self) -> bool:
         return self.controller.phase is Phase.FALLEN
 
+    @property
+    def heights(self) -> np.ndarray:
+        """The terrain window's heights (m), shape (nrow, ncol), its column 0 at world x = terrain.x0.
+        A new array each time the window moves: compare it with `is` to see a move."""
+        return self.terrain.heights
+
+    def ground_profile(self) -> Ground:
+        """The terrain under the feet's lines in the window now (hopper.ballistics), built once per window."""
+        if self._ground_profile is None or self._ground_profile.heights is not self.terrain.heights:
+            self._ground_profile = Ground(self.terrain)
+        return self._ground_profile
+
     def state(self) -> RobotState:
         """The robot now (a snapshot; read it on the simulation's thread)."""
         return read_state(self.data, self.layout)
@@ -180,6 +198,7 @@ class Simulation:
             config=self.config,
             schedule=self.schedule,
             law=self.law.state() if self._external else None,
+            terrain_first=self.terrain.first,
         )
 
     def check_fits(self, snap: Snapshot) -> None:
@@ -204,6 +223,7 @@ class Simulation:
         """
         self.check_fits(snap)
         self.reconfigure(snap.config)
+        self._place_terrain(self.terrain.start if snap.terrain_first is None else snap.terrain_first)
         mujoco.mj_setState(self.model, self.data, snap.physics, STATE_SPEC)
         mujoco.mj_forward(self.model, self.data)
         self.data.sensordata[:] = snap.sensors
@@ -246,8 +266,8 @@ class Simulation:
         if config.timestep != c.timestep or config.craters != c.craters:
             raise InvalidConfig("episodes on one model share the timestep and crater parameters")
         if (config.terrain, config.seed) != (c.terrain, c.seed):
-            self.heights = terrain_heights(config)
-            set_terrain(self.model, self.heights)
+            self.terrain = terrain_window(config)
+            set_terrain(self.model, self.terrain)
         self.model.opt.gravity[2] = -config.gravity
         set_wheel_enabled(self.model, config.wheel)
         if config.mismatch != c.mismatch:
@@ -370,13 +390,11 @@ class Simulation:
 
     def _predict_touchdown(self) -> None:
         """When the flight will end, from the CoM's parabola and the terrain under the planned feet."""
-        if self._ground_profile is None:
-            self._ground_profile = Ground(self.heights, self.config.craters)
         s, lay, g = self.data.sensordata, self.layout, self.config.gravity
         com = (float(s[lay.s_com]), float(s[lay.s_com + 2]))
         vel = (float(s[lay.s_com_vel]), float(s[lay.s_com_vel + 2]))
         feet = self.controller.landing_feet(self.data, lay)
-        arc = predict(self.time, com, vel, feet, g, self._ground_profile)
+        arc = predict(self.time, com, vel, feet, g, self.ground_profile())
         # Off the strip (no ground found): back at the liftoff height, the parabola's own end.
         flight = arc.landing_s if arc.landing_s is not None else max(2.0 * vel[1] / g, 0.0)
         self.pending.touchdown_at = self.time + flight
@@ -452,6 +470,7 @@ class Simulation:
                 # Half a tick early: the kick lands on the tick delay_s after the liftoff's, not the next.
                 self.pending.kick_at = s.time + self.schedule.delay_s - 0.5 * self._dt
         if events & EV_APEX:
+            self._follow(s.x)  # the feet are highest now: the safest moment to move the ground
             self.controller.plan_landing(self.data, self.layout, self._ground)
             if self._external:
                 self._predict_touchdown()  # the legs' reach is planned now
@@ -467,11 +486,22 @@ class Simulation:
 
     def _ground(self, x: float, foot: int) -> float:
         """Terrain height (m) under the left (0) or right (1) foot at world x."""
-        return ground_height(self.heights, self.config.craters, x, FOOT_Y if foot == 0 else -FOOT_Y)
+        return self.terrain.height(x, FOOT_Y if foot == 0 else -FOOT_Y)
+
+    # -- the terrain window ----------------------------------------------------------------
+    def _follow(self, x: float, urgent: bool = False) -> None:
+        """Move the terrain window if the torso at world x (m) nears its edge (hopper.terrain.window)."""
+        if self.terrain.follow(x, urgent):
+            set_terrain(self.model, self.terrain)
+
+    def _place_terrain(self, first: int) -> None:
+        if self.terrain.place(first):
+            set_terrain(self.model, self.terrain)
 
     # -- commands (call from the loop, or submit() them) ----------------------------------
     def reset(self, reason: str = "user") -> None:
         """Stand the robot at the start of the terrain, at rest; a new run begins."""
+        self._place_terrain(self.terrain.start)
         mujoco.mj_resetData(self.model, self.data)
         gait = self.config.gait
         stand = gait.stand_height
@@ -522,9 +552,8 @@ class Simulation:
     def set_terrain(self, kind: Literal["crater", "flat"], seed: int) -> None:
         """Regenerate the heightfield in place (no recompile) and restart the robot on it."""
         self._reconfigure(terrain=kind, seed=seed)
-        self.heights = terrain_heights(self.config)
-        self._ground_profile = None
-        set_terrain(self.model, self.heights)
+        self.terrain = terrain_window(self.config)
+        set_terrain(self.model, self.terrain)
         self._emit(TerrainChanged(kind, seed))
         self.reset(reason="terrain")
 
@@ -615,11 +644,14 @@ class Simulation:
 
     # -- health ----------------------------------------------------------------------------
     def _check_health(self) -> None:
-        """Reset on a non-finite state or a new MuJoCo warning (e.g. it auto-reset a bad qacc)."""
+        """Reset on a non-finite state or a new MuJoCo warning (e.g. it auto-reset a bad qacc); move
+        the terrain window now if the robot got near its edge without a flight (dragged, sliding)."""
         if not (np.isfinite(self._qpos).all() and np.isfinite(self._qvel).all()):
             self._diverged("non-finite state")
         elif int(self.data.warning.number.sum()) > self._warnings:
             self._diverged("MuJoCo warning")
+        else:
+            self._follow(float(self._qpos[self._q_x]), urgent=True)
 
     def _diverged(self, why: str) -> None:
         log.warning("simulation diverged (%s); resetting", why)

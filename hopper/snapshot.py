@@ -4,7 +4,8 @@ A snapshot holds everything the next tick reads: MuJoCo's integration state (mj_
 mjSTATE_INTEGRATION: time, qpos, qvel, act, warm start, ctrl and applied forces), the sensor
 values the kernel reads before mj_step recomputes them, the control kernel's memory record (phase,
 PID integral, contact debounce, IMU noise RNG, motor delay line), the loop's pending disturbances,
-the metrics tracker's hop in progress and a Python controller's state (a deep copy). Restoring it
+the metrics tracker's hop in progress, a Python controller's state (a deep copy) and where the
+terrain window stood (its heights follow from the field; hopper.terrain.window). Restoring it
 and stepping repeats the original ticks bit for bit (the command queue is empty between ticks).
 """
 
@@ -50,6 +51,7 @@ class Snapshot:
     config: SimConfig  # gains, gravity, terrain, sensing, ... at that moment
     schedule: KickSchedule | None = None  # the repeatable test's kick (hopper.schedule)
     law: object | None = None  # an API controller's state (hopper.controllers.law.FlightLaw.state)
+    terrain_first: int | None = None  # the terrain window's first grid column; None: the start window's
 
     @property
     def gains(self) -> Gains:

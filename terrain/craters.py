@@ -1,4 +1,4 @@
-"""Procedural lunar crater heightfields: a pure, seeded function from parameters to heights."""
+"""Lunar craters: the field's parameters, one crater's profile and the size-frequency draw."""
 
 from __future__ import annotations
 
@@ -14,15 +14,18 @@ import numpy as np
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
 class CraterParams:
-    """Parameters of a crater field on a rectangular strip.
+    """Parameters of an endless crater field (hopper.terrain.field) and of the window of it the
+    simulation holds (hopper.terrain.window).
 
-    Lengths in metres; the strip spans x in [x0, x0 + length], y in [-width/2, width/2].
+    Lengths in metres. The field spans every x and y in [-width/2, width/2]; the window is `length`
+    long and starts at x in [x0, x0 + length]; both sit on the grid x = j cell (j any integer).
     """
 
-    length: float = 30.0  # m; at 0.8 m a hop, room for more than 30 hops
-    width: float = 2.0  # m; the robot is planar, the strip only needs to hold both feet
-    x0: float = -2.0  # m; world x of the strip's -x edge
+    length: float = 30.0  # m; the window: at 0.8 m a hop, the start window holds more than 30 hops
+    width: float = 2.0  # m; the robot is planar, the field only needs to hold both feet
+    x0: float = -2.0  # m; world x of the start window's -x edge
     cell: float = 0.05  # m; grid spacing, no smaller than the 4 cm foot radius
+    tile: float = 4.0  # m; the field's draws come per tile; a crater and the noise kernel reach < 1 tile
     density: float = 1.0  # craters per m^2
     diameter_range: tuple[float, float] = (0.3, 2.0)  # m
     depth_ratio_range: tuple[float, float] = (0.08, 0.2)  # depth / diameter
@@ -44,6 +47,9 @@ class CraterParams:
             check(math.isfinite(value) and value >= 0, f"{name} must be finite and >= 0, got {value}")
         check(math.isfinite(self.x0), f"x0 must be finite, got {self.x0}")
         check(self.cell <= min(self.length, self.width) / 4, f"cell {self.cell} m is too coarse")
+        for name in ("x0", "tile", "length"):  # whole cells: every window and tile starts on the one grid
+            cells = getattr(self, name) / self.cell
+            check(abs(cells - round(cells)) < 1e-9, f"{name} {getattr(self, name)} m is not a whole number of cells")
         for name in ("diameter_range", "depth_ratio_range", "rim_ratio_range"):
             lo, hi = getattr(self, name)
             check(
@@ -52,11 +58,24 @@ class CraterParams:
             )
         check(self.diameter_range[0] > 0, "diameter_range low must be > 0")
         check(self.depth_ratio_range[1] <= 0.5, "depth/diameter above 0.5 is not a crater")
+        # A crater reaches one diameter from its centre, the noise kernel 4 correlation lengths
+        # (hopper.terrain.field): within a tile, so a tile's heights need only its neighbours.
+        reach = max(self.diameter_range[1], 4 * self.roughness_scale)
+        check(self.tile >= reach, f"tile {self.tile} m is shorter than a crater's or the noise's reach, {reach} m")
 
     @property
     def shape(self) -> tuple[int, int]:
-        """Grid shape (nrow along y, ncol along x)."""
+        """The window's grid shape (nrow along y, ncol along x)."""
         return (round(self.width / self.cell) + 1, round(self.length / self.cell) + 1)
+
+    @property
+    def vertical_range(self) -> tuple[float, float]:
+        """Lowest and highest height (m) of the field: two of the deepest bowls (or highest rims)
+        on top of each other and six RMS of noise. Fixed, so the hfield's scale never changes as
+        the window moves (its float32 data then decode to the same heights); the field clips to it."""
+        widest = self.diameter_range[1]
+        noise = 6.0 * self.roughness
+        return (-2.0 * self.depth_ratio_range[1] * widest - noise, 2.0 * self.rim_ratio_range[1] * widest + noise)
 
 
 def crater_profile(rho: np.ndarray, depth: float, rim: float) -> np.ndarray:
@@ -79,52 +98,3 @@ def sample_diameters(rng: np.random.Generator, count: int, lo: float, hi: float)
     u = rng.random(count)
     a, b = lo**-2, hi**-2
     return (a - u * (a - b)) ** -0.5
-
-
-def smooth_noise(rng: np.random.Generator, shape: tuple[int, int], cells: float) -> np.ndarray:
-    """Unit-RMS Gaussian noise low-passed with a Gaussian kernel of `cells` grid cells, via FFT."""
-    white = rng.standard_normal(shape)
-    ky = np.fft.fftfreq(shape[0])[:, None]
-    kx = np.fft.rfftfreq(shape[1])[None, :]
-    kernel = np.exp(-2.0 * (math.pi * cells) ** 2 * (kx**2 + ky**2))
-    field = np.fft.irfft2(np.fft.rfft2(white) * kernel, s=shape)
-    std = field.std()
-    return field / std if std > 0 else field
-
-
-def generate(params: CraterParams, rng: np.random.Generator) -> np.ndarray:
-    """Crater field heights in metres, shape (nrow, ncol); row 0 is the -y edge, column 0 the -x edge."""
-    nrow, ncol = params.shape
-    xs = params.x0 + np.arange(ncol) * params.cell
-    ys = -params.width / 2 + np.arange(nrow) * params.cell
-    heights = params.roughness * smooth_noise(rng, (nrow, ncol), params.roughness_scale / params.cell)
-
-    count = rng.poisson(params.density * params.length * params.width)
-    diameters = sample_diameters(rng, count, *params.diameter_range)
-    for diameter in diameters:
-        radius = diameter / 2
-        # Centres may sit just off the strip so that partial craters cut its edges.
-        cx = rng.uniform(xs[0] - radius, xs[-1] + radius)
-        cy = rng.uniform(ys[0] - radius, ys[-1] + radius)
-        if abs(cx) < params.clear_radius + 2 * radius:  # keep the start pad level
-            continue
-        depth = diameter * rng.uniform(*params.depth_ratio_range)
-        rim = diameter * rng.uniform(*params.rim_ratio_range)
-        # Only the crater's footprint (rho < 2) is evaluated.
-        ix = slice(
-            max(0, int((cx - 2 * radius - xs[0]) / params.cell)), int((cx + 2 * radius - xs[0]) / params.cell) + 2
-        )
-        iy = slice(
-            max(0, int((cy - 2 * radius - ys[0]) / params.cell)), int((cy + 2 * radius - ys[0]) / params.cell) + 2
-        )
-        rho = np.hypot(xs[None, ix] - cx, ys[iy, None] - cy) / radius
-        heights[iy, ix] += crater_profile(rho, depth, rim)
-
-    # Blend the start pad to zero height so the robot starts standing on level ground.
-    pad = np.clip((np.abs(xs) - params.clear_radius) / params.clear_radius, 0.0, 1.0)
-    return heights * pad[None, :]
-
-
-def flat(params: CraterParams) -> np.ndarray:
-    """A level field of the same grid, shape (nrow, ncol)."""
-    return np.zeros(params.shape)

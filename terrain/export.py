@@ -10,12 +10,14 @@ from PIL import Image, PngImagePlugin
 MIN_ELEVATION = 1e-3  # m; MuJoCo needs a positive hfield elevation even for a flat field
 
 
-def to_hfield(heights: np.ndarray) -> tuple[np.ndarray, float, float]:
-    """Normalise heights (m, shape (nrow, ncol)) to MuJoCo's [0, 1] data.
+def to_hfield(heights: np.ndarray, vertical: tuple[float, float] | None = None) -> tuple[np.ndarray, float, float]:
+    """Normalise heights (m, shape (nrow, ncol)) to MuJoCo's [0, 1] data, over `vertical` (low,
+    high; m) if given (a field's fixed range, so data decode the same whatever the window) or
+    over the heights' own range.
 
     Returns (data, elevation_z, offset_z): height = offset_z + data * elevation_z.
     """
-    low, high = float(heights.min()), float(heights.max())
+    low, high = (float(heights.min()), float(heights.max())) if vertical is None else vertical
     elevation = max(high - low, MIN_ELEVATION)
     return (heights - low) / elevation, elevation, low
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 
 import pytest
-from hopper.terrain import CraterParams, flat
+from hopper.terrain import CraterParams, FlatField, Window
 
 from hopper.ballistics import STEP_S, Ground, predict
 from hopper.config import FOOT_RADIUS, SimConfig
@@ -15,7 +15,7 @@ from hopper.sim import Simulation
 
 def test_on_flat_ground_the_landing_is_the_parabolas_root() -> None:
     params = CraterParams()
-    ground = Ground(flat(params), params)
+    ground = Ground(Window(FlatField(params), params))
     g, h, vx, vz = 1.62, 0.4, 0.8, 1.1  # foot 0.4 m above its contact height, rising
     feet = [(0.2, FOOT_RADIUS + h), (-0.1, FOOT_RADIUS + h + 0.05)]  # the left foot is the lower one
     arc = predict(3.0, (0.0, 1.0), (vx, vz), feet, g, ground)
@@ -40,7 +40,6 @@ def test_after_the_apex_the_prediction_is_where_and_when_the_feet_come_down() ->
 def _landing_errors(seed: int, hops: int) -> list[tuple[float, float]]:
     """(largest foot x error in m, touchdown time error in s) of each landing, predicted at the apex."""
     sim = Simulation(SimConfig(seed=seed))
-    ground = Ground(sim.heights, sim.config.craters)
     layout, feet = sim.layout, [sim.model.geom(f"foot_{side}").id for side in "LR"]
     arc, errors = None, []
     while len(sim.hops) < hops and not sim.fallen:
@@ -50,7 +49,7 @@ def _landing_errors(seed: int, hops: int) -> list[tuple[float, float]]:
             com = (float(s[layout.s_com]), float(s[layout.s_com + 2]))
             velocity = (float(s[layout.s_com_vel]), float(s[layout.s_com_vel + 2]))
             feet_now = sim.controller.landing_feet(sim.data, layout)
-            arc = predict(sim.time, com, velocity, feet_now, sim.config.gravity, ground)
+            arc = predict(sim.time, com, velocity, feet_now, sim.config.gravity, sim.ground_profile())
         elif arc is not None and sim.phase is not Phase.FLIGHT:
             actual = [float(sim.data.geom_xpos[g][0]) for g in feet]
             error_m = max(abs(p[0] - a) for p, a in zip(arc.feet, actual, strict=True))

@@ -163,15 +163,15 @@ def test_commands_apply_while_paused(dashboard: Dashboard, client: ProbeClient) 
 
 
 def test_regenerating_the_terrain_re_sends_its_mesh_only(dashboard: Dashboard, client: ProbeClient) -> None:
-    meshes = client.counts["GlbMessage"]
-    assert meshes >= 1  # the terrain and the multi-colour bodies, once each
+    meshes, tiles = client.counts["GlbMessage"], len(dashboard.terrain.tiles)
+    assert meshes >= tiles == 9  # the window's tiles and the multi-colour bodies, once each
     client.set_gui_value("Seed", 7)
     client.set_gui_value("Regenerate", True)
     assert wait_until(lambda: dashboard.sim.config.seed == 7)
-    assert client.wait_for(lambda p: p.counts["GlbMessage"] == meshes + 1)
+    assert client.wait_for(lambda p: p.counts["GlbMessage"] == meshes + tiles)
     mesh_count = client.counts["MeshMessage"]
-    time.sleep(1.0)  # the robot restarted on the new terrain: poses only, no new meshes
-    assert client.counts["GlbMessage"] == meshes + 1 and client.counts["MeshMessage"] == mesh_count
+    _rounds(dashboard, 30)  # the robot restarted on the new terrain: poses only, no new meshes
+    assert client.counts["GlbMessage"] == meshes + tiles and client.counts["MeshMessage"] == mesh_count
     assert "terrain crater, seed 7" in dashboard.layout.events.html.content
 
 
@@ -251,10 +251,42 @@ def test_a_fall_is_notified_and_reset_unless_stay_fallen(dashboard: Dashboard, c
     assert wait_until(lambda: not dashboard.sim.fallen, timeout=5.0), "no auto reset after the fall"
 
 
-def test_the_end_of_the_terrain_restarts_the_run(dashboard: Dashboard, client: ProbeClient) -> None:
+def test_a_robot_put_past_the_old_strips_end_stays_there_on_ground_that_follows(
+    dashboard: Dashboard, client: ProbeClient
+) -> None:
+    """The terrain has no end: a robot put at x = 40 m (10 m past where the strip ended) is not sent
+    back; the window moves under it and the scene's tiles follow."""
+    glbs = client.counts["GlbMessage"]
     dashboard.sim.submit(Call(lambda sim: sim.data.joint("root_x").qpos.__setitem__(0, 40.0)))
-    assert client.wait_for(lambda p: "End of the terrain" in titles(p))
-    assert wait_until(lambda: dashboard.sim.state().x < 5.0)
+    assert wait_until(lambda: dashboard.sim.terrain.x0 < 40.0 < dashboard.sim.terrain.x1)
+    _rounds(dashboard, 3)
+    assert set(dashboard.terrain.tiles) == set(dashboard.sim.terrain.tiles())
+    assert client.wait_for(lambda p: p.counts["GlbMessage"] >= glbs + 9)  # a window of new ground
+    assert dashboard.sim.state().x > 35.0 and [e.payload.reason for e in _resets(dashboard)] == ["start"]
+    assert not any("terrain" in t for t in titles(client))
+
+
+def test_the_dashboard_hops_on_past_30_m_without_a_reset(start) -> None:
+    """At 64x, 30 m of simulated hops (a minute of simulation, two window moves): no reset, the
+    scene's tiles are the window's. Waits on simulated progress, not on wall time."""
+    dashboard = start(speed=64.0)
+    assert wait_until(lambda: dashboard.sim.state().x > 32.0 or dashboard.sim.fallen, timeout=300)
+    assert not dashboard.sim.fallen, "fell on the way (a fall resets to the start: not what this checks)"
+    _rounds(dashboard, 3)
+    assert [e.payload.reason for e in _resets(dashboard)] == ["start"]
+    assert dashboard.sim.terrain.moves >= 2 and dashboard.terrain.sent >= 9 + 6
+    assert set(dashboard.terrain.tiles) == set(dashboard.sim.terrain.tiles())
+
+
+def test_a_robot_off_the_terrain_restarts_the_run(dashboard: Dashboard, client: ProbeClient) -> None:
+    dashboard.sim.submit(Call(lambda sim: sim.data.joint("root_z").qpos.__setitem__(0, -5.0)))
+    assert client.wait_for(lambda p: "Off the terrain" in titles(p))
+    assert wait_until(lambda: dashboard.sim.state().z > 0.0)
+    assert _resets(dashboard)[-1].payload.reason == "off the terrain"
+
+
+def _resets(dashboard: Dashboard) -> list[Event]:
+    return [e for e in list(dashboard.sim.events) if e.kind is EventKind.RESET]
 
 
 def test_a_diverging_simulation_resets_with_a_notification(dashboard: Dashboard, client: ProbeClient) -> None:

@@ -7,19 +7,23 @@ import pytest
 from hopper.terrain import CraterParams
 
 from hopper.config import SimConfig
-from hopper.control.landing import ground_height, plan_reach
-from hopper.model import terrain_heights
+from hopper.control.landing import plan_reach
+from hopper.model import terrain_window
 
 
 def test_ground_height_is_the_grid_at_its_points_and_bilinear_between() -> None:
     params = CraterParams()
-    heights = terrain_heights(SimConfig(seed=3))
+    window = terrain_window(SimConfig(seed=3))
+    heights = window.heights
     i, j = 20, 130  # a row near y = 0, a column ~4.5 m in
     x, y = params.x0 + j * params.cell, -params.width / 2 + i * params.cell
-    assert ground_height(heights, params, x, y) == pytest.approx(heights[i, j])
-    mid = ground_height(heights, params, x + params.cell / 2, y)
+    assert window.height(x, y) == pytest.approx(heights[i, j])
+    mid = window.height(x + params.cell / 2, y)
     assert mid == pytest.approx((heights[i, j] + heights[i, j + 1]) / 2)
-    assert ground_height(heights, params, params.x0 - 5.0, 0.0) == pytest.approx(heights[20, 0])  # off the strip
+    # Beyond the window's edges, the field itself: the terrain has no end.
+    beyond = window.field.columns(round((params.x0 - 5.0) / params.cell), 1)[20, 0]
+    assert window.height(params.x0 - 5.0, 0.0) == pytest.approx(beyond)
+    assert window.height(params.x0 - 5.0, 0.0) != pytest.approx(heights[20, 0])
 
 
 def flat_with_a_hole(depth: float, under: int):

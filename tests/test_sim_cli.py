@@ -152,15 +152,16 @@ def test_help_documents_the_exit_statuses() -> None:
 
 
 def test_terrain_export_writes_the_png_the_paper_loads(tmp_path) -> None:
-    from hopper.terrain import CraterParams, generate, read_png
-
-    out = tmp_path / "craters.png"
-    result = hopper_sim("terrain", "--seed", "4", "--png", str(out))
-    assert result.returncode == 0, result.stderr
     import numpy as np
+    from hopper.terrain import CraterField, CraterParams, read_png
 
-    expected = generate(CraterParams(), np.random.default_rng(4))
-    assert np.abs(read_png(out) - expected).max() < 1e-5
+    params = CraterParams()
+    for x0, first in (("-2", -40), ("1000.02", 20000)):  # the start window, and one 1 km along
+        out = tmp_path / "craters.png"
+        result = hopper_sim("terrain", "--seed", "4", "--png", str(out), "--x0", x0)
+        assert result.returncode == 0, result.stderr
+        expected = CraterField(params, 4).columns(first, params.shape[1])
+        assert np.abs(read_png(out) - expected).max() < 1e-5
 
 
 def size(path: Path) -> int:

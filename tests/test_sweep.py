@@ -26,7 +26,7 @@ from hopper.experiments.store import RESULT_COLUMNS, SETTING_COLUMNS, SweepStore
 from hopper.experiments.stress import Case, Schedule, run_case
 from hopper.experiments.worker import Worker
 from hopper.metrics import HopMetrics
-from hopper.model import build_model, set_terrain, terrain_heights
+from hopper.model import build_model, set_terrain, terrain_window
 
 pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)
 
@@ -100,10 +100,14 @@ def test_the_cli_refuses_a_bad_spec_in_one_line_before_any_work(tmp_path: Path, 
 
 
 def test_swapping_the_terrain_gives_the_model_a_fresh_compile_gives() -> None:
-    for before, after in ((SimConfig(seed=0), SimConfig(seed=5)), (SimConfig(seed=3), SimConfig(terrain="flat"))):
+    cases = ((SimConfig(seed=0), SimConfig(seed=5), 0), (SimConfig(seed=3), SimConfig(terrain="flat"), 0),
+             (SimConfig(seed=4), SimConfig(seed=4), 1234))  # the last: the window moved 61.7 m along  # fmt: skip
+    for before, after, moved in cases:
         model = build_model(before)
-        set_terrain(model, terrain_heights(after))
-        fresh = build_model(after)
+        window = terrain_window(after)
+        window.place(window.start + moved)
+        set_terrain(model, window)
+        fresh = build_model(after, window)
         differ = [
             name for name in dir(fresh)
             if isinstance(getattr(fresh, name), np.ndarray) and not np.array_equal(getattr(fresh, name),

@@ -18,7 +18,7 @@ import trimesh
 import viser
 from hopper.app.dashboard.scene import WORLD, CameraFollow, RobotView
 
-from hopper.ballistics import Arc, Ground, predict
+from hopper.ballistics import Arc, predict
 from hopper.commands import Grab, PullTo, Release
 from hopper.control import Phase
 from hopper.control.landing import FOOT_Y
@@ -66,10 +66,8 @@ class PhysicsView:
         self._arc: Arc | None = None
         self._flown = np.zeros((0, 2))  # CoM (x, z) of this flight's earlier arcs, up to their replanning
         self._planned_rising = False
-        self.ground = Ground(sim.heights, sim.config.craters)
 
     def terrain_changed(self, sim: Simulation) -> None:
-        self.ground = Ground(sim.heights, sim.config.craters)
         self._hide_arc()
 
     def update(self, sim: Simulation, now: float) -> None:
@@ -113,7 +111,8 @@ class PhysicsView:
         feet = sim.controller.landing_feet(sim.data, layout)
         if arc is not None:  # keep what was flown of the old arc: the whole flight stays drawn
             self._flown = np.concatenate([self._flown, arc.com[arc.times <= sim.time - arc.t0]])
-        arc = predict(sim.time, (float(com[0]), float(com[1])), velocity, feet, sim.config.gravity, self.ground)
+        ground = sim.ground_profile()  # the window's, built once per window
+        arc = predict(sim.time, (float(com[0]), float(com[1])), velocity, feet, sim.config.gravity, ground)
         self._arc, self._planned_rising = arc, rising
         path = np.concatenate([self._flown, arc.com])
         points = np.zeros((len(path), 3), np.float32)

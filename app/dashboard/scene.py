@@ -1,4 +1,4 @@
-"""The 3D scene: terrain and robot meshes sent once, then only poses, a trail and a following camera."""
+"""The 3D scene: robot meshes sent once, then only poses, a trail and a following camera (the terrain: terrain_view)."""
 
 from __future__ import annotations
 
@@ -9,11 +9,10 @@ import mujoco
 import numpy as np
 import trimesh
 import viser
-from hopper.terrain import CraterParams
 
 from hopper.config import WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT
 from hopper.control import Phase
-from hopper.meshes import BodyMesh, body_meshes, body_poses, terrain_mesh
+from hopper.meshes import BodyMesh, body_meshes, body_poses
 
 # A client can leave between listing the clients and moving its camera; viser then warns that the
 # message will never be delivered, which is exactly right and not worth a warning per frame.
@@ -33,20 +32,7 @@ CAMERA_OFFSET = np.array([0.0, -4.4, 1.9])  # m from the look-at point: side vie
 LOOK_OFFSET = np.array([0.3, 0.0, -0.3])  # m from the followed torso: a little ahead (it hops toward +x), down
 CAMERA_FOV = math.radians(45.0)  # vertical; about 4 m of height in view at the default distance
 ENVIRONMENT_INTENSITY = 0.25
-GROUND_COLOR = (58, 58, 62)
-GROUND_Z = -0.01  # m, just under the strip's level start pad
-TERRAIN_DIM = 0.72  # factor on the terrain's hillshaded colours
 FOLLOW_TAU_X, FOLLOW_TAU_Z = 0.25, 1.5  # s, camera smoothing; slow in z so hops do not bob it
-
-
-def add_terrain(scene: viser.SceneApi, heights: np.ndarray, craters: CraterParams) -> viser.GlbHandle:
-    """Send the terrain mesh (replacing any previous one of the same name)."""
-    mesh = terrain_mesh(heights, craters)
-    # viser's default environment light is bright: dim the regolith so the robot stands out.
-    colors = np.asarray(mesh.visual.vertex_colors).copy()
-    colors[:, :3] = (colors[:, :3] * TERRAIN_DIM).astype(np.uint8)
-    mesh.visual.vertex_colors = colors
-    return scene.add_mesh_trimesh(f"{WORLD}/terrain", mesh, cast_shadow=False)
 
 
 def configure_lighting(scene: viser.SceneApi, shadows: bool = True) -> None:
@@ -56,19 +42,6 @@ def configure_lighting(scene: viser.SceneApi, shadows: bool = True) -> None:
     """
     scene.configure_environment_map("warehouse", environment_intensity=ENVIRONMENT_INTENSITY)
     scene.configure_default_lights(enabled=True, cast_shadow=shadows)
-
-
-def add_ground(scene: viser.SceneApi, craters: CraterParams) -> viser.MeshHandle:
-    """Plain regolith either side of the simulated strip, so the strip does not float in a void."""
-    x0, x1, half, far = craters.x0 - 20.0, craters.x0 + craters.length + 20.0, craters.width / 2, 25.0
-    vertices = np.array(
-        [[x0, -far, 0], [x1, -far, 0], [x1, -half, 0], [x0, -half, 0],
-         [x0, half, 0], [x1, half, 0], [x1, far, 0], [x0, far, 0]],
-        dtype=np.float32,
-    )  # fmt: skip
-    vertices[:, 2] = GROUND_Z
-    faces = np.array([[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]], dtype=np.uint32)
-    return scene.add_mesh_simple(f"{WORLD}/ground", vertices, faces, color=GROUND_COLOR, cast_shadow=False)
 
 
 def saturation(wheel_torque: float, wheel_speed: float) -> float:

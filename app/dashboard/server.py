@@ -32,11 +32,10 @@ from hopper.app.dashboard.scene import (
     GhostRobot,
     RobotView,
     Trail,
-    add_ground,
-    add_terrain,
     configure_lighting,
     saturation,
 )
+from hopper.app.dashboard.terrain_view import TerrainView
 from hopper.app.dashboard.wire import guard_gui_updates
 from hopper.app.recordings import FileLimits
 
@@ -56,10 +55,9 @@ PLANT_CHANGES = (EventKind.GRAVITY, EventKind.TERRAIN, EventKind.SENSING)
 FRAME_S = 1 / 30  # s of wall time between pose updates
 MAX_SLEEP_S = 0.005  # s; the loop wakes at least this often to step (5 steps a wake at 1x)
 STATUS_S = 0.2  # s between status-strip updates
-END_MARGIN_M = 1.0  # m before the end of the terrain strip where a run is restarted
-OFF_WORLD_Z_M = -3.0  # m; a torso below this has left the terrain
+OFF_WORLD_Z_M = -3.0  # m; a torso below this has left the terrain (pushed off its side)
 FALL_RESET_S = 2.0  # s of (running) wall time a fallen robot stays down before the auto reset
-END_NOTICE_S = 30.0  # s of wall time between "end of the terrain" notices (the event log has every one)
+OFF_WORLD_NOTICE_S = 30.0  # s of wall time between "off the terrain" notices (the event log has every one)
 
 
 class PortInUse(HopperError, OSError):
@@ -92,7 +90,7 @@ class Dashboard:
         self._stopping = threading.Event()
         self._stopped = False
         self._fallen_since: float | None = None
-        self._end_notified = -math.inf  # wall s of the last "end of the terrain" notice
+        self._off_notified = -math.inf  # wall s of the last "off the terrain" notice
         self._next_sample = 0.0
         self._pending_restore: Snapshot | None = None  # a Restore drained, applied at the next round's top
         self.frames = 0  # pose frames published, for tests and the benchmark
@@ -124,8 +122,7 @@ class Dashboard:
         self.camera = CameraFollow(self.server.scene, start.x, start.z)  # the parent frame first
         self.camera.configure_initial(self.server)
         configure_lighting(self.server.scene)
-        add_ground(self.server.scene, sim.config.craters)
-        self.terrain = add_terrain(self.server.scene, sim.heights, sim.config.craters)
+        self.terrain = TerrainView(self.server.scene, sim)
         self.robot = RobotView(self.server.scene, sim.model)
         self.trail = Trail(self.server.scene)
         self.history = History()  # replay: liftoff states and a ring of recent ones
@@ -331,7 +328,8 @@ class Dashboard:
 
     def _watchdog(self, now: float) -> None:
         """Keep a dashboard that runs for hours going: restart after a fall (unless asked not to)
-        and when the robot runs off the end of the terrain strip, which the core does not watch."""
+        and when the robot has left the terrain (pushed off its side: the core does not watch that).
+        The terrain has no end: the simulation moves its window along (hopper.terrain.window)."""
         sim = self.sim
         if sim.fallen and not self.stay_fallen and not self.pacer.paused:
             if self._fallen_since is None:
@@ -341,17 +339,17 @@ class Dashboard:
                 sim.reset(reason="after fall")
             return
         self._fallen_since = None
-        s, craters = sim.state(), sim.config.craters
-        if s.x > craters.x0 + craters.length - END_MARGIN_M or s.z < OFF_WORLD_Z_M:
-            sim.reset(reason="end of terrain")
-            if now - self._end_notified >= END_NOTICE_S:  # fast-forward crosses the strip every second
-                self._end_notified = now
-                notify_all(self.server, "End of the terrain", "The robot went back to the start.")
+        if sim.state().z < OFF_WORLD_Z_M:
+            sim.reset(reason="off the terrain")
+            if now - self._off_notified >= OFF_WORLD_NOTICE_S:  # at fast-forward, a push off it repeats quickly
+                self._off_notified = now
+                notify_all(self.server, "Off the terrain", "The robot fell off the terrain and went back to the start.")
 
     def _publish(self, now: float, dt: float, with_status: bool) -> None:
         sim, s = self.sim, self.sim.state()
         while self._events:
             self._handle(self._events.popleft())
+        self.terrain.sync(sim)  # the window moved (or a new terrain): its new tiles, before the poses on them
         level = saturation(s.wheel_torque, s.wheel_speed)
         # One read of the phase for the label over the robot and the status badge, sent in the same
         # window. The label goes with every frame, the strip every STATUS_S: a phase change re-sends the
@@ -419,7 +417,6 @@ class Dashboard:
             layout.controller.show(self.sim.law, self.sim.controller_fault)
             layout.analysis.show_law(self.sim.law, self.sim.config)
         elif kind == EventKind.TERRAIN:
-            self.terrain = add_terrain(self.server.scene, self.sim.heights, self.sim.config.craters)
             self.physics.terrain_changed(self.sim)
         if kind == EventKind.SCHEDULE:
             layout.disturbances.schedule.show(payload.schedule)

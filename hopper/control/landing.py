@@ -12,24 +12,9 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from hopper.config import FOOT_RADIUS, HIP_OFFSET_Z
-from hopper.terrain import CraterParams
 
 FOOT_Y = 0.11  # m, each foot's lateral offset (models/hopper.xml: the thighs sit at y = +-0.11)
-
-
-def ground_height(heights: np.ndarray, params: CraterParams, x: float, y: float) -> float:
-    """Terrain height (m) at world (x, y), bilinear between grid points; the edge beyond the strip."""
-    nrow, ncol = heights.shape
-    fx = min(max((x - params.x0) / params.cell, 0.0), ncol - 1.000001)
-    fy = min(max((y + params.width / 2) / params.cell, 0.0), nrow - 1.000001)
-    i, j = int(fy), int(fx)
-    a, b = fy - i, fx - j
-    top = heights[i, j] * (1 - b) + heights[i, j + 1] * b
-    bottom = heights[i + 1, j] * (1 - b) + heights[i + 1, j + 1] * b
-    return float(top * (1 - a) + bottom * a)
 
 
 def plan_reach(

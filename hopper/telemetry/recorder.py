@@ -44,7 +44,7 @@ from hopper.telemetry.columns import (
     vectors,
 )
 from hopper.telemetry.files import check_writable, part_path
-from hopper.telemetry.scene import log_robot, log_terrain
+from hopper.telemetry.scene import TerrainLog, log_robot
 from hopper.telemetry.schema import APPLICATION_ID, SIGNALS, SIGNALS_F32, hop_values
 from hopper.telemetry.writer import FOOTER_BYTES_PER_CHUNK, MIN_RESERVE, PipedFile, Reserve, reserve_path
 
@@ -102,8 +102,9 @@ class Telemetry:
     - `phase`: StateChange at each change, exact to the tick. `events`: TextLog and a `kind`.
     - `hops`: a row per touchdown (or fall in flight), a component per HopMetrics field, the
       floats rounded to schema.HOP_DECIMALS (1 mm, 1 ms, 0.01 deg, ...) for a readable table.
-    - `world/terrain`, `world/robot/<body>`: static meshes, bodies in named frames posed by
-      `world/tf` (Transform3D rows with `child_frame`) at 50 Hz; `world/trail`: the torso path.
+    - `world/terrain/<k>`, `world/robot/<body>`: static meshes (the terrain's tiles as the window
+      takes them in, scene.TerrainLog), bodies in named frames posed by `world/tf` (Transform3D
+      rows with `child_frame`) at 50 Hz; `world/trail`: the torso path, in world x.
 
     A row is the state at the start of its tick, as that tick's forward pass saw it: sensors,
     applied actuator forces and body poses come from MjData after mj_step (the integrator leaves
@@ -231,7 +232,7 @@ class Telemetry:
         self._xpos_view, self._xquat_view = memoryview(data.xpos).cast("B"), memoryview(data.xquat).cast("B")
         self._dt_ns = round(sim.model.opt.timestep * 1e9)
         self._meshes = body_meshes(sim.model)
-        self._terrain: dict[str, Any] = {}  # the terrain's mesh, logged again in each part
+        self._terrain = TerrainLog()  # the window's tiles, as it moves and again in each part
         self._layout(sim)
         # Raw float64 bytes, one row a tick: sensordata | actuator_force | qpos | phase code; numpy
         # reads them back without conversion (lists of floats cost ~3x more to fill, ~4x to convert).
@@ -288,9 +289,10 @@ class Telemetry:
         if self._rolls:
             self.rec.send_property("part", rr.AnyValues(index=len(self.parts), start_s=self._next_ns / 1e9))
         log_robot(self.rec, sim, self._meshes)
-        log_terrain(self.rec, sim, self._terrain)
+        self._terrain.new_part()
+        tiles = self._terrain.sync(self.rec, sim)
         self.rec.log("limits/wheel_torque", rr.SeriesLines(names=["+limit", "-limit"], colors=[RED, RED]), static=True)
-        self._chunks = 2 * len(self._meshes) + 8  # chunks in this part, for the footer's reserve
+        self._chunks = 2 * len(self._meshes) + tiles + 8  # chunks in this part, for the footer's reserve
         self._send_config(sim)
         self._send_limits([self._next_ns])
         self._phases.append((self._next_ns, self._hops, Phase(self._phase).label))
@@ -425,7 +427,7 @@ class Telemetry:
         if self._closed:
             return
         if event.kind == EventKind.TERRAIN:
-            log_terrain(self.rec, sim, self._terrain)
+            self._chunks += self._terrain.sync(self.rec, sim)
         if event.kind in SETTING_EVENTS:
             self._send_config(sim)
         if event.kind == EventKind.RESET:
@@ -469,6 +471,7 @@ class Telemetry:
         if self._stopping and self._file is not None and self._file.full:
             self._drop_buffers()  # the reserve holds the footer, not more data
             return
+        self._chunks += self._terrain.sync(self.rec, self.sim)  # tiles the window took in since the last batch
         # Take the buffers before sending (an exception mid-send must not make the next flush send
         # them twice) and copy them out: a numpy view would pin a bytearray that tick() may still
         # append to if close() runs on another thread.
