@@ -25,7 +25,7 @@ REQUIRED = ("kp", "kd", "gravity", "wheel", "disturbance_size", "hops_target", "
 SETTINGS = ("kp", "ki", "kd", "gravity", "seed", "hops_target", "terrain", "wheel", "sensing", "disturbance",
             "disturbance_size")  # fmt: skip
 RESULTS = ("hops_completed", "fell", "worst_landing_deg", "peak_pitch_deg", "rms_pitch_rate_deg_s",
-           "momentum_used_pct", "saturation_s", "sim_time_s", "wall_s")  # fmt: skip
+           "momentum_used_pct", "saturation_s", "sim_time_s", "wall_s", "energy_j_per_hop")  # fmt: skip
 
 
 @dataclasses.dataclass(frozen=True)
@@ -194,6 +194,11 @@ def sweep_report(sweep: Sweep, title: str) -> Report:
         else:
             skipped.append(f"{column} takes one value ({_unique(sweep.column(column))[0]:g}): no figure against it")
     tables = [axis_table(sweep)]
+    if "sample" in sweep.episodes.column_names:  # robots drawn from distributions: the Monte Carlo's figures
+        from hopper.report import montecarlo
+
+        drawn, section = montecarlo.figures(sweep.episodes)
+        figures, tables = drawn + figures, [section, *tables]
     if skipped:
         tables.append(page.Section("Not drawn", note="; ".join(skipped) + "."))
     if sweep.spec:
