@@ -87,8 +87,9 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     tune.add_argument("--batch", type=int, default=0, help="candidates evaluated together (default: the workers)")
     tune.add_argument(
         "--energy-weight", type=float, default=0.0, metavar="J",
-        help="also score the worst episode's electrical energy per hop (wheel and legs, braking not recovered): "
-        "J joules per hop count as much as a 3.5 deg landing error (default 0: energy does not count)",
+        help="also score the worst episode's electrical energy per hop (wheel and legs, braking not recovered; with "
+        "--robust its --quantile over the robots): J joules per hop count as much as a 3.5 deg landing error "
+        "(default 0: energy does not count)",
     )  # fmt: skip
     tune.add_argument("--json", type=writable_file, metavar="PATH", help="write the search and its evidence as JSON")
     robust_options(tune)

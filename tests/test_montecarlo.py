@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import subprocess
@@ -57,6 +58,8 @@ def test_distributions_parse_into_their_shape_and_read_back_from_the_resolved_sp
     assert dists["com_x"] == Distribution("normal", 0.0, 0.005)
     assert dists["mass_torso"].support(4.0) == pytest.approx((3.6, 4.4))
     assert dists["com_x"].support(0.0) == pytest.approx((-TRUNCATE_SD * 0.005, TRUNCATE_SD * 0.005))
+    edges = parse_model({"samples": 1, "seed": 0, "friction": {"uniform": [0.16, 4.0]}})  # 0.2 and 5 x 0.8, rounded
+    assert dict(edges.distributions)["friction"].support(0.8) == (0.16, 4.0)
     spec = parse_spec({"sensing": "realistic", "hops": 1, "model": {"samples": 4, "seed": 7, **AROUND_DEFAULT}})
     assert spec.size == 4 and parse_spec(tomllib.loads(spec.to_toml())) == spec
 
@@ -235,3 +238,22 @@ def test_tune_robust_scores_a_quantile_over_robots_and_judges_on_fresh_ones(tmp_
     assert lines[-1].startswith("best: --kp ")
     bad = hopper_sim(*flags, "--judge-seed", "0")
     assert bad.returncode == 2 and "another seed" in bad.stderr and bad.stderr.count("\n") == 1, bad.stderr
+
+
+def test_a_robust_score_is_a_quantile_where_a_failure_counts_90_deg_and_energy_its_weight() -> None:
+    from hopper.experiments.robust import FAILED_LANDING_DEG, robust_score
+    from hopper.experiments.worker import Worker, energy_per_hop
+
+    episode = next(parse_spec({"terrain": "flat", "hops": 1}).episodes())
+    worker = Worker()
+    landed = worker.run(episode)
+    fell = worker.run(dataclasses.replace(episode, wheel=False))  # the wheel-off robot tumbles in its first flight
+    assert landed.row()["hops_completed"] == 1 and fell.fell
+    s = robust_score([landed] * 9 + [fell], "landing", 0.5)
+    assert (s.successes, s.failures) == (9, 1) and s.value == pytest.approx(landed.row()["worst_landing_deg"])
+    worst = robust_score([landed] * 5 + [fell] * 5, "landing", 0.9)
+    assert worst.value == FAILED_LANDING_DEG and worst.landing_deg[-1] == math.inf, "failures beyond any landing"
+    failure = robust_score([landed] * 9 + [fell], "failure", 0.9)
+    assert 0.1 < failure.value < 0.1 + 1 / 11, "the failure probability, the landing only breaking ties"
+    weighted = robust_score([landed] * 3, "landing", 0.5, energy_weight=100.0)
+    assert weighted.value == pytest.approx(landed.row()["worst_landing_deg"] + 3.5 * energy_per_hop(landed) / 100.0)

@@ -41,6 +41,12 @@ def wilson(successes: int, n: int, z: float = Z_95) -> tuple[float, float]:
     return (0.0 if successes == 0 else low), (1.0 if successes == n else high)  # exact at the ends, not 1 - 1e-16
 
 
+def quantile(values: np.ndarray, q: float) -> float:
+    """The empirical quantile: the smallest value with at least a share q of the values at or below it (the
+    ECDF's inverse, as the report draws it; no interpolation, so a failure's inf stays inf, never nan)."""
+    return float(np.quantile(values, q, method="inverted_cdf"))
+
+
 def _column(table: pa.Table, name: str) -> np.ndarray:
     return table.column(name).to_numpy(zero_copy_only=False)
 
@@ -106,7 +112,7 @@ def group_stats(table: pa.Table) -> list[GroupStats]:
     for key in dict.fromkeys(keys):
         rows = np.array([k == key for k in keys], dtype=bool)
         values = {m: (landing if m == "worst_landing_deg" else _column(table, m).astype(float))[rows] for m in METRICS}
-        quantiles = {m: tuple(float(np.quantile(v, q)) for q in QUANTILES) for m, v in values.items()}
+        quantiles = {m: tuple(quantile(v, q) for q in QUANTILES) for m, v in values.items()}
         k, n = int(ok[rows].sum()), int(rows.sum())
         out.append(GroupStats(_label(table, rows, columns), dict(zip(columns, key, strict=True)), n, k,
                               wilson(k, n), quantiles, values))  # fmt: skip
@@ -114,7 +120,7 @@ def group_stats(table: pa.Table) -> list[GroupStats]:
 
 
 def _number(x: float) -> str:
-    return "fell" if math.isinf(x) else f"{x:.3g}"
+    return "failed" if math.isinf(x) else f"{x:.3g}"
 
 
 def summary_lines(table: pa.Table, samples: int, seed: int) -> list[str]:

@@ -141,7 +141,7 @@ class TuneSetup:
     def score(self, results: list[EpisodeResult]) -> Score | RobustScore:
         if self.model is None:
             return score(results, self.energy_weight)
-        return robust_score(results, self.objective, self.quantile)
+        return robust_score(results, self.objective, self.quantile, self.energy_weight)
 
     def declared(self) -> dict[str, Param]:
         """The controller's declared params by name ({} for the PID, whose params are the gains)."""
@@ -301,7 +301,8 @@ def report_lines(setup: TuneSetup, result: TuneResult) -> list[str]:
 
 def _robust_lines(setup: TuneSetup, result: TuneResult) -> list[str]:
     """Defaults and best over the tuning robots and the judging ones: success with its interval, quantiles."""
-    lines = [describe(setup.objective, setup.quantile), "quantiles p50/p90/p99 over episodes; success [95 % Wilson]"]
+    lines = [describe(setup.objective, setup.quantile, setup.energy_weight)]
+    lines.append("quantiles p50/p90/p99 over episodes; success [95 % Wilson]")
     for title, seeds, axis, best, default in (
         ("tuning", setup.seeds, setup.model, result.best_score, result.default_score),
         ("judging", setup.heldout, setup.judge, result.best_heldout, result.default_heldout),

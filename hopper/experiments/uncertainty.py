@@ -251,7 +251,8 @@ def _distribution(name: str, value: Any, param: Param) -> Distribution:
         raise UncertaintyError(f"{where}: negative spread (SD {b:g}); a standard deviation is >= 0")
     dist = Distribution(shape, a, b, relative)
     low, high = dist.support(param.nominal)
-    if low < param.low or high > param.high:
+    slack = 1e-12 * max(abs(param.low), abs(param.high))  # 0.2 x 0.8 is 0.16000000000000003: 0.16 is in range
+    if low < param.low - slack or high > param.high + slack:
         reach = "its range" if shape == "uniform" else f"mean +- {TRUNCATE_SD:g} SD"
         unit = f" {param.unit}" if param.unit else ""
         raise UncertaintyError(

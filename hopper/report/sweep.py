@@ -179,8 +179,12 @@ def sweep_report(sweep: Sweep, title: str) -> Report:
     """The heat map(s), success against gravity and against disturbance size (when the sweep varies
     them), the per-value table and the spec."""
     figures, skipped = [], []
+    drawn = "sample" in sweep.episodes.column_names  # robots drawn from distributions (hopper.report.montecarlo)
+    one_cell = len(_unique(sweep.column("kp"))) == len(_unique(sweep.column("kd"))) == 1
+    if drawn and one_cell:
+        skipped.append("one Kp x Kd cell: no gain map (the Monte Carlo figures show that gain set)")
     for wheel in (True, False):
-        if (sweep.column("wheel").astype(bool) == wheel).any():
+        if (sweep.column("wheel").astype(bool) == wheel).any() and not (drawn and one_cell):
             state = "on" if wheel else "off"
             figures.append(Named(f"gain_map_wheel_{state}", f"Kp x Kd, wheel {state}",
                                  "Worst landing pitch error over every episode in each cell (other settings pooled); "
@@ -194,7 +198,7 @@ def sweep_report(sweep: Sweep, title: str) -> Report:
         else:
             skipped.append(f"{column} takes one value ({_unique(sweep.column(column))[0]:g}): no figure against it")
     tables = [axis_table(sweep)]
-    if "sample" in sweep.episodes.column_names:  # robots drawn from distributions: the Monte Carlo's figures
+    if drawn:
         from hopper.report import montecarlo
 
         drawn, section = montecarlo.figures(sweep.episodes)
