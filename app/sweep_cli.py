@@ -53,6 +53,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     sweep.add_argument(
         "--param", action="append", default=[], metavar="NAME=VALUES", help="an axis of the controllers' params"
     )
+    model_options(sweep)
     executor_options(sweep)
 
     tune = commands.add_parser(
@@ -86,17 +87,62 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     tune.add_argument("--batch", type=int, default=0, help="candidates evaluated together (default: the workers)")
     tune.add_argument(
         "--energy-weight", type=float, default=0.0, metavar="J",
-        help="also score the worst episode's electrical energy per hop (wheel and legs, braking not recovered): "
-        "J joules per hop count as much as a 3.5 deg landing error (default 0: energy does not count)",
+        help="also score the worst episode's electrical energy per hop (wheel and legs, braking not recovered; with "
+        "--robust its --quantile over the robots): J joules per hop count as much as a 3.5 deg landing error "
+        "(default 0: energy does not count)",
     )  # fmt: skip
     tune.add_argument("--json", type=writable_file, metavar="PATH", help="write the search and its evidence as JSON")
+    robust_options(tune)
     executor_options(tune)
+
+
+def robust_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--robust", type=Path, metavar="SPEC.toml",
+        help="tune over robots drawn from SPEC's [model] table (its other keys are ignored): a quantile over them is "
+        "the score; the best and the defaults are then judged on --judge-samples robots drawn with --judge-seed",
+    )  # fmt: skip
+    model_options(p)
+    p.add_argument("--objective", choices=("landing", "failure"), default="landing",
+                   help="landing: the --quantile of the worst landing error (a failure counts 90 deg); failure: the "
+                   "failure probability, ties broken by that quantile (default landing)")  # fmt: skip
+    p.add_argument("--quantile", type=float, default=0.9, help="the landing error's quantile scored (default 0.9)")
+    p.add_argument("--judge-samples", type=int, metavar="N", help="robots the result is judged on (default: SPEC's)")
+    p.add_argument("--judge-seed", type=int, metavar="SEED", help="their seed (default: the model's seed + 1)")
 
 
 def default_ranges() -> dict[str, tuple[float, float, bool]]:
     from hopper.experiments.tune import GAIN_SEARCH
 
     return GAIN_SEARCH
+
+
+def model_options(p: argparse.ArgumentParser) -> None:
+    """The [model] table's flags (hopper.experiments.uncertainty): they add to a spec file's table."""
+    p.add_argument("--samples", type=int, metavar="N", help="robots drawn from the model's distributions")
+    p.add_argument("--model-seed", type=int, metavar="SEED", help="the seed they are drawn with")
+    p.add_argument(
+        "--model", action="append", default=[], metavar="NAME=uniform|normal:A:B[:relative]",
+        help="a sampled parameter, e.g. mass_torso=uniform:0.9:1.1:relative or com_x=normal:0:0.005 (repeatable)",
+    )  # fmt: skip
+
+
+def model_table(args: argparse.Namespace) -> dict[str, Any]:
+    """--samples, --model-seed and --model as a [model] table ({} without them)."""
+    from hopper.experiments.spec import SpecError
+
+    table: dict[str, Any] = {}
+    if args.samples is not None:
+        table["samples"] = args.samples
+    if args.model_seed is not None:
+        table["seed"] = args.model_seed
+    for text in args.model:
+        name, values = _named("model", text)
+        parts = values.split(":")
+        if len(parts) not in (3, 4) or (len(parts) == 4 and parts[3] != "relative"):
+            raise SpecError(f"--model {name}: expected uniform|normal:A:B[:relative], got {values!r}")
+        table[name] = {parts[0]: [_scalar(parts[1]), _scalar(parts[2])], "relative": len(parts) == 4}
+    return table
 
 
 def executor_options(p: argparse.ArgumentParser) -> None:
@@ -180,6 +226,8 @@ def spec_overrides(args: argparse.Namespace) -> dict[str, Any]:
         data["disturbance"] = [_disturbance(t) for t in args.disturbance]
     if getattr(args, "controller", None):
         data["controller"] = [c.strip() for c in args.controller.split(",") if c.strip()]
+    if model_table(args):
+        data["model"] = model_table(args)
     if getattr(args, "param", None):
         data["params"] = {
             name: flag_value(f"param {name}", values) for name, values in map(lambda t: _named("param", t), args.param)
@@ -241,6 +289,11 @@ def command_sweep(args: argparse.Namespace) -> int:
     print(f"{args.out}: {overall_line(episodes)}")
     for line in axis_lines(episodes, spec.axes()):
         print(line)
+    if spec.model is not None and episodes.num_rows:
+        from hopper.experiments.montecarlo import summary_lines
+
+        for line in summary_lines(episodes, spec.model.samples, spec.model.seed):
+            print(line)
     startup = f" (start-up {run.startup_s:.1f} s, episodes {run.work_s:.1f} s)" if run.startup_s else ""
     if run.ran == 0 and run.skipped == run.total:
         print(f"this run: nothing left to run, all {run.total} episodes were already done")
@@ -275,10 +328,12 @@ def command_tune(args: argparse.Namespace) -> int:
         for text in args.gait:
             name, values = _named("gait", text)
             ranges[name] = _range(f"gait {name}", values, False)
+        model, judge = robust_models(args)
         setup = TuneSetup(
             seeds=axes.seeds, heldout=heldout, gravities=axes.gravity, hops=args.hops, terrain=args.terrain,
             sensing=args.sensing, ranges=ranges, trials=args.trials, batch=args.batch, seed=args.seed,
-            energy_weight=args.energy_weight, controller=args.controller,
+            energy_weight=args.energy_weight, controller=args.controller, model=model, judge=judge,
+            objective=args.objective, quantile=args.quantile,
         )  # fmt: skip
     except (SpecError, ValueError) as exc:
         fail(str(exc))
@@ -294,6 +349,43 @@ def command_tune(args: argparse.Namespace) -> int:
     if args.json:
         args.json.write_text(json.dumps(result.as_dict(setup), indent=2))
     return EXIT_OK
+
+
+def robust_models(args: argparse.Namespace) -> tuple[Any, Any]:  # (ModelAxis | None, ModelAxis | None)
+    """--robust's tuning robots and judging robots (None, None without it)."""
+    import tomllib
+
+    from hopper.experiments.spec import SpecError
+    from hopper.experiments.uncertainty import UncertaintyError, parse_model
+
+    flags = model_table(args)
+    if args.robust is None:
+        if flags or args.judge_samples is not None or args.judge_seed is not None:
+            raise SpecError("--samples, --model-seed, --model and --judge-* need --robust SPEC.toml")
+        return None, None
+    try:
+        data = tomllib.loads(args.robust.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise SpecError(f"cannot read {args.robust}: {exc.strerror or exc}") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise SpecError(f"{args.robust} is not valid TOML: {exc}") from None
+    if not isinstance(data.get("model"), dict):
+        raise SpecError(f"{args.robust} has no [model] table of distributions")
+    try:
+        model = parse_model({**data["model"], **flags})
+        # The judging robots: the same distributions, the file's count (--samples is the tuning's), another seed.
+        judge = parse_model(
+            {
+                **data["model"],
+                **flags,
+                "samples": args.judge_samples or data["model"].get("samples", model.samples),
+                "seed": model.seed + 1 if args.judge_seed is None else args.judge_seed,
+            }
+        )
+    except UncertaintyError as exc:
+        text = str(exc).replace("model.samples", "--judge-samples").replace("model.seed", "--judge-seed")
+        raise SpecError(text) from None
+    return model, judge
 
 
 def controller_ranges(args: argparse.Namespace) -> dict[str, tuple[float, float, bool]]:

@@ -62,24 +62,45 @@ MISMATCH_FACTORS = {
     "motor_torque": "the wheel motor's torque constant k_t (stall torque x k, back-EMF damping x k^2)",
     "leg_mass": "thighs' and shanks' masses and inertias",
     "friction": "the ground's and the feet's sliding friction",
+    # One quantity each (the Monte Carlo's, hopper.experiments.uncertainty), where torso_mass and
+    # leg_mass scale a body's mass and inertia together (a denser body).
+    "mass_torso": "the torso's mass alone",
+    "mass_wheel": "the wheel's mass alone",
+    "mass_thigh": "both thighs' masses alone",
+    "mass_shank": "both shanks' masses alone",
+    "inertia_torso": "the torso's inertia alone (every principal moment)",
+    "inertia_thigh": "both thighs' inertias alone",
+    "inertia_shank": "both shanks' inertias alone",
 }
 MISMATCH_RANGE = (0.2, 5.0)  # x nominal
+# Offsets of the torso's centre of mass from the wheel axis (its frame's origin), m, added to body_ipos.
+MISMATCH_OFFSETS = {
+    "com_x": "the torso's centre of mass, forward of the wheel axis (m)",
+    "com_z": "the torso's centre of mass, above the wheel axis (m)",
+}
+COM_OFFSET_LIMIT = 0.18  # m: the torso's box half size (models/hopper.xml), the CoM stays inside it
 
 
 def check_mismatch(mismatch: tuple[tuple[str, float], ...]) -> tuple[tuple[str, float], ...]:
-    """(name, factor) pairs, names from FACTORS, factors within MISMATCH_RANGE; InvalidConfig if not."""
+    """(name, value) pairs: factors (MISMATCH_FACTORS) within MISMATCH_RANGE, offsets (MISMATCH_OFFSETS)
+    within +-COM_OFFSET_LIMIT m; InvalidConfig if not."""
     out = []
     for item in mismatch:
         try:
-            name, factor = str(item[0]), float(item[1])
+            name, value = str(item[0]), float(item[1])
         except (TypeError, ValueError, IndexError):
-            raise InvalidConfig(f"mismatch entries are (name, factor) pairs, got {item!r}") from None
-        if name not in MISMATCH_FACTORS:
-            raise InvalidConfig(f"unknown mismatch {name!r}; choose from {', '.join(MISMATCH_FACTORS)}")
-        low, high = MISMATCH_RANGE
-        if not low <= factor <= high:
-            raise InvalidConfig(f"mismatch {name} = {factor:g} is outside [{low:g}, {high:g}] x nominal")
-        out.append((name, factor))
+            raise InvalidConfig(f"mismatch entries are (name, value) pairs, got {item!r}") from None
+        if name in MISMATCH_OFFSETS:
+            if not -COM_OFFSET_LIMIT <= value <= COM_OFFSET_LIMIT:
+                raise InvalidConfig(f"mismatch {name} = {value:g} m is outside +-{COM_OFFSET_LIMIT:g} m")
+        elif name in MISMATCH_FACTORS:
+            low, high = MISMATCH_RANGE
+            if not low <= value <= high:
+                raise InvalidConfig(f"mismatch {name} = {value:g} is outside [{low:g}, {high:g}] x nominal")
+        else:
+            known = ", ".join((*MISMATCH_FACTORS, *MISMATCH_OFFSETS))
+            raise InvalidConfig(f"unknown mismatch {name!r}; choose from {known}")
+        out.append((name, value))
     return tuple(out)
 
 
@@ -185,6 +206,11 @@ class SensingParams:
     # random sign. PHYSICS.md's example (0.5 deg/s drifts 0.6 deg over a lunar flight); the
     # BMI088 datasheet's zero-rate offset spread is of the order of 1 deg/s.
     gyro_turn_on_bias: float = 0.5  # deg/s
+    # Known parts of the turn-on biases, added to the seeded draws above: a Monte Carlo sample
+    # (hopper.experiments.uncertainty) sets them, with the draws' scales at 0, to fly one IMU exactly.
+    gyro_bias_fixed: float = 0.0  # deg/s
+    accel_bias_fixed_x: float = 0.0  # mg
+    accel_bias_fixed_z: float = 0.0  # mg
     # Accelerometer (x and z axes of the torso).
     accel_noise_density: float = 175.0  # ug/sqrt(Hz), BMI088 datasheet (PHYSICS.md)
     # Residual zero-g offset after a factory/6-position calibration, per axis uniform in [-1, 1] x
@@ -214,6 +240,9 @@ class SensingParams:
         require_finite("gyro_turn_on_bias", self.gyro_turn_on_bias, 0.0, 10.0, "deg/s")
         require_finite("accel_noise_density", self.accel_noise_density, 0.0, 5000.0, "ug/sqrt(Hz)")
         require_finite("accel_bias", self.accel_bias, 0.0, 100.0, "mg")
+        require_finite("gyro_bias_fixed", self.gyro_bias_fixed, -10.0, 10.0, "deg/s")
+        require_finite("accel_bias_fixed_x", self.accel_bias_fixed_x, -100.0, 100.0, "mg")
+        require_finite("accel_bias_fixed_z", self.accel_bias_fixed_z, -100.0, 100.0, "mg")
         require_finite("calibration_time", self.calibration_time, 0.0, 60.0, "s")
         require_finite("tilt_wn", self.tilt_wn, 0.0, 10.0, "rad/s")
         require_finite("tilt_zeta", self.tilt_zeta, 0.1, 5.0)

@@ -77,6 +77,9 @@ class HopController:
         m["gyro_turn_on"] = math.radians(s.gyro_turn_on_bias)
         m["accel_noise"] = s.accel_noise_density * 1e-6 * STANDARD_GRAVITY / math.sqrt(dt)
         m["accel_offset"] = s.accel_bias * 1e-3 * STANDARD_GRAVITY
+        m["gyro_fixed"] = math.radians(s.gyro_bias_fixed)
+        m["accel_fixed_x"] = s.accel_bias_fixed_x * 1e-3 * STANDARD_GRAVITY
+        m["accel_fixed_z"] = s.accel_bias_fixed_z * 1e-3 * STANDARD_GRAVITY
         m["calibration_ticks"] = max(round(s.calibration_time / dt), 1)
         m["tilt_kp"], m["tilt_ki"] = 2.0 * s.tilt_zeta * s.tilt_wn, s.tilt_wn**2
         m["motor_delay"] = s.motor_delay_ticks

@@ -50,6 +50,9 @@ _PARAMS = [
     ("gyro_turn_on", "f8"),  # rad/s, turn-on bias scale
     ("accel_noise", "f8"),  # m/s^2, standard deviation of one accelerometer sample, per axis
     ("accel_offset", "f8"),  # m/s^2, residual zero-g offset scale
+    ("gyro_fixed", "f8"),  # rad/s, known part of the gyro's turn-on bias (SensingParams.gyro_bias_fixed)
+    ("accel_fixed_x", "f8"),  # m/s^2, known parts of the accelerometer's offsets
+    ("accel_fixed_z", "f8"),
     ("calibration_ticks", "i8"),  # still samples averaged at power-on
     ("tilt_kp", "f8"),  # 1/s, attitude correction per unit of horizontal specific force / g
     ("tilt_ki", "f8"),  # 1/s^2, gyro bias correction per unit of horizontal specific force / g

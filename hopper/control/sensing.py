@@ -54,15 +54,15 @@ def gaussian_pair(state: np.uint64) -> tuple[np.uint64, float, float]:
 # -- the IMU ---------------------------------------------------------------------------------
 @njit(cache=True)
 def draw_imu(m) -> None:  # noqa: ANN001 (a MEMORY record)
-    """Power the IMU on: restart its noise from the seed and draw its turn-on biases."""
+    """Power the IMU on: restart its noise from the seed and draw its turn-on biases (plus their known parts)."""
     state = np.uint64(m.sensor_seed) ^ IMU_SALT
     state, u = uniform(state)
     v = 2.0 * u - 1.0  # in [-1, 1); the gyro's turn-on bias is +-[0.5, 1) x its scale
-    m.gyro_bias = m.gyro_turn_on * 0.5 * (v + (1.0 if v >= 0.0 else -1.0))
+    m.gyro_bias = m.gyro_fixed + m.gyro_turn_on * 0.5 * (v + (1.0 if v >= 0.0 else -1.0))
     state, u = uniform(state)
-    m.accel_bias_x = m.accel_offset * (2.0 * u - 1.0)
+    m.accel_bias_x = m.accel_fixed_x + m.accel_offset * (2.0 * u - 1.0)
     state, u = uniform(state)
-    m.accel_bias_z = m.accel_offset * (2.0 * u - 1.0)
+    m.accel_bias_z = m.accel_fixed_z + m.accel_offset * (2.0 * u - 1.0)
     m.rng = state
 
 

@@ -21,6 +21,10 @@ The TOML keys (every one optional; a scalar is a one-value axis):
     phase = "stance"                          # entered this long (s) before it acts ...
     delay = 0.1
     hop = 2                                   # ... in this hop (1: before the first liftoff)
+    [model]                                   # robots drawn from distributions (hopper.experiments.uncertainty)
+    samples = 100
+    seed = 1
+    mass_torso = {uniform = [0.9, 1.1], relative = true}
 """
 
 from __future__ import annotations
@@ -44,6 +48,16 @@ from hopper.controllers.loading import canonical, declared_params
 from hopper.disturbances import DISTURBANCE_LIMITS
 from hopper.errors import HopperError
 from hopper.experiments.stress import Schedule
+from hopper.experiments.uncertainty import (
+    MODEL_PREFIX,
+    ModelAxis,
+    Sample,
+    UncertaintyError,
+    mismatch_of,
+    parse_model,
+    sensor_of,
+    sensor_params,
+)
 
 AXES = ("kp", "ki", "kd", "gravity", "seeds", "hops", "terrain", "wheel", "sensing")
 GAIT_FIELDS = tuple(f.name for f in dataclasses.fields(GaitParams))
@@ -74,6 +88,8 @@ class Episode:
     controller: str = "pid"  # the flight's wheel law (hopper.controllers.loading)
     params: tuple[tuple[str, float], ...] = ()  # the controller's swept params, the rest default
     mismatch: tuple[tuple[str, float], ...] = ()  # the simulated robot's factors off nominal (hopper.mismatch)
+    sample: int = -1  # which robot of the [model] table's draws (hopper.experiments.uncertainty); -1: none
+    model: Sample = ()  # that robot's sampled values, each in its parameter's unit
 
     def settings(self) -> dict[str, Any]:
         """The setting columns of its Parquet rows (hopper.experiments.store)."""
@@ -84,6 +100,7 @@ class Episode:
             "disturbance": describe(d), "disturbance_size": d.magnitude if d is not None else 0.0, **dict(self.gait),
             "controller": self.controller, **{PARAM_PREFIX + name: v for name, v in self.params},
             **({"mismatch": " ".join(f"{k} x{v:g}" for k, v in self.mismatch)} if self.mismatch else {}),
+            **({"sample": self.sample, **{MODEL_PREFIX + k: v for k, v in self.model}} if self.model else {}),
         }  # fmt: skip
 
     @property
@@ -101,7 +118,8 @@ class Episode:
             gait=GaitParams(**dict(self.gait)),
             wheel=self.wheel,
             sensing=self.sensing,  # type: ignore[arg-type]
-            mismatch=self.mismatch,
+            mismatch=self.mismatch + mismatch_of(self.model),
+            sensor=sensor_of(self.model),
         )
         return with_controller(config, self.controller, self.params) if self.controller != "pid" else config
 
@@ -134,11 +152,22 @@ class SweepSpec:
     gait: tuple[tuple[str, tuple[float, ...]], ...] = ()
     controller: tuple[str, ...] = ("pid",)  # specs (hopper.controllers.loading)
     params: tuple[tuple[str, tuple[float, ...]], ...] = ()  # declared params of the (non-pid) controllers
+    model: ModelAxis | None = None  # robots drawn from distributions (hopper.experiments.uncertainty)
 
     @property
     def size(self) -> int:
         n = math.prod(len(getattr(self, a)) for a in (*AXES, "disturbance", "controller"))
-        return n * math.prod(len(values) for _, values in (*self.gait, *self.params))
+        return n * math.prod(len(values) for _, values in (*self.gait, *self.params)) * self.samples
+
+    @property
+    def samples(self) -> int:
+        return self.model.samples if self.model is not None else 1
+
+    def robots(self) -> list[tuple[int, Sample]]:
+        """(index, sample) of every robot flown: the nominal one alone, (-1, ()), without a [model] table."""
+        if self.model is None:
+            return [(-1, ())]
+        return [(i, self.model.sample(i)) for i in range(self.model.samples)]
 
     def episodes(self) -> Iterator[Episode]:
         """The product of the axes, terrain and seed outermost (a worker's terrain changes least often)."""
@@ -146,16 +175,16 @@ class SweepSpec:
         gait_values = list(itertools.product(*(values for _, values in self.gait)))
         param_names = [name for name, _ in self.params]
         param_values = list(itertools.product(*(values for _, values in self.params)))
-        for terrain, seed, gravity, hops, wheel, sensing, disturbance, controller, kp, ki, kd, gait, params in (
-            itertools.product(
-                self.terrain, self.seeds, self.gravity, self.hops, self.wheel, self.sensing, self.disturbance,
-                self.controller, self.kp, self.ki, self.kd, gait_values, param_values,
-            )
-        ):  # fmt: skip
+        robots = self.robots()
+        for terrain, seed, (sample, model), gravity, hops, wheel, sensing, disturbance, controller, kp, ki, kd, gait, \
+                params in itertools.product(
+                    self.terrain, self.seeds, robots, self.gravity, self.hops, self.wheel, self.sensing,
+                    self.disturbance, self.controller, self.kp, self.ki, self.kd, gait_values, param_values,
+                ):  # fmt: skip
             yield Episode(
                 kp=kp, ki=ki, kd=kd, gravity=gravity, seed=seed, hops_target=hops, terrain=terrain, wheel=wheel,
                 sensing=sensing, disturbance=disturbance, gait=tuple(zip(names, gait, strict=True)),
-                controller=controller, params=tuple(zip(param_names, params, strict=True)),
+                controller=controller, params=tuple(zip(param_names, params, strict=True)), sample=sample, model=model,
             )  # fmt: skip
 
     def axes(self) -> dict[str, tuple[Any, ...]]:
@@ -173,6 +202,8 @@ class SweepSpec:
             lines += ["", "[gait]", *(f"{name} = {_toml(list(values))}" for name, values in self.gait)]
         if self.params:
             lines += ["", "[params]", *(f"{name} = {_toml(list(values))}" for name, values in self.params)]
+        if self.model is not None:
+            lines += ["", *self.model.to_toml()]
         for d in self.disturbance:
             lines += ["", "[[disturbance]]"]
             if d is None:
@@ -206,12 +237,15 @@ def load_spec(path: Path, overrides: dict[str, Any] | None = None) -> SweepSpec:
         raise SpecError(f"cannot read {path}: {exc.strerror or exc}") from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise SpecError(f"{path} is not valid TOML: {exc}") from None
-    return parse_spec({**data, **(overrides or {})})
+    overrides = dict(overrides or {})
+    if isinstance(data.get("model"), dict) and isinstance(overrides.get("model"), dict):  # flags add to the table
+        overrides["model"] = {**data["model"], **overrides["model"]}
+    return parse_spec({**data, **overrides})
 
 
 def parse_spec(data: dict[str, Any]) -> SweepSpec:
     """A SweepSpec from TOML-shaped data; raises SpecError saying what is wrong, in one line."""
-    known = (*AXES, "gait", "disturbance", "controller", "params")
+    known = (*AXES, "gait", "disturbance", "controller", "params", "model")
     unknown = sorted(set(data) - set(known))
     if unknown:
         raise SpecError(f"unknown key {unknown[0]!r} (known: {', '.join(known)})")
@@ -239,7 +273,11 @@ def parse_spec(data: dict[str, Any]) -> SweepSpec:
         axes["params"] = _params(data["params"], axes.get("controller", ("pid",)))
     if "disturbance" in data:
         axes["disturbance"] = _disturbances(data["disturbance"])
+    if "model" in data:
+        axes["model"] = _model(data["model"], axes.get("sensing", ("ideal",)))
     for name, values in axes.items():
+        if name == "model":
+            continue
         if len(values) == 0:
             raise SpecError(f"{name}: no values")
         if len(set(values)) != len(values):
@@ -248,6 +286,17 @@ def parse_spec(data: dict[str, Any]) -> SweepSpec:
     if spec.size > MAX_EPISODES:
         raise SpecError(f"{spec.size} episodes is more than {MAX_EPISODES}")
     return spec
+
+
+def _model(table: Any, sensing: tuple[str, ...]) -> ModelAxis:
+    try:
+        model = parse_model(table)
+    except UncertaintyError as exc:
+        raise SpecError(str(exc)) from None
+    if model.sensing() and "ideal" in sensing:
+        names = ", ".join(n for n in model.names() if n in sensor_params())
+        raise SpecError(f'model: {names} act in realistic sensing only: set sensing = "realistic"')
+    return model
 
 
 def _controller(value: Any) -> str:

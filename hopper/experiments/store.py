@@ -23,6 +23,7 @@ import pyarrow.parquet as pq
 
 from hopper.errors import HopperError
 from hopper.experiments.spec import PARAM_PREFIX, SweepSpec
+from hopper.experiments.uncertainty import MODEL_PREFIX
 from hopper.experiments.worker import EpisodeResult
 from hopper.metrics import HopMetrics
 
@@ -51,6 +52,7 @@ RESULT_COLUMNS: list[tuple[str, pa.DataType]] = [
     ("sim_time_s", pa.float64()),
     ("wall_s", pa.float64()),
     ("controller_fault", pa.string()),  # why the controller was replaced by the PID mid-episode, "" if it was not
+    ("energy_j_per_hop", pa.float64()),  # J, mean electrical energy per hop, wheel and legs (worker.energy_per_hop)
 ]
 _ARROW_TYPES = {int: pa.int64(), float: pa.float64(), bool: pa.bool_()}
 HOP_FIELDS: list[tuple[str, pa.DataType]] = [
@@ -66,6 +68,8 @@ def schemas(spec: SweepSpec) -> tuple[pa.Schema, pa.Schema]:
     setting columns, after the controller's spec."""
     settings = SETTING_COLUMNS + [(name, pa.float64()) for name, _ in spec.gait] + [("controller", pa.string())]
     settings += [(PARAM_PREFIX + name, pa.float64()) for name, _ in spec.params]  # the controller's swept params
+    if spec.model is not None:  # which robot, and its sampled values in their units (hopper.experiments.uncertainty)
+        settings += [("sample", pa.int64())] + [(MODEL_PREFIX + name, pa.float64()) for name in spec.model.names()]
     return pa.schema(settings + RESULT_COLUMNS), pa.schema(settings + [("hop", pa.int64())] + HOP_FIELDS)
 
 

@@ -9,6 +9,8 @@ that W J/hop count as much as a 3.5 deg landing error (the paper's energy-optima
 an exchange rate of the user's). The defaults are the first candidate, so the best is never worse
 than them on the tuning set; the held-out seeds say whether that generalises.
 Candidates are evaluated in batches through an executor (hopper.experiments.executor).
+With a model (`--robust`), every candidate flies sampled robots and is scored by a quantile over
+them (hopper.experiments.robust); the best and the defaults are then judged on robots drawn anew.
 """
 
 from __future__ import annotations
@@ -24,9 +26,11 @@ from hopper.config import Gains, GaitParams, InvalidConfig
 from hopper.controllers import Param
 from hopper.controllers.loading import declared_params, load_class
 from hopper.experiments.executor import Executor, chunks
+from hopper.experiments.robust import OBJECTIVES, Objective, RobustScore, describe, robust_score, score_line
 from hopper.experiments.spec import GAIT_FIELDS, Episode
 from hopper.experiments.stress import LANDING_LIMIT_DEG
-from hopper.experiments.worker import EpisodeResult
+from hopper.experiments.uncertainty import ModelAxis, Sample
+from hopper.experiments.worker import EpisodeResult, energy_per_hop
 
 # Search ranges (low, high, log scale): a decade around PHYSICS.md's LQR range (kp 340 to 850,
 # kd 17 to 31) and the defaults; ki only trims model error in flight.
@@ -62,13 +66,6 @@ class Score:
         )
 
 
-def energy_per_hop(result: EpisodeResult) -> float:
-    """An episode's mean electrical energy per hop, wheel and legs (J): over its completed hops, or
-    over the flight that fell if none completed, 0 without a hop."""
-    hops = [h for h in result.hops if h.completed] or list(result.hops)
-    return sum(h.wheel_energy_j + h.leg_energy_j for h in hops) / len(hops) if hops else 0.0
-
-
 def score(results: list[EpisodeResult], energy_weight: float = 0.0) -> Score:
     rows = [r.row() for r in results]
     return Score(
@@ -96,12 +93,20 @@ class TuneSetup:
     seed: int = 0  # the sampler's
     energy_weight: float = 0.0  # J/hop: the worst energy per hop counts in the score in units of this; 0: not at all
     controller: str = "pid"  # whose params are searched (hopper.controllers); the PID's are kp, ki, kd
+    # --robust (hopper.experiments.robust): every candidate flies `model`'s robots, is scored by a quantile
+    # over them, and the best and the defaults are judged on `judge`'s robots, drawn with another seed.
+    model: ModelAxis | None = None
+    judge: ModelAxis | None = None
+    objective: Objective = "landing"
+    quantile: float = 0.9
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.energy_weight) and self.energy_weight >= 0.0):
             raise ValueError(f"the energy weight (--energy-weight) must be a finite number of J/hop >= 0 "
                              f"(0: energy does not count), got {self.energy_weight!r}")  # fmt: skip
-        if set(self.seeds) & set(self.heldout):
+        if self.model is not None:
+            self._check_robust()
+        elif set(self.seeds) & set(self.heldout):
             raise ValueError(f"held-out seeds overlap the tuning seeds: {sorted(set(self.seeds) & set(self.heldout))}")
         declared = self.declared()
         for name in self.ranges:
@@ -112,6 +117,31 @@ class TuneSetup:
         for name, (low, high, _) in self.ranges.items():
             if not low <= defaults[name] <= high:
                 raise ValueError(f"{name}'s range [{low:g}, {high:g}] leaves out its default {defaults[name]:g}")
+
+    def _check_robust(self) -> None:
+        """Fresh robots for the judgement (the terrain seeds may then repeat), a known objective."""
+        if self.judge is None or self.judge.seed == self.model.seed:
+            raise ValueError("--robust judges on robots drawn with another seed: a --judge-seed unlike --model-seed")
+        if self.judge.distributions != self.model.distributions:
+            raise ValueError("the judging robots are drawn from the tuning robots' distributions")
+        if self.objective not in OBJECTIVES:
+            raise ValueError(f"objective {self.objective!r} is not one of {', '.join(OBJECTIVES)}")
+        if not 0.0 < self.quantile < 1.0:
+            raise ValueError(f"the quantile must be in (0, 1), got {self.quantile!r}")
+        if self.model.sensing() and self.sensing != "realistic":
+            raise ValueError(
+                "the model samples sensing parameters, which act in realistic sensing only: --sensing realistic"
+            )
+
+    def robots(self, judging: bool = False) -> list[tuple[int, Sample]]:
+        """(index, sample) of the robots a candidate flies: the nominal one alone without --robust."""
+        axis = self.judge if judging else self.model
+        return [(-1, ())] if axis is None else [(i, axis.sample(i)) for i in range(axis.samples)]
+
+    def score(self, results: list[EpisodeResult]) -> Score | RobustScore:
+        if self.model is None:
+            return score(results, self.energy_weight)
+        return robust_score(results, self.objective, self.quantile, self.energy_weight)
 
     def declared(self) -> dict[str, Param]:
         """The controller's declared params by name ({} for the PID, whose params are the gains)."""
@@ -125,7 +155,7 @@ class TuneSetup:
         own = {n: p.default for n, p in declared.items()} if declared else dataclasses.asdict(Gains())
         return {name: (own | gait)[name] for name in (*own, *self.ranges)}
 
-    def episodes(self, params: dict[str, float], seeds: tuple[int, ...]) -> list[Episode]:
+    def episodes(self, params: dict[str, float], seeds: tuple[int, ...], judging: bool = False) -> list[Episode]:
         declared = self.declared()
         gains = {k: v if declared else params.get(k, v) for k, v in dataclasses.asdict(Gains()).items()}
         gait = tuple((k, v) for k, v in params.items() if k in GAIT_FIELDS)
@@ -142,9 +172,12 @@ class TuneSetup:
                 gait=gait,
                 controller=self.controller,
                 params=own,
+                sample=sample,
+                model=model,
             )  # fmt: skip
             for g in self.gravities
             for s in seeds
+            for sample, model in self.robots(judging)
         ]
 
 
@@ -152,15 +185,19 @@ class TuneSetup:
 class TuneResult:
     best: dict[str, float]
     defaults: dict[str, float]
-    best_score: Score  # on the tuning seeds
-    default_score: Score
-    best_heldout: Score
-    default_heldout: Score
+    best_score: Score | RobustScore  # on the tuning seeds (and robots)
+    default_score: Score | RobustScore
+    best_heldout: Score | RobustScore  # on the held-out seeds (the judging robots)
+    default_heldout: Score | RobustScore
     history: list[tuple[dict[str, float], float]]  # every candidate and its score value, in order
 
+    @property
+    def robust(self) -> bool:
+        return isinstance(self.best_score, RobustScore)
+
     def as_dict(self, setup: TuneSetup) -> dict[str, Any]:
-        def s(x: Score) -> dict[str, Any]:
-            return {**dataclasses.asdict(x), "value": x.value}
+        def s(x: Score | RobustScore) -> dict[str, Any]:
+            return {**dataclasses.asdict(x), "value": x.value} | ({"interval": x.interval} if self.robust else {})
 
         return {
             "setup": {**dataclasses.asdict(setup), "ranges": {k: list(v) for k, v in setup.ranges.items()}},
@@ -172,12 +209,16 @@ class TuneResult:
 
 
 def evaluate(
-    candidates: list[dict[str, float]], seeds: tuple[int, ...], setup: TuneSetup, executor: Executor
-) -> list[Score | None]:
-    """Each candidate's Score over `seeds` x gravities (None if its configuration is refused)."""
+    candidates: list[dict[str, float]],
+    seeds: tuple[int, ...],
+    setup: TuneSetup,
+    executor: Executor,
+    judging: bool = False,
+) -> list[Score | RobustScore | None]:
+    """Each candidate's score over `seeds` x gravities (x robots) (None if its configuration is refused)."""
     valid, episodes = {}, []
     for i, params in enumerate(candidates):
-        eps = setup.episodes(params, seeds)
+        eps = setup.episodes(params, seeds, judging)
         try:
             eps[0].config()
         except InvalidConfig:
@@ -189,8 +230,7 @@ def evaluate(
     for chunk_results in executor.map(chunks(unique, executor.workers)):
         results |= {r.episode.episode_id: r for r in chunk_results}
     return [
-        score([results[e.episode_id] for e in valid[i]], setup.energy_weight) if i in valid else None
-        for i in range(len(candidates))
+        setup.score([results[e.episode_id] for e in valid[i]]) if i in valid else None for i in range(len(candidates))
     ]
 
 
@@ -205,10 +245,10 @@ def tune(setup: TuneSetup, make_executor: Callable[[list[Episode]], Executor], p
     defaults = setup.defaults()
     study.enqueue_trial({name: defaults[name] for name in distributions})
     sample = setup.episodes(defaults, setup.seeds) * setup.trials  # sizes the executor
-    executor = make_executor(sample + setup.episodes(defaults, setup.heldout) * 2)
+    executor = make_executor(sample + setup.episodes(defaults, setup.heldout, judging=True) * 2)
     batch = setup.batch or executor.workers
     history: list[tuple[dict[str, float], float]] = []
-    scores: list[Score] = []
+    scores: list[Score | RobustScore | None] = []
     bar = tqdm(total=setup.trials, desc="candidates", unit="cand", file=sys.stderr, disable=not progress)
     try:
         while len(history) < setup.trials:
@@ -222,7 +262,7 @@ def tune(setup: TuneSetup, make_executor: Callable[[list[Episode]], Executor], p
             bar.update(len(trials))
         best_index = min(range(len(history)), key=lambda i: history[i][1])  # the first of equals
         best = {**defaults, **history[best_index][0]}
-        default_heldout, best_heldout = evaluate([defaults, best], setup.heldout, setup, executor)
+        default_heldout, best_heldout = evaluate([defaults, best], setup.heldout, setup, executor, judging=True)
     finally:
         bar.close()
         executor.close()
@@ -237,9 +277,44 @@ def report_lines(setup: TuneSetup, result: TuneResult) -> list[str]:
     names = list(result.defaults)
     search = ", ".join(f"{n} [{lo:g}, {hi:g}]{' log' if log else ''}" for n, (lo, hi, log) in setup.ranges.items())
     gravities = ", ".join(f"{g:g}" for g in setup.gravities)
+    robots = f" x {setup.model.samples} robots (model seed {setup.model.seed})" if setup.model else ""
     lines = [
         f"Optuna TPE (seed {setup.seed}), {setup.trials} candidates over {search}; each: seeds "
-        f"{_seeds(setup.seeds)} x gravity {gravities} m/s^2, {setup.hops} hops, {setup.terrain}, {setup.sensing}",
+        f"{_seeds(setup.seeds)}{robots} x gravity {gravities} m/s^2, {setup.hops} hops, {setup.terrain}, "
+        f"{setup.sensing}"
+    ]
+    lines += _robust_lines(setup, result) if setup.model else _worst_case_lines(setup, result)
+    held_out = "on the judging robots" if setup.model else "on the held-out seeds"
+    verdict = "at least as good as" if result.best_heldout.value <= result.default_heldout.value else "WORSE than"
+    lines.append(
+        f"{held_out} the best gains are {verdict} the defaults "
+        f"(score {result.best_heldout.value:.4g} vs {result.default_heldout.value:.4g})"
+    )
+    if setup.controller == "pid":
+        lines.append("best: " + " ".join(f"--{n} {result.best[n]:.6g}" for n in names if n in ("kp", "ki", "kd")))
+    else:
+        declared = setup.declared()
+        flags = " ".join(f"--controller-param {n}={result.best[n]:.6g}" for n in names if n in declared)
+        lines.append(f"best: --controller {setup.controller} {flags}")
+    return lines
+
+
+def _robust_lines(setup: TuneSetup, result: TuneResult) -> list[str]:
+    """Defaults and best over the tuning robots and the judging ones: success with its interval, quantiles."""
+    lines = [describe(setup.objective, setup.quantile, setup.energy_weight)]
+    lines.append("quantiles p50/p90/p99 over episodes; success [95 % Wilson]")
+    for title, seeds, axis, best, default in (
+        ("tuning", setup.seeds, setup.model, result.best_score, result.default_score),
+        ("judging", setup.heldout, setup.judge, result.best_heldout, result.default_heldout),
+    ):
+        lines.append(f"{title}: {axis.samples} robots (model seed {axis.seed}) x seeds {_seeds(seeds)}")
+        lines += [score_line("  defaults", default), score_line("  best", best)]
+    return lines
+
+
+def _worst_case_lines(setup: TuneSetup, result: TuneResult) -> list[str]:
+    names = list(result.defaults)
+    lines = [
         f"score = {FAILURE_WEIGHT:g} x failures + worst landing / {LANDING_LIMIT_DEG:g} deg + worst momentum / 100 %"
         + (f" + worst energy / {setup.energy_weight:g} J/hop" if setup.energy_weight > 0 else " (energy not counted)"),
         f"{'':22}"
@@ -257,17 +332,6 @@ def report_lines(setup: TuneSetup, result: TuneResult) -> list[str]:
                 + f"{f'{s.failures}/{s.episodes}':>10}{s.worst_landing_deg:>13.3f}{s.worst_momentum_pct:>12.1f}"
                 + f"{s.worst_peak_deg:>10.2f}{s.worst_energy_j_per_hop:>9.1f}{s.value:>8.3f}"
             )  # fmt: skip
-    verdict = "at least as good as" if result.best_heldout.value <= result.default_heldout.value else "WORSE than"
-    lines.append(
-        f"on the held-out seeds the best gains are {verdict} the defaults "
-        f"(score {result.best_heldout.value:.3f} vs {result.default_heldout.value:.3f})"
-    )
-    if setup.controller == "pid":
-        lines.append("best: " + " ".join(f"--{n} {result.best[n]:.6g}" for n in names if n in ("kp", "ki", "kd")))
-    else:
-        declared = setup.declared()
-        flags = " ".join(f"--controller-param {n}={result.best[n]:.6g}" for n in names if n in declared)
-        lines.append(f"best: --controller {setup.controller} {flags}")
     return lines
 
 

@@ -50,12 +50,20 @@ class EpisodeResult:
             "sim_time_s": self.sim_time_s,
             "wall_s": self.wall_s,
             "controller_fault": self.controller_fault,
+            "energy_j_per_hop": energy_per_hop(self),
         }
 
     def hop_rows(self) -> list[dict[str, Any]]:
         """The hops-table rows: the settings, then `hop` (1-based) and every HopMetrics field."""
         head = {"episode_id": self.episode.episode_id, **self.episode.settings()}
         return [{**head, "hop": hop.index, **hop.as_dict()} for hop in self.hops]
+
+
+def energy_per_hop(result: EpisodeResult) -> float:
+    """An episode's mean electrical energy per hop, wheel and legs (J): over its completed hops, or
+    over the flight that fell if none completed, 0 without a hop."""
+    hops = [h for h in result.hops if h.completed] or list(result.hops)
+    return sum(h.wheel_energy_j + h.leg_energy_j for h in hops) / len(hops) if hops else 0.0
 
 
 def _compute_us(sim: Simulation) -> float:

@@ -25,7 +25,7 @@ REQUIRED = ("kp", "kd", "gravity", "wheel", "disturbance_size", "hops_target", "
 SETTINGS = ("kp", "ki", "kd", "gravity", "seed", "hops_target", "terrain", "wheel", "sensing", "disturbance",
             "disturbance_size")  # fmt: skip
 RESULTS = ("hops_completed", "fell", "worst_landing_deg", "peak_pitch_deg", "rms_pitch_rate_deg_s",
-           "momentum_used_pct", "saturation_s", "sim_time_s", "wall_s")  # fmt: skip
+           "momentum_used_pct", "saturation_s", "sim_time_s", "wall_s", "energy_j_per_hop")  # fmt: skip
 
 
 @dataclasses.dataclass(frozen=True)
@@ -179,8 +179,12 @@ def sweep_report(sweep: Sweep, title: str) -> Report:
     """The heat map(s), success against gravity and against disturbance size (when the sweep varies
     them), the per-value table and the spec."""
     figures, skipped = [], []
+    drawn = "sample" in sweep.episodes.column_names  # robots drawn from distributions (hopper.report.montecarlo)
+    one_cell = len(_unique(sweep.column("kp"))) == len(_unique(sweep.column("kd"))) == 1
+    if drawn and one_cell:
+        skipped.append("one Kp x Kd cell: no gain map (the Monte Carlo figures show that gain set)")
     for wheel in (True, False):
-        if (sweep.column("wheel").astype(bool) == wheel).any():
+        if (sweep.column("wheel").astype(bool) == wheel).any() and not (drawn and one_cell):
             state = "on" if wheel else "off"
             figures.append(Named(f"gain_map_wheel_{state}", f"Kp x Kd, wheel {state}",
                                  "Worst landing pitch error over every episode in each cell (other settings pooled); "
@@ -194,6 +198,11 @@ def sweep_report(sweep: Sweep, title: str) -> Report:
         else:
             skipped.append(f"{column} takes one value ({_unique(sweep.column(column))[0]:g}): no figure against it")
     tables = [axis_table(sweep)]
+    if drawn:
+        from hopper.report import montecarlo
+
+        drawn, section = montecarlo.figures(sweep.episodes)
+        figures, tables = drawn + figures, [section, *tables]
     if skipped:
         tables.append(page.Section("Not drawn", note="; ".join(skipped) + "."))
     if sweep.spec:
