@@ -1,0 +1,1 @@
+"""Hopper logs: one schema (schema.Log), readers for CSV, MCAP and our own .rrd."""
