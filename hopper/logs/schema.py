@@ -8,7 +8,7 @@ leg joints as models/hopper.xml measures them).
 Commands are what was sent to the actuators: the wheel torque at the wheel (N m, after the gear,
 before the motor's torque-speed envelope) and the four leg joint torques (N m). Measurements are
 the sensors. The state columns (a motion-capture system's, or the simulation's truth) are optional:
-without them a replay starts from what the sensors give.
+without them a replay starts from what the sensors give. The accelerometer's columns are optional too.
 """
 
 from __future__ import annotations
@@ -37,12 +37,14 @@ COMMANDS = (
 )
 MEASUREMENTS = (
     Column("gyro_pitch", "rad/s", "IMU gyro, body pitch axis"),
-    Column("accel_x", "m/s^2", "IMU specific force, torso x axis"),
-    Column("accel_z", "m/s^2", "IMU specific force, torso z axis"),
     Column("wheel_speed", "rad/s", "wheel encoder, relative to the torso"),
     *(Column(f"{j}", "rad", f"{j} joint encoder") for j in LEG_JOINTS),
     Column("foot_L_force", "N", "left foot contact normal force (0 off the ground)"),
     Column("foot_R_force", "N", "right foot contact normal force"),
+)
+ACCEL = (  # optional: a log without them (our own .rrd) still replays and identifies the wheel loop
+    Column("accel_x", "m/s^2", "IMU specific force, torso x axis"),
+    Column("accel_z", "m/s^2", "IMU specific force, torso z axis"),
 )
 STATE = (
     Column("x", "m", "torso CoM x, world"),
@@ -53,7 +55,7 @@ STATE = (
     Column("pitch_rate", "rad/s", "torso pitch rate, true"),
 )
 REQUIRED = (TIME, *COMMANDS, *MEASUREMENTS)
-OPTIONAL = STATE
+OPTIONAL = (*ACCEL, *STATE)
 COLUMNS = {c.name: c for c in (*REQUIRED, *OPTIONAL)}
 
 
