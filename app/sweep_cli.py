@@ -122,13 +122,13 @@ def model_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--samples", type=int, metavar="N", help="robots drawn from the model's distributions")
     p.add_argument("--model-seed", type=int, metavar="SEED", help="the seed they are drawn with")
     p.add_argument(
-        "--model", action="append", default=[], metavar="NAME=uniform|normal:A:B[:relative]",
+        "--vary", action="append", default=[], metavar="NAME=uniform|normal:A:B[:relative]",
         help="a sampled parameter, e.g. mass_torso=uniform:0.9:1.1:relative or com_x=normal:0:0.005 (repeatable)",
     )  # fmt: skip
 
 
 def model_table(args: argparse.Namespace) -> dict[str, Any]:
-    """--samples, --model-seed and --model as a [model] table ({} without them)."""
+    """--samples, --model-seed and --vary as a [model] table ({} without them)."""
     from hopper.experiments.spec import SpecError
 
     table: dict[str, Any] = {}
@@ -136,11 +136,11 @@ def model_table(args: argparse.Namespace) -> dict[str, Any]:
         table["samples"] = args.samples
     if args.model_seed is not None:
         table["seed"] = args.model_seed
-    for text in args.model:
-        name, values = _named("model", text)
+    for text in args.vary:
+        name, values = _named("vary", text)
         parts = values.split(":")
         if len(parts) not in (3, 4) or (len(parts) == 4 and parts[3] != "relative"):
-            raise SpecError(f"--model {name}: expected uniform|normal:A:B[:relative], got {values!r}")
+            raise SpecError(f"--vary {name}: expected uniform|normal:A:B[:relative], got {values!r}")
         table[name] = {parts[0]: [_scalar(parts[1]), _scalar(parts[2])], "relative": len(parts) == 4}
     return table
 
@@ -361,7 +361,7 @@ def robust_models(args: argparse.Namespace) -> tuple[Any, Any]:  # (ModelAxis | 
     flags = model_table(args)
     if args.robust is None:
         if flags or args.judge_samples is not None or args.judge_seed is not None:
-            raise SpecError("--samples, --model-seed, --model and --judge-* need --robust SPEC.toml")
+            raise SpecError("--samples, --model-seed, --vary and --judge-* need --robust SPEC.toml")
         return None, None
     try:
         data = tomllib.loads(args.robust.read_text(encoding="utf-8"))

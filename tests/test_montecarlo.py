@@ -176,10 +176,10 @@ def test_sensing_parameters_need_realistic_sensing_and_a_table_needs_its_count()
 @pytest.mark.parametrize(
     "args, message",
     [
-        (["--model", "mass_arm=uniform:1:2"], "unknown parameter 'mass_arm'"),
-        (["--model", "com_x=normal:0:-0.01"], "negative spread"),
-        (["--model", "mass_torso=normal:4:2"], "leaves the physical range"),
-        (["--model", "friction=uniform:0.5"], "expected uniform|normal:A:B[:relative]"),
+        (["--vary", "mass_arm=uniform:1:2"], "unknown parameter 'mass_arm'"),
+        (["--vary", "com_x=normal:0:-0.01"], "negative spread"),
+        (["--vary", "mass_torso=normal:4:2"], "leaves the physical range"),
+        (["--vary", "friction=uniform:0.5"], "expected uniform|normal:A:B[:relative]"),
     ],
 )
 def test_the_cli_refuses_a_bad_model_in_one_line_with_exit_2(tmp_path: Path, args: list[str], message: str) -> None:
@@ -195,7 +195,7 @@ def test_a_sweep_over_sampled_robots_reports_success_with_its_interval_and_draws
     spec.write_text('sensing = "realistic"\nterrain = "flat"\nhops = 1\n[model]\nsamples = 3\nseed = 4\n'
                     'friction = {uniform = [0.5, 1.0]}\ndelay = {uniform = [0, 5]}\n')  # fmt: skip
     out = tmp_path / "out"
-    result = hopper_sim("sweep", str(spec), "--out", str(out), "--kp", "300,450", "--model",
+    result = hopper_sim("sweep", str(spec), "--out", str(out), "--kp", "300,450", "--vary",
                         "mass_torso=uniform:0.9:1.1:relative", "--workers", "1")  # fmt: skip
     assert result.returncode == 0, result.stderr
     lines = result.stdout.splitlines()
