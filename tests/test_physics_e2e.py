@@ -43,8 +43,11 @@ def test_dragging_the_torso_pulls_the_robot_and_is_recorded_as_a_disturbance(bro
         # Standing, then paused: the torso holds still where it is drawn while the pointer finds it.
         assert wait_until(lambda: any(e.kind == "touchdown" for e in dashboard.sim.events), timeout=60)
         assert wait_until(lambda: dashboard.sim.phase.name == "STANCE", timeout=30)
+        dashboard.layout.view.follow.value = False  # the world frame stops sliding under the robot
         dashboard.layout.simulation.set_paused(True)
-        page.wait_for_timeout(1000)  # the last frame reaches the page
+        # The strip's "paused" goes in the same atomic batch as the poses of that frame, after them:
+        # once the page shows it, the robot is drawn where it stays.
+        page.wait_for_selector(".hd-paused", timeout=30_000)
         (client,) = dashboard.server.get_clients().values()
         box = page.locator("canvas").first.bounding_box()
         x, y = _on_screen(client.camera, dashboard.camera.shown_robot(), box["width"], box["height"])
