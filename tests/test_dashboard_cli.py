@@ -7,7 +7,7 @@ import signal
 import socket
 import subprocess
 import sys
-import time
+import threading
 import urllib.request
 from pathlib import Path
 
@@ -132,12 +132,21 @@ def test_a_signal_stops_cleanly_finalizes_the_recording_and_frees_the_port(tmp_p
     port, rrd = free_port(), tmp_path / "run.rrd"
     process = dashboard_process("--port", str(port), "--rrd", str(rrd), "--sessions-dir", str(tmp_path))
     try:
-        # A bound for a loaded machine, not a pace; a process that exits instead says why.
-        serving = wait_until(lambda: not port_is_free(port) or process.poll() is not None, timeout=120)
-        assert serving and process.poll() is None, f"the dashboard never started: {_ended(process)}"
-        time.sleep(1.5)  # some simulation into the recording
+        # The serving line comes once the loop runs (readline gives '' if the process ends first: then
+        # it says why); a bound for a loaded machine, not a pace: a dashboard silent that long is killed.
+        guard = threading.Timer(120, process.kill)
+        guard.start()
+        lines = []  # viser's banner, then ours
+        while not lines or lines[-1] and not lines[-1].startswith("hopper-dashboard: serving"):
+            lines.append(process.stdout.readline())
+        guard.cancel()
+        assert lines[-1].startswith("hopper-dashboard: serving http://127.0.0.1:"), f"never served: {_ended(process)}"
+        # Some simulation into the recording: a batch written after the loop started, whatever the pace.
+        started = size(rrd)
+        assert wait_until(lambda: size(rrd) > started, timeout=120), "the recording did not grow"
         process.send_signal(signum)
         out, err = process.communicate(timeout=60)
+        out = "".join(lines) + out
     finally:
         if process.poll() is None:
             process.kill()
