@@ -1,0 +1,321 @@
+"""Frequency response by injection: chirps and stepped sines, the H1 estimate with coherence, margins.
+
+A signal d is added at the plant input (the wheel torque, N m: u = u_c + d) or at the pitch
+reference (rad). From the logged d, u and the controller's output u_c, scipy.signal's cross- and
+auto-spectra give (H1: the excitation is known, so its noise-free spectrum is the denominator)
+
+    S = S_du / S_dd        sensitivity at the plant input, d -> u = 1 / (1 + L)
+    T = -S_duc / S_dd      complementary sensitivity, d -> -u_c = L / (1 + L)
+    L = -S_duc / S_du      the loop broken at the plant input
+
+with the kernel's sign convention (the law's command acts on the wheel, the torso takes the
+reaction: negative feedback is inside the plant). At the reference r the closed loop's r -> pitch
+response is measured instead. Margins come from the measured L, on the band the coherence trusts.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Literal
+
+import numpy as np
+from scipy import signal
+
+from hopper.config import TIMESTEP, WHEEL_TORQUE_LIMIT
+from hopper.control.phases import FALL_PITCH
+from hopper.errors import HopperError
+
+COHERENCE_TRUSTED = 0.8  # below this an estimate is not to be trusted (PHYSICS.md)
+REFERENCE_LIMIT = FALL_PITCH / 4.0  # rad: a reference swing that leaves the fall limit far away
+TAPER_S = 0.02  # s of cosine ramp at each end of a chirp: no step at its start or end
+SWEEP_BEYOND = 1.5  # x: a chirp starts this far below f_min and ends this far above f_max
+EXCITED_SHARE = 0.05  # of the median in-band excitation power: bins excited less are dropped
+RESOLVED_BINS = 3  # a crossover closer to 0 Hz than this many frequency bins is not resolved
+STEPPED_CYCLES = 4  # whole cycles of each stepped sine that are analysed (after one to settle)
+
+
+class InvalidChirp(HopperError, ValueError):
+    """A chirp or stepped-sine spec that cannot be injected; the message says what is allowed."""
+
+
+class NotMeasured(HopperError, RuntimeError):
+    """What a measurement cannot give (no crossover in the band, too little coherence); says why."""
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class ChirpSpec:
+    """An excitation: its band (Hz), amplitude (N m at the plant input, rad at the reference), length (s)."""
+
+    f_min: float = 1.0  # Hz
+    f_max: float = 100.0  # Hz
+    amplitude: float = 0.5  # N m at "input", rad at "reference"
+    length: float = 20.0  # s
+    kind: Literal["linear", "log", "stepped"] = "log"
+    at: Literal["input", "reference"] = "input"
+    steps: int = 24  # stepped sines: how many frequencies, log spaced over the band
+    dt: float = TIMESTEP  # s, the loop's period
+
+    def __post_init__(self) -> None:
+        nyquist = 0.5 / self.dt
+        if self.kind not in ("linear", "log", "stepped"):
+            raise InvalidChirp(f"chirp kind {self.kind!r} is not one of linear, log, stepped")
+        if self.at not in ("input", "reference"):
+            raise InvalidChirp(f"injection point {self.at!r} is not one of input, reference")
+        if not (math.isfinite(self.length) and self.length > 0.0):
+            raise InvalidChirp(f"chirp length must be a positive number of seconds, got {self.length:g}")
+        if not (math.isfinite(self.f_min) and math.isfinite(self.f_max) and 0.0 < self.f_min < self.f_max):
+            raise InvalidChirp(f"chirp range must be 0 < f_min < f_max (Hz), got {self.f_min:g} to {self.f_max:g}")
+        if self.f_max >= nyquist:
+            raise InvalidChirp(
+                f"chirp f_max {self.f_max:g} Hz is beyond the Nyquist frequency of the {1.0 / self.dt:g} Hz loop "
+                f"({nyquist:g} Hz)"
+            )
+        limit, unit = (WHEEL_TORQUE_LIMIT, "N m, the motor's limit") if self.at == "input" else (REFERENCE_LIMIT, "rad")
+        if not (math.isfinite(self.amplitude) and 0.0 < self.amplitude <= limit):
+            raise InvalidChirp(f"chirp amplitude must be in (0, {limit:.3g}] ({unit}), got {self.amplitude:g}")
+        if self.length * self.f_min < 2.0:
+            raise InvalidChirp(
+                f"a {self.length:g} s chirp holds under 2 cycles of f_min {self.f_min:g} Hz: lengthen it or raise f_min"
+            )
+        if self.kind == "stepped" and not (2 <= self.steps <= 500):
+            raise InvalidChirp(f"stepped sines need 2 to 500 steps, got {self.steps}")
+        if self.kind == "stepped" and self.length / self.steps * self.f_min < STEPPED_CYCLES + 1:
+            raise InvalidChirp(
+                f"each of {self.steps} stepped sines lasts {self.length / self.steps:g} s, under "
+                f"{STEPPED_CYCLES + 1} cycles of f_min {self.f_min:g} Hz: lengthen the run or use fewer steps"
+            )
+
+    @property
+    def sweep(self) -> tuple[float, float]:
+        """The band a chirp sweeps (Hz): SWEEP_BEYOND wider than the one reported, so that every
+        reported bin lies inside the sweep rather than at its abrupt start or end."""
+        return self.f_min / SWEEP_BEYOND, min(self.f_max * SWEEP_BEYOND, 0.95 * 0.5 / self.dt)
+
+    @property
+    def ticks(self) -> int:
+        return round(self.length / self.dt)
+
+    def frequencies(self) -> np.ndarray:
+        """Stepped sines: the frequencies (Hz), each rounded to a whole number of cycles in its step."""
+        hold = self.ticks // self.steps * self.dt
+        f = np.geomspace(self.f_min, self.f_max, self.steps)
+        return np.maximum(np.round(f * hold), STEPPED_CYCLES + 1) / hold
+
+
+def excitation(spec: ChirpSpec) -> np.ndarray:
+    """The injected signal, one sample a tick, shape (spec.ticks,) (N m or rad)."""
+    n, dt = spec.ticks, spec.dt
+    t = np.arange(n) * dt
+    if spec.kind == "stepped":
+        hold = n // spec.steps
+        d = np.zeros(n)
+        for i, f in enumerate(spec.frequencies()):
+            k = np.arange(hold)
+            d[i * hold : (i + 1) * hold] = np.sin(2.0 * math.pi * f * k * dt)  # whole cycles: no step between
+        return spec.amplitude * d
+    method = "linear" if spec.kind == "linear" else "logarithmic"
+    low, high = spec.sweep
+    d = signal.chirp(t, low, t[-1], high, method=method, phi=-90.0)  # sine: starts at 0
+    ramp = min(round(TAPER_S / dt), n // 4)
+    if ramp:
+        taper = 0.5 - 0.5 * np.cos(np.linspace(0.0, math.pi, ramp))
+        d[:ramp] *= taper
+        d[n - ramp :] *= taper[::-1]
+    return spec.amplitude * d
+
+
+@dataclasses.dataclass(frozen=True)
+class Response:
+    """Measured frequency responses on a grid; complex arrays of shape (len(f),)."""
+
+    f: np.ndarray  # Hz
+    loop: np.ndarray | None  # L at the plant input (None: injected at the reference)
+    sensitivity: np.ndarray  # S: d -> u at the input; r -> tracking error r - pitch at the reference
+    complementary: np.ndarray  # T: d -> -u_c at the input; r -> pitch at the reference
+    coherence: np.ndarray  # 0..1, of the weaker of the two spectra each estimate divides
+    at: str
+
+    def band(self, low: float, high: float) -> Response:
+        keep = (self.f >= low) & (self.f <= high)
+        pick = lambda a: None if a is None else a[keep]  # noqa: E731
+        return Response(
+            self.f[keep],
+            pick(self.loop),
+            pick(self.sensitivity),
+            pick(self.complementary),
+            self.coherence[keep],
+            self.at,
+        )
+
+
+def segment_length(spec: ChirpSpec, record_ticks: int | None = None) -> int:
+    """Welch segment (samples): a resolution of f_min / 2 at least, no longer than the record."""
+    n = spec.ticks if record_ticks is None else record_ticks
+    wanted = 2 ** math.ceil(math.log2(2.0 / (spec.f_min * spec.dt)))
+    return int(min(wanted, n))
+
+
+def window_for(record_ticks: int, nperseg: int) -> str:
+    """Hann segments where a record holds several; one rectangular segment for a record as short as
+    its segment (a flight's chirp): a Hann window would zero the chirp's ends, its lowest and
+    highest frequencies, and the chirp's own taper already ends it smoothly."""
+    return "boxcar" if record_ticks < 2 * nperseg else "hann"
+
+
+def _coherence(pdd: np.ndarray, pdx: np.ndarray, pxx: np.ndarray) -> np.ndarray:
+    return np.abs(pdx) ** 2 / np.maximum(pdd * pxx, 1e-300)
+
+
+def estimate(records: list[dict[str, np.ndarray]], spec: ChirpSpec, nperseg: int | None = None) -> Response:
+    """The H1 estimate from one or more records, each with arrays "d" (injected), "u" (plant input,
+    N m), "uc" (the law's output, N m) and "pitch" (rad), all of one length a record.
+
+    Welch's averages (scipy.signal welch and csd, half-overlapping segments). Several records
+    (short chirps over many flights) stitch into one estimate: their spectra, of one segment
+    length (the shortest record's), are averaged weighted by their segment counts, then divided."""
+    if not records:
+        raise NotMeasured("no record to estimate a frequency response from")
+    nper = nperseg or min(segment_length(spec, len(r["d"])) for r in records)
+    names = ("u", "uc") if spec.at == "input" else ("pitch", "error")
+    sums: dict[str, np.ndarray] = {}
+    weight = 0.0
+    for rec in records:
+        d = np.asarray(rec["d"], float)
+        outs = [np.asarray(rec[n], float) for n in names] if spec.at == "input" else _reference_outputs(rec)
+        fs, window = 1.0 / spec.dt, window_for(len(d), nper)
+        welch = {"fs": fs, "nperseg": nper, "detrend": False, "window": window}
+        f, pdd = signal.welch(d, **welch)
+        pa, pb = (signal.csd(d, x, **welch)[1] for x in outs)
+        paa, pbb = (signal.welch(x, **welch)[1] for x in outs)
+        w = max(len(d) - nper // 2, 1) / (nper / 2)  # Welch segments in this record (half overlap)
+        for key, value in (("dd", pdd), ("da", pa), ("db", pb), ("aa", paa), ("bb", pbb)):
+            sums[key] = sums.get(key, 0.0) + w * value
+        weight += w
+    s = {k: v / weight for k, v in sums.items()}
+    coherence = np.minimum(_coherence(s["dd"], s["da"], s["aa"]), _coherence(s["dd"], s["db"], s["bb"]))
+    if spec.at == "input":
+        sens, comp = s["da"] / s["dd"], -s["db"] / s["dd"]
+        loop = -s["db"] / s["da"]
+    else:
+        comp, sens = s["da"] / s["dd"], s["db"] / s["dd"]
+        loop = None
+    response = Response(f, loop, sens, comp, coherence, spec.at).band(spec.f_min, spec.f_max)
+    # A bin the chirp barely excites (its ends, a taper) is estimated from what leaks into it; a
+    # record's transient can dominate it while the coherence of one segment still reads ~1.
+    pdd = s["dd"][(f >= spec.f_min) & (f <= spec.f_max)]
+    excited = pdd >= EXCITED_SHARE * np.median(pdd)
+    return dataclasses.replace(
+        response,
+        f=response.f[excited],
+        loop=None if loop is None else response.loop[excited],
+        sensitivity=response.sensitivity[excited],
+        complementary=response.complementary[excited],
+        coherence=response.coherence[excited],
+    )
+
+
+def _reference_outputs(rec: dict[str, np.ndarray]) -> list[np.ndarray]:
+    pitch = np.asarray(rec["pitch"], float)
+    return [pitch, np.asarray(rec["d"], float) - pitch]
+
+
+def stepped_estimate(record: dict[str, np.ndarray], spec: ChirpSpec) -> Response:
+    """Stepped sines: each step's Fourier coefficient at its frequency over its last STEPPED_CYCLES
+    whole cycles (the first ones let the transient settle); the coherence of a step is the share of
+    the output's power in the excited line (1: all of it is the linear response)."""
+    hold = spec.ticks // spec.steps
+    fs = spec.frequencies()
+    out = {k: np.empty(len(fs), complex) for k in ("d", "a", "b")}
+    coherence = np.empty(len(fs))
+    names = ("u", "uc") if spec.at == "input" else None
+    for i, f in enumerate(fs):
+        cycle = 1.0 / (f * spec.dt)  # ticks a cycle
+        n = int(round(STEPPED_CYCLES * cycle))
+        stop = (i + 1) * hold
+        sl = slice(stop - n, stop)
+        k = np.arange(stop - n, stop) - i * hold
+        phasor = np.exp(-2j * math.pi * f * k * spec.dt)
+        d = np.asarray(record["d"], float)[sl]
+        outs = [np.asarray(record[x], float)[sl] for x in names] if names else _reference_outputs(record)
+        if not names:
+            outs = [o[sl] for o in outs]
+        line = []
+        for key, x in (("d", d), ("a", outs[0]), ("b", outs[1])):
+            c = 2.0 * np.mean(x * phasor)
+            out[key][i] = c
+            if key != "d":
+                power = np.mean((x - x.mean()) ** 2)
+                line.append(0.5 * abs(c) ** 2 / power if power > 0.0 else 0.0)
+        coherence[i] = min(line)
+    if spec.at == "input":
+        sens, comp, loop = out["a"] / out["d"], -out["b"] / out["d"], -out["b"] / out["a"]
+    else:
+        comp, sens, loop = out["a"] / out["d"], out["b"] / out["d"], None
+    return Response(fs, loop, sens, comp, np.minimum(coherence, 1.0), spec.at)
+
+
+def measure(records: list[dict[str, np.ndarray]], spec: ChirpSpec) -> Response:
+    """The response of `records` to `spec`'s excitation, by its kind's estimator."""
+    if spec.kind == "stepped":
+        if len(records) != 1:
+            raise NotMeasured("stepped sines are measured from one record")
+        return stepped_estimate(records[0], spec)
+    return estimate(records, spec)
+
+
+@dataclasses.dataclass(frozen=True)
+class Margins:
+    """Crossover (Hz), phase margin (deg) and gain margin (dB) of a loop's frequency response.
+
+    A NaN crossover means none was found; `note` says why (and what limits a measured one)."""
+
+    crossover_hz: float
+    phase_margin_deg: float
+    gain_margin_db: float  # inf: the phase never reaches -180 deg above the crossover in the band
+    coherence: float  # at the crossover (1 for a model's curve)
+    note: str = ""
+
+
+def margins(f: np.ndarray, loop: np.ndarray, coherence: np.ndarray | None = None) -> Margins:
+    """Margins at the highest frequency where |L| falls through 1 (as hopper.analysis.loop does:
+    with an integral the loop is conditionally stable, so the low-frequency crossing is not it)."""
+    mag = np.abs(loop)
+    phase = np.degrees(np.unwrap(np.angle(loop)))
+    coh = np.ones_like(mag) if coherence is None else coherence
+    above = mag >= 1.0
+    falls = np.flatnonzero(above[:-1] & ~above[1:])
+    if not len(falls):
+        where = "above" if above.all() else "below" if not above.any() else "not falling through"
+        return Margins(math.nan, math.nan, math.nan, math.nan, f"|L| stays {where} 1 over {f[0]:.3g}-{f[-1]:.3g} Hz")
+    i = int(falls[-1])
+    lf, lm = np.log(f[i : i + 2]), np.log(mag[i : i + 2])
+    fc = float(np.exp(np.interp(0.0, -lm, lf)))
+    pc = float(np.interp(math.log(fc), lf, phase[i : i + 2]))
+    pm = (pc + 360.0) % 360.0 - 180.0
+    cc = float(np.interp(math.log(fc), lf, coh[i : i + 2]))
+    wrapped = (phase + 180.0) % 360.0
+    flips = [j for j in np.flatnonzero(np.abs(np.diff(wrapped)) > 180.0) if j > i]
+    gm = -20.0 * math.log10(mag[flips[0] + 1]) if flips else math.inf
+    note = ""
+    if cc < COHERENCE_TRUSTED:
+        note = f"coherence {cc:.2f} at the crossover is below {COHERENCE_TRUSTED}: not to be trusted"
+    return Margins(fc, pm, gm, cc, note)
+
+
+def measured_margins(response: Response) -> Margins:
+    """Margins of a measured loop; NotMeasured if it was injected at the reference (no L) or if the
+    crossover lies where the measurement cannot see it."""
+    if response.loop is None:
+        raise NotMeasured("a reference injection measures the closed loop, not L: inject at the plant input")
+    found = margins(response.f, response.loop, response.coherence)
+    if math.isnan(found.crossover_hz):
+        raise NotMeasured(f"no gain crossover measured: {found.note}")
+    resolution = float(np.min(np.diff(response.f))) if len(response.f) > 1 else math.inf
+    if found.crossover_hz < max(response.f[0], RESOLVED_BINS * resolution):
+        raise NotMeasured(
+            f"the crossover ({found.crossover_hz:.3g} Hz) lies within {RESOLVED_BINS} bins of {resolution:.3g} Hz"
+            f" or below the band ({response.f[0]:.3g} Hz): records this short cannot resolve it; lengthen them"
+            " or lower f_min"
+        )
+    return found
