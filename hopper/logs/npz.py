@@ -1,0 +1,53 @@
+"""A hopper log as a NumPy .npz archive: one float64 array per column, their units beside them.
+
+The archive holds `time`, every signal of hopper.logs.schema under its column name, and `units`
+(the JSON object column -> unit as written), so that a file whose units are not the schema's is
+refused rather than read as if they were. Gaps are found again from the time column on reading.
+"""
+
+from __future__ import annotations
+
+import json
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from hopper.logs.schema import COLUMNS, TIME, Log, LogError, find_gaps
+
+FORMAT = "hopper-log-npz-1"  # the archive's `format` entry
+
+
+def write(log: Log, path: str | Path) -> Path:
+    """Write `log` to `path` (compressed .npz; the name is kept as given). Returns the path."""
+    path = Path(path)
+    units = {TIME.name: TIME.unit} | {name: COLUMNS[name].unit for name in log.signals}
+    arrays = {"time": log.time, **log.signals}
+    with open(path, "wb") as out:  # a file object: numpy would append .npz to a bare name
+        np.savez_compressed(out, format=np.array(FORMAT), units=np.array(json.dumps(units)), **arrays)
+    return path
+
+
+def read(path: str | Path) -> Log:
+    """The log in `path`; LogError (one line: what and where) for a file that is not one."""
+    path = Path(path)
+    try:
+        archive = np.load(path, allow_pickle=False)
+    except FileNotFoundError:
+        raise LogError(f"{path}: no such file") from None
+    except (OSError, ValueError, zipfile.BadZipFile) as exc:
+        raise LogError(f"{path}: not a .npz archive ({exc})") from None
+    with archive:
+        names = set(archive.files)
+        if "format" not in names or str(archive["format"]) != FORMAT:
+            raise LogError(f"{path}: not a hopper log (its 'format' entry is not {FORMAT!r})")
+        units = json.loads(str(archive["units"])) if "units" in names else {}
+        for name, unit in units.items():
+            expected = COLUMNS[name].unit if name in COLUMNS else TIME.unit if name == TIME.name else None
+            if expected is not None and unit != expected:
+                raise LogError(f"{path}: column {name} is in {unit!r}, the schema's unit is {expected!r}")
+        if "time" not in names:
+            raise LogError(f"{path}: no time column")
+        time = np.asarray(archive["time"], dtype=np.float64)
+        signals = {n: np.asarray(archive[n], dtype=np.float64) for n in sorted(names - {"format", "units", "time"})}
+    return Log(time, signals, str(path), find_gaps(time))
