@@ -14,6 +14,8 @@ without them a replay starts from what the sensors give. The accelerometer's col
 from __future__ import annotations
 
 import dataclasses
+import math
+from collections.abc import Iterable
 from typing import NamedTuple
 
 import numpy as np
@@ -59,8 +61,29 @@ OPTIONAL = (*ACCEL, *STATE)
 COLUMNS = {c.name: c for c in (*REQUIRED, *OPTIONAL)}
 
 
+# The units a reader accepts for a column, by the column's SI unit, each with its factor to SI.
+UNITS: dict[str, dict[str, float]] = {
+    "s": {"s": 1.0, "ms": 1e-3},
+    "rad": {"rad": 1.0, "deg": math.pi / 180.0},
+    "rad/s": {"rad/s": 1.0, "deg/s": math.pi / 180.0, "rpm": 2.0 * math.pi / 60.0},
+    "m": {"m": 1.0},
+    "m/s": {"m/s": 1.0},
+    "m/s^2": {"m/s^2": 1.0},
+    "N m": {"N m": 1.0, "Nm": 1.0},
+    "N": {"N": 1.0},
+}
+
+
 class LogError(HopperError, ValueError):
-    """A log that cannot be read as the schema says, with what and where in one line."""
+    """A log that cannot be read as the schema says, with what and where in one line.
+
+    `sample` is the index of the offending sample where there is one, so a reader can say where
+    it is in its file (a CSV's line).
+    """
+
+    def __init__(self, message: str, sample: int | None = None) -> None:
+        super().__init__(message)
+        self.sample = sample
 
 
 @dataclasses.dataclass(frozen=True)
@@ -113,20 +136,15 @@ def validate(log: Log) -> None:
     time = log.time
     if time.ndim != 1 or len(time) < 2:
         raise LogError(f"{where}: needs at least 2 samples, got {len(time)}")
-    missing = [c.name for c in REQUIRED[1:] if c.name not in log.signals]
-    if missing:
-        raise LogError(f"{where}: missing column(s) {', '.join(missing)}; the schema needs {schema_line()}")
-    unknown = sorted(set(log.signals) - set(COLUMNS))
-    if unknown:
-        raise LogError(f"{where}: unknown column(s) {', '.join(unknown)}; the schema has {', '.join(COLUMNS)}")
+    check_columns(("time", *log.signals), where)
     bad = np.flatnonzero(~np.isfinite(time))
     if bad.size:
-        raise LogError(f"{where}: time is not finite at sample {bad[0]}")
+        raise LogError(f"{where}: time is not finite at sample {bad[0]}", int(bad[0]))
     back = np.flatnonzero(np.diff(time) <= 0.0)
     if back.size:
         i = int(back[0]) + 1
         raise LogError(
-            f"{where}: time goes backwards or repeats at sample {i} ({time[i - 1]:.6f} s then {time[i]:.6f} s)"
+            f"{where}: time goes backwards or repeats at sample {i} ({time[i - 1]:.6f} s then {time[i]:.6f} s)", i
         )
     for name, values in log.signals.items():
         if values.shape != time.shape:
@@ -134,7 +152,27 @@ def validate(log: Log) -> None:
         bad = np.flatnonzero(~np.isfinite(values))
         if bad.size:
             i = int(bad[0])
-            raise LogError(f"{where}: column {name} is not finite at sample {i} (t = {time[i]:.6f} s)")
+            raise LogError(f"{where}: column {name} is not finite at sample {i} (t = {time[i]:.6f} s)", i)
+
+
+def check_columns(names: Iterable[str], where: str) -> None:
+    """LogError unless `names` (time among them) hold every required column and only the schema's."""
+    names = set(names)
+    missing = [c.name for c in REQUIRED if c.name not in names]
+    if missing:
+        raise LogError(f"{where}: missing column(s) {', '.join(missing)}; the schema needs {schema_line()}")
+    unknown = sorted(names - set(COLUMNS))
+    if unknown:
+        raise LogError(f"{where}: unknown column(s) {', '.join(unknown)}; the schema has {', '.join(COLUMNS)}")
+
+
+def to_si(name: str, unit: str, where: str) -> float:
+    """The factor from `unit` to column `name`'s SI unit; LogError naming the column and the units allowed."""
+    allowed = UNITS[COLUMNS[name].unit]
+    if unit not in allowed:
+        given = f"unit '{unit}'" if unit else "no unit"
+        raise LogError(f"{where}: column {name} has {given}; allowed: {', '.join(allowed)}")
+    return allowed[unit]
 
 
 def schema_line() -> str:
