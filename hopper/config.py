@@ -18,7 +18,8 @@ GRAVITY_PRESETS: dict[str, float] = {  # m/s^2, PHYSICS.md
 }
 TIMESTEP = 0.001  # s, 1 kHz physics and control, paper Table I
 
-# Robot constants shared by the controller and the metrics (they mirror models/hopper.xml).
+# The packaged robot's constants (they mirror models/hopper.xml). What flies reads them from the model
+# it flies (hopper.robot.Robot.of, equal to these for the packaged one); hopper.robot.PACKAGED holds them.
 TOTAL_MASS = 8.2  # kg, Table I
 WHEEL_INERTIA = 0.03375  # kg m^2, 3 kg disc of radius 0.15 m
 WHEEL_ARMATURE = 0.0045  # kg m^2, reflected rotor inertia N^2 J_m (models/hopper.xml): adds to the spin
@@ -275,8 +276,13 @@ class SimConfig:
     controller_params: tuple[tuple[str, float], ...] = ()
     # The robot simulated differs from the nominal one by these (name, factor) pairs (hopper.mismatch).
     mismatch: tuple[tuple[str, float], ...] = ()
+    # A user's MJCF of the robot (`--model`; hopper.robot reads its constants), or None: the packaged
+    # models/hopper.xml. An absolute path, so that workers in other folders find the same file.
+    model: str | None = None
 
     def __post_init__(self) -> None:
+        if self.model is not None and (not isinstance(self.model, str) or not self.model.strip()):
+            raise InvalidConfig(f"model must be the path of an MJCF file or None, got {self.model!r}")
         if not isinstance(self.controller, str) or not self.controller.strip():
             raise InvalidConfig(f"controller must be a non-empty spec, got {self.controller!r}")
         try:  # JSON gives lists: hold (name, value) tuples so that the config stays hashable

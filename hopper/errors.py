@@ -10,3 +10,8 @@ class HopperError(Exception):
     RuntimeError or OSError for what failed), so `except ValueError` keeps catching bad input and
     `except HopperError` catches every error of ours and none of a library's.
     """
+
+
+class ModelError(HopperError, ValueError):
+    """An MJCF model the product cannot fly: not found, not MJCF, a name it needs missing, or a
+    robot its controller does not describe (hopper.robot says which assumptions)."""

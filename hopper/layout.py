@@ -6,7 +6,39 @@ import dataclasses
 
 import mujoco
 
+from hopper.errors import ModelError
+
 LEG_JOINTS = ("hip_L", "knee_L", "hip_R", "knee_R")
+# Every name the product looks up in a model (models/hopper.xml), by kind: a user's model
+# (`--model`) must have them all (check_names).
+NAMES: dict[str, tuple[str, ...]] = {
+    "joint": ("root_x", "root_z", "pitch", "wheel", *LEG_JOINTS),
+    "actuator": ("wheel", *LEG_JOINTS),
+    "sensor": ("imu_pitch", "imu_gyro", "wheel_speed", "foot_L", "foot_R", "wheel_torque", "imu_accel", "com")
+    + ("com_vel", "angmom", *(f"{j}_torque" for j in LEG_JOINTS)),
+    "body": ("torso", "wheel", "thigh_L", "shank_L", "thigh_R", "shank_R"),
+    "site": ("imu", "foot_L", "foot_R"),
+    "geom": ("terrain", "torso", "foot_L", "foot_R"),
+    "hfield": ("terrain",),
+}
+PLURAL = {"body": "bodies"}  # the MjSpec lists (spec.joints, spec.bodies, ...)
+
+
+def check_names(spec: mujoco.MjSpec, source: str) -> None:
+    """ModelError, in one line naming the first missing name of each kind and what is expected,
+    unless `spec` (read from `source`) has every name of NAMES."""
+    problems = []
+    for kind, names in NAMES.items():
+        found = [e.name for e in getattr(spec, PLURAL.get(kind, kind + "s"))]
+        missing = [n for n in names if n not in found]
+        if missing:
+            others = ", ".join(repr(n) for n in found if n and n not in names) or "none"
+            problems.append(
+                f"no {kind} {', '.join(repr(n) for n in missing)} (the model's other {PLURAL.get(kind, kind + 's')}: "
+                f"{others}; expected {', '.join(names)})"
+            )
+    if problems:
+        raise ModelError(f"model {source}: " + "; ".join(problems))
 
 
 @dataclasses.dataclass(frozen=True)

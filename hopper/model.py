@@ -4,15 +4,18 @@ from __future__ import annotations
 
 import math
 from importlib import resources
+from pathlib import Path
 
 import mujoco
 import numpy as np
 
 from hopper import terrain
 from hopper.config import SimConfig
+from hopper.errors import ModelError
+from hopper.layout import check_names
+from hopper.robot import WHEEL_ACTUATOR_GROUP, Robot
 
 MODEL_XML = resources.files("hopper.models") / "hopper.xml"  # models/hopper.xml, installed or not
-WHEEL_ACTUATOR_GROUP = 1  # models/hopper.xml: disabling this group turns the wheel off
 
 
 def terrain_window(config: SimConfig) -> terrain.Window:
@@ -32,7 +35,7 @@ def build_model(config: SimConfig, window: terrain.Window | None = None) -> mujo
     default the start window of the config's)."""
     if window is None:
         window = terrain_window(config)
-    spec = mujoco.MjSpec.from_string(MODEL_XML.read_text(encoding="utf-8"))
+    spec = model_spec(config)
     params = config.craters
     field = spec.hfield("terrain")
     field.nrow, field.ncol = window.heights.shape
@@ -44,10 +47,46 @@ def build_model(config: SimConfig, window: terrain.Window | None = None) -> mujo
     geom.pos = [window.x0 + params.length / 2, 0.0, offset]
     spec.option.gravity = [0.0, 0.0, -config.gravity]
     spec.option.timestep = config.timestep
-    model = spec.compile()
+    try:
+        model = spec.compile()
+    except ValueError as exc:
+        raise ModelError(f"model {model_source(config)}: {_one_line(exc)}") from None
     set_terrain(model, window)  # the compiler rescales hfield data to span [0, 1]; the field's scale is fixed
     set_wheel_enabled(model, config.wheel)
     return model
+
+
+def robot_of(config: SimConfig) -> Robot:
+    """The robot of the config's model, as built (ModelError in one line if the product cannot fly it)."""
+    return Robot.of(build_model(config), model_source(config))
+
+
+def model_source(config: SimConfig) -> str:
+    """How messages name the config's model: its path, or models/hopper.xml."""
+    return config.model if config.model is not None else "models/hopper.xml"
+
+
+def model_spec(config: SimConfig) -> mujoco.MjSpec:
+    """The config's MJCF as an MjSpec, its names checked (layout.NAMES); ModelError in one line for
+    a file not found, not MJCF, or missing a name the product needs."""
+    if config.model is None:
+        spec = mujoco.MjSpec.from_string(MODEL_XML.read_text(encoding="utf-8"))
+        check_names(spec, model_source(config))
+        return spec
+    path = Path(config.model)
+    if not path.is_file():
+        raise ModelError(f"model {config.model}: no such file")
+    try:  # from_file: includes, meshes and textures resolve next to the file
+        spec = mujoco.MjSpec.from_file(str(path))
+    except ValueError as exc:
+        raise ModelError(f"model {config.model}: not a valid MJCF file ({_one_line(exc)})") from None
+    check_names(spec, config.model)
+    return spec
+
+
+def _one_line(exc: Exception) -> str:
+    """MuJoCo's parser errors span lines: one line of them."""
+    return " ".join(str(exc).split())
 
 
 def set_terrain(model: mujoco.MjModel, window: terrain.Window) -> None:

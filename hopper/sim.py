@@ -18,11 +18,6 @@ import numpy as np
 
 from hopper.ballistics import Ground, predict
 from hopper.config import (
-    FOOT_RADIUS,
-    HIP_OFFSET_Z,
-    THIGH_LENGTH,
-    WHEEL_NO_LOAD_SPEED,
-    WHEEL_TORQUE_LIMIT,
     Gains,
     InvalidConfig,
     SimConfig,
@@ -30,9 +25,7 @@ from hopper.config import (
 )
 from hopper.control import EV_APEX, EV_FALL, EV_LIFTOFF, EV_TOUCHDOWN, HopController, Phase, control_tick
 from hopper.control.kernel import EV_WHEEL, finish_wheel
-from hopper.control.landing import FOOT_Y
 from hopper.control.memory import MEMORY
-from hopper.control.wheel import WHEEL_DAMPING
 from hopper.controllers import (
     ControllerContext,
     ControllerError,
@@ -68,8 +61,9 @@ from hopper.events import (
 from hopper.layout import ModelLayout
 from hopper.metrics import HopMetrics, MetricsTracker
 from hopper.mismatch import Nominal
-from hopper.model import build_model, set_terrain, set_wheel_enabled, terrain_window
+from hopper.model import build_model, model_source, set_terrain, set_wheel_enabled, terrain_window
 from hopper.perturb import Pull
+from hopper.robot import Robot
 from hopper.schedule import KickSchedule
 from hopper.snapshot import STATE_SPEC, Pending, Snapshot, SnapshotMismatch
 from hopper.state import RobotState, angular_momentum, read_state
@@ -113,12 +107,14 @@ class Simulation:
         self.config = config
         self.terrain = terrain_window(config)
         self.model = build_model(config, self.terrain)
+        # What the controller knows of the robot: its model's, as built (a mismatch is the real robot's).
+        self.robot = Robot.of(self.model, model_source(config))
         self._nominal = Nominal.of(self.model)  # what a mismatch scales (hopper.mismatch)
         if config.mismatch:
             self._nominal.apply(self.model, config.mismatch)
         self.data = mujoco.MjData(self.model)
         self.layout = ModelLayout.of(self.model)
-        self.controller = HopController(self.layout, config)
+        self.controller = HopController(self.layout, config, self.robot)
         self.metrics = MetricsTracker(self.controller.mem)
         self.events: collections.deque[Event] = collections.deque(maxlen=EVENT_RECORD)  # the newest
         self.listeners: list[Listener] = []
@@ -142,6 +138,8 @@ class Simulation:
         self._ground_profile: Ground | None = None  # for the obs' time_to_touchdown, built on first use
         wheel = self.model.body("wheel").id
         self._spin_inertia = float(self.model.body_inertia[wheel].max() + self.model.dof_armature[self.layout.v_wheel])
+        r = self.robot  # the motor's envelope as the controller knows it, for the observation
+        self._damping, self._limit, self._top = r.wheel_damping, r.wheel_torque_limit, r.wheel_no_load_speed
         self._bind_law(config)
         self.reset(reason="start")
 
@@ -315,7 +313,7 @@ class Simulation:
     def observation(self) -> Observation:
         """What an API controller sees this tick (its sensing: the estimate in realistic mode)."""
         w, t = float(self._qvel[self._v_wheel]), self.data.time
-        back_emf, limit, top, spin = WHEEL_DAMPING * w, WHEEL_TORQUE_LIMIT, WHEEL_NO_LOAD_SPEED, self._spin_inertia
+        back_emf, limit, top, spin = self._damping * w, self._limit, self._top, self._spin_inertia
         return Observation(
             float(self._pitch_est[0]),
             float(self._rate_est[0]),
@@ -357,7 +355,7 @@ class Simulation:
             obs = self.observation()._replace(
                 pitch=PROBE_PITCH, rate=PROBE_RATE, time_since_liftoff=0.1, time_to_touchdown=1.0, wheel_speed=0.0
             )
-            momentum = self._spin_inertia * WHEEL_NO_LOAD_SPEED
+            momentum = self._spin_inertia * self._top
             obs = obs._replace(gravity=config.gravity, momentum_headroom=(momentum, momentum))
             law.probe(obs)
         self.law, self.config = law, config
@@ -486,7 +484,7 @@ class Simulation:
 
     def _ground(self, x: float, foot: int) -> float:
         """Terrain height (m) under the left (0) or right (1) foot at world x."""
-        return self.terrain.height(x, FOOT_Y if foot == 0 else -FOOT_Y)
+        return self.terrain.height(x, self.robot.foot_y if foot == 0 else -self.robot.foot_y)
 
     # -- the terrain window ----------------------------------------------------------------
     def _follow(self, x: float, urgent: bool = False) -> None:
@@ -506,12 +504,12 @@ class Simulation:
         gait = self.config.gait
         stand = gait.stand_height
         for side, offset in (("L", gait.foot_spread / 2), ("R", -gait.foot_spread / 2)):
-            knee = -2.0 * math.acos(min(math.hypot(offset, stand) / (2 * THIGH_LENGTH), 1.0))
+            knee = -2.0 * math.acos(min(math.hypot(offset, stand) / (2 * self.robot.thigh), 1.0))
             angle = math.atan2(-offset, stand)
             self.data.joint(f"hip_{side}").qpos = angle - knee / 2
             self.data.joint(f"knee_{side}").qpos = knee
         torso_z = self.model.body("torso").pos[2]
-        self.data.joint("root_z").qpos = FOOT_RADIUS + stand - HIP_OFFSET_Z - torso_z
+        self.data.joint("root_z").qpos = self.robot.foot_radius + stand - self.robot.hip_z - torso_z
         mujoco.mj_forward(self.model, self.data)
         self.pending = Pending(liftoff_at=self.pending.liftoff_at)
         if self.pull is not None:  # mj_resetData cleared its force; the drag ends unrecorded

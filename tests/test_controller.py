@@ -50,7 +50,7 @@ def test_pid_clamps_to_the_envelope_and_stops_integrating_when_saturated() -> No
 def test_wheel_ctrl_inverts_the_motor_model() -> None:
     for speed in (-20.0, 0.0, 15.0):
         for torque in (-10.0, 0.0, 5.0):
-            u = wheel_ctrl(torque, speed)
+            u = wheel_ctrl(_memory(Gains())[0], torque, speed)
             assert WHEEL_TORQUE_LIMIT * u - WHEEL_DAMPING * speed == pytest.approx(torque)
 
 
@@ -68,9 +68,10 @@ def test_contact_debounce_and_hysteresis() -> None:
 
 def test_leg_jacobian_matches_finite_differences() -> None:
     pitch, hip, knee, eps = 0.1, 0.5, -1.1, 1e-6
-    leg = leg_state(pitch, hip, knee, 0.0, 0.0, False)
-    by_hip = leg_state(pitch, hip + eps, knee, 0.0, 0.0, False)
-    by_knee = leg_state(pitch, hip, knee + eps, 0.0, 0.0, False)
+    m = _memory(Gains())[0]
+    leg = leg_state(m, pitch, hip, knee, 0.0, 0.0, False)
+    by_hip = leg_state(m, pitch, hip + eps, knee, 0.0, 0.0, False)
+    by_knee = leg_state(m, pitch, hip, knee + eps, 0.0, 0.0, False)
     assert (by_hip.px - leg.px) / eps == pytest.approx(leg.pz, abs=1e-5)
     assert (by_hip.pz - leg.pz) / eps == pytest.approx(-leg.px, abs=1e-5)
     assert (by_knee.px - leg.px) / eps == pytest.approx(leg.jx, abs=1e-5)

@@ -94,7 +94,7 @@ def test_the_legs_sweep_back_by_about_the_presets_angle() -> None:
 
     def left_leg_angle(s: Simulation) -> float:
         st = s.state()
-        leg = leg_state(st.pitch, st.legs[0], st.legs[1], 0.0, 0.0, False)
+        leg = leg_state(s.controller.mem[0], st.pitch, st.legs[0], st.legs[1], 0.0, 0.0, False)
         return math.atan2(-leg.px, -leg.pz)  # world angle of hip to foot, + = foot behind the hip
 
     class Watch:

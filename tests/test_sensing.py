@@ -189,7 +189,7 @@ def test_ideal_sensing_hands_the_controller_the_truth_undelayed() -> None:
         sim.step()
         assert (mem["pitch_est"][0], mem["rate_est"][0]) == (pitch, gyro)
         assert (mem["pitch_true"][0], mem["rate_true"][0]) == (pitch, gyro)
-        assert sim.data.ctrl[lay.a_wheel] == wheel_ctrl(float(mem["wheel_command"][0]), wheel_speed)
+        assert sim.data.ctrl[lay.a_wheel] == wheel_ctrl(mem[0], float(mem["wheel_command"][0]), wheel_speed)
     assert len(sim.hops) >= 1
 
 

@@ -28,11 +28,11 @@ import math
 import numpy as np
 
 from hopper.analysis.loop import pitch_inertia
-from hopper.config import LEG_TORQUE_LIMIT, WHEEL_INERTIA, WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT, SimConfig
+from hopper.config import SimConfig
 from hopper.control import Phase
-from hopper.control.gait import LANDING_POSE_TOLERANCE, momentum_capacity
-from hopper.control.wheel import wheel_torque_bound
+from hopper.control.gait import LANDING_POSE_TOLERANCE
 from hopper.experiments.stress import LANDING_LIMIT_DEG, Case, Outcome, Schedule
+from hopper.robot import PACKAGED, Robot
 from hopper.sim import Simulation
 from hopper.state import angular_momentum
 
@@ -49,6 +49,7 @@ class Moment:
     momentum: float  # N m s, the whole robot's pitch angular momentum about its CoM
     locked: float  # kg m^2, the whole robot with the wheel locked
     torso: float  # kg m^2, the torso with the legs free (what an impulse turns)
+    robot: Robot = PACKAGED  # the robot flown (its wheel and motors)
 
 
 def flight_moments(config: SimConfig, every_s: float = 0.01) -> list[Moment]:
@@ -68,7 +69,7 @@ def flight_moments(config: SimConfig, every_s: float = 0.01) -> list[Moment]:
         sim.step()
         tick += 1
     end = sim.time
-    return [Moment(t, end - start - t, *rest) for t, *rest in samples]
+    return [Moment(t, end - start - t, *rest, robot=sim.robot) for t, *rest in samples]
 
 
 def wheel_reach(moment: Moment, sign: float) -> float:
@@ -80,8 +81,9 @@ def wheel_reach(moment: Moment, sign: float) -> float:
     that way (not less what it spins with now: early in a flight the legs' tuck and the torso's
     own motion hold some of it).
     """
-    headroom = WHEEL_INERTIA * WHEEL_NO_LOAD_SPEED - sign * moment.momentum
-    time_constant = momentum_capacity() / WHEEL_TORQUE_LIMIT  # the armature slows the spin-up
+    robot = moment.robot
+    headroom = robot.wheel_inertia * robot.wheel_no_load_speed - sign * moment.momentum
+    time_constant = robot.momentum_capacity / robot.wheel_torque_limit  # the armature slows the spin-up
     return max(headroom, 0.0) * (1.0 - math.exp(-moment.to_go / time_constant))
 
 
@@ -96,8 +98,9 @@ def momentum_limit(moment: Moment, sign: float) -> float:
 
 def torque_allows(moment: Moment, sign: float, kick: float) -> bool:
     """Whether the actuators' torque can stop a kick of `kick` N m s and bring the torso back in time."""
-    wheel = abs(wheel_torque_bound(moment.wheel_speed, sign * WHEEL_TORQUE_LIMIT))  # its envelope that way
-    torque = wheel + 2.0 * LEG_TORQUE_LIMIT  # N m on the torso: wheel and both hips
+    robot = moment.robot
+    wheel = abs(robot.wheel_torque_bound(moment.wheel_speed, sign * robot.wheel_torque_limit))  # its envelope that way
+    torque = wheel + 2.0 * robot.leg_torque_limit  # N m on the torso: wheel and both hips
     limit, i, t = math.radians(LANDING_LIMIT_DEG), moment.torso, moment.to_go
     stop = kick / torque  # s until the torso stops
     if t <= stop:  # the touchdown comes while it still swings out

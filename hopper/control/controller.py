@@ -13,6 +13,7 @@ from hopper.config import (
     MOTOR_RESISTANCE,
     MOTOR_TORQUE_CONSTANT,
     REGENERATIVE_DRIVES,
+    SATURATION_FRACTION,
     STANDARD_GRAVITY,
     SimConfig,
 )
@@ -21,14 +22,16 @@ from hopper.control import landing
 from hopper.control.memory import new_memory
 from hopper.control.phases import FallCause, Phase
 from hopper.layout import ModelLayout
+from hopper.robot import PACKAGED, Robot
 
 
 class HopController:
     """Owns the kernel's MEMORY record; `configure()` writes a config's gains, gravity, wheel
-    and gait into it (between ticks). The settings themselves live in Simulation.config."""
+    and gait into it (between ticks). The settings themselves live in Simulation.config; the
+    robot's constants (`robot`, read from the model flown) are written once."""
 
-    def __init__(self, layout: ModelLayout, config: SimConfig) -> None:
-        self.layout = layout
+    def __init__(self, layout: ModelLayout, config: SimConfig, robot: Robot = PACKAGED) -> None:
+        self.layout, self.robot = layout, robot
         self.mem = new_memory(layout)  # passed to control_tick; everything in it has a name
         self.start_over(config)
 
@@ -37,10 +40,19 @@ class HopController:
         nothing of an earlier episode survives."""
         self.mem[0] = new_memory(self.layout)[0]
         (self.mem["x0"], self.mem["z0"]), self.mem["dt"] = self.layout.torso_origin, config.timestep
+        self._write_robot()
         self.mem["leg_kt"], self.mem["motor_resistance"] = MOTOR_TORQUE_CONSTANT, MOTOR_RESISTANCE
         self.mem["leg_motor_gear"], self.mem["regenerate"] = LEG_MOTOR_GEAR, REGENERATIVE_DRIVES
         self.configure(config)
         self.reset()
+
+    def _write_robot(self) -> None:
+        m, r = self.mem, self.robot
+        m["mass"], m["leg_limit"], m["hip_z"] = r.mass, r.leg_torque_limit, r.hip_z
+        m["thigh"], m["shank"] = r.thigh, r.shank
+        m["wheel_limit"], m["wheel_damping"] = r.wheel_torque_limit, r.wheel_damping
+        m["wheel_top"] = r.wheel_no_load_speed
+        m["saturation_torque"] = SATURATION_FRACTION * r.wheel_torque_limit
 
     def configure(self, config: SimConfig) -> None:
         m, g, gait = self.mem, config.gains, config.gait
@@ -49,7 +61,7 @@ class HopController:
         # The energy is the simulated robot's: a motor_torque mismatch is its wheel motor's k_t (hopper.mismatch),
         # though the control law keeps the nominal one.
         m["wheel_kt"] = MOTOR_TORQUE_CONSTANT * dict(config.mismatch).get("motor_torque", 1.0)
-        self.gait = gaits.derive(config.gravity, gait)
+        self.gait = gaits.derive(config.gravity, gait, self.robot)
         for name, value in self.gait.record().items():
             m[name] = value
         m["stand"], m["crouch"] = gait.stand_height, gait.crouch_height
@@ -113,8 +125,9 @@ class HopController:
         hip, ahead = self._hip_and_feet_ahead(data, layout)
         vx, vz = float(s[layout.s_com_vel]), float(s[layout.s_com_vel + 2])
         lengths = landing.plan_reach(
-            hip, (vx, vz), float(m["gravity"][0]), ahead, float(m["flight_length"][0]), float(m["push"][0]), ground
-        )
+            hip, (vx, vz), float(m["gravity"][0]), ahead, float(m["flight_length"][0]), float(m["push"][0]), ground,
+            self.robot.foot_radius,
+        )  # fmt: skip
         m["land_l"], m["land_r"] = lengths
 
     def _hip_and_feet_ahead(
@@ -123,7 +136,7 @@ class HopController:
         """The hip's world (x, z) now and where the kernel's swing puts each foot ahead of it (m)."""
         q = data.qpos
         torso = (float(q[layout.q_x]) + layout.torso_origin[0], float(q[layout.q_z]) + layout.torso_origin[1])
-        hip = landing.hip_position(torso, float(q[layout.q_pitch]))
+        hip = landing.hip_position(torso, float(q[layout.q_pitch]), self.robot)
         mid, half = float(self.mem["feet_mid"][0]), 0.5 * float(self.mem["spread"][0])
         return hip, (mid + half, mid - half)
 

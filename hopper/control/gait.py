@@ -23,19 +23,8 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from hopper.config import (
-    FOOT_RADIUS,
-    HIP_OFFSET_Z,
-    LEG_TORQUE_LIMIT,
-    MOON_GRAVITY,
-    SHANK_LENGTH,
-    THIGH_LENGTH,
-    TOTAL_MASS,
-    WHEEL_ARMATURE,
-    WHEEL_INERTIA,
-    WHEEL_NO_LOAD_SPEED,
-    GaitParams,
-)
+from hopper.config import MOON_GRAVITY, GaitParams
+from hopper.robot import PACKAGED, Robot
 
 # Designed on the Moon (Moon values; see the module docstring for how they move with g).
 STANCE_HEIGHT_WN, STANCE_HEIGHT_ZETA = 5.0, 1.0  # rad/s, hip height over the feet
@@ -86,25 +75,25 @@ WAIT_FROM, WAIT_GAIN, WAIT_MAX = math.radians(1.0), 2.0, 0.06  # rad, m/rad, m
 LANDING_MIN_S, STANCE_MAX_S, CROUCH_MIN_S, CROUCH_MAX_S, PUSH_MAX_S = 0.1, 2.0, 0.15, 1.2, 1.0
 
 
-def standing_com_height(gait: GaitParams) -> float:
+def standing_com_height(gait: GaitParams, robot: Robot = PACKAGED) -> float:
     """Torso CoM above the ground when standing, m (the pendulum length of the stance)."""
-    return gait.stand_height - HIP_OFFSET_Z + FOOT_RADIUS
+    return gait.stand_height - robot.hip_z + robot.foot_radius
 
 
-def leg_force_limit(height: float) -> float:
+def leg_force_limit(height: float, robot: Robot = PACKAGED) -> float:
     """Largest vertical force (N) both legs hold with the feet under the hip at hip `height` (m).
 
     With the foot below the hip the knee takes f * L sin(b), where cos(b) = h / (L1 + L2) for equal
     links: the knee motor's limit sets the force.
     """
-    reach = THIGH_LENGTH + SHANK_LENGTH
+    reach = robot.thigh + robot.shank
     bend = math.sqrt(max(1.0 - (height / reach) ** 2, 1e-6))
-    return 2.0 * LEG_TORQUE_LIMIT / (THIGH_LENGTH * bend)
+    return 2.0 * robot.leg_torque_limit / (robot.thigh * bend)
 
 
-def momentum_capacity() -> float:
+def momentum_capacity(robot: Robot = PACKAGED) -> float:
     """The wheel's momentum capacity, N m s: (I_w + armature) * no-load speed (PHYSICS.md)."""
-    return (WHEEL_INERTIA + WHEEL_ARMATURE) * WHEEL_NO_LOAD_SPEED
+    return robot.momentum_capacity
 
 
 @dataclasses.dataclass(frozen=True)
@@ -157,16 +146,16 @@ class Gait:
         return 2.0 * self.vz_liftoff / gravity + self.stance_max + self.crouch_max + self.push_max
 
 
-def derive(gravity: float, gait: GaitParams) -> Gait:
+def derive(gravity: float, gait: GaitParams, robot: Robot = PACKAGED) -> Gait:
     """The gait for `gravity` (m/s^2, magnitude) from the Moon design and the robot's constants."""
-    g, weight = gravity, TOTAL_MASS * gravity
-    z = standing_com_height(gait)
+    g, weight = gravity, robot.mass * gravity
+    z = standing_com_height(gait, robot)
     r = math.sqrt(g / z) / math.sqrt(MOON_GRAVITY / z)  # w0 / w0_moon = sqrt(g / g_moon)
     # Net upward acceleration the legs can give, and the hop a landing can absorb with it over the
     # stroke from the flight length down to the crouch (v^2 = 2 a d, v^2 = 2 g h).
-    strength = leg_force_limit(gait.crouch_height) / TOTAL_MASS - g
+    strength = leg_force_limit(gait.crouch_height, robot) / robot.mass - g
     if strength <= 0.0:
-        raise ValueError(f"the legs cannot hold the robot at {g:g} m/s^2 (crouched, {LEG_TORQUE_LIMIT:g} N m)")
+        raise ValueError(f"the legs cannot hold the robot at {g:g} m/s^2 (crouched, {robot.leg_torque_limit:g} N m)")
     stroke = gait.flight_length - gait.crouch_height
     apex = min(gait.apex_height, LEG_MARGIN * strength * stroke / g)
     wn_z, wn_x, wn_p = STANCE_HEIGHT_WN * r, STANCE_X_WN * r, STANCE_PITCH_WN * r
@@ -195,8 +184,8 @@ def derive(gravity: float, gait: GaitParams) -> Gait:
         crouch_min=CROUCH_MIN_S / r,
         crouch_max=CROUCH_MAX_S / r,
         push_max=PUSH_MAX_S / r,
-        wheel_ready=WHEEL_READY * WHEEL_NO_LOAD_SPEED,
-        wheel_wait=momentum_capacity() / (DRAIN_MOMENT * ground_moment),
+        wheel_ready=WHEEL_READY * robot.wheel_no_load_speed,
+        wheel_wait=robot.momentum_capacity / (DRAIN_MOMENT * ground_moment),
         swing_scale=max(1.0, r),
         momentum_gain=MOMENTUM_GAIN * r,
         hold_kp=i * HOLD_WN**2,

@@ -12,14 +12,13 @@ import math
 import numpy as np
 from numba import njit
 
-from hopper.config import HIP_OFFSET_Z, WHEEL_NO_LOAD_SPEED
 from hopper.control.contact import debounce
 from hopper.control.energy import spend
 from hopper.control.legs import Leg, clamp, leg_angle, leg_state, swing_to_angle, swing_torques
 from hopper.control.phases import FALL_HIP_HEIGHT, FALL_PITCH, FallCause, Phase
 from hopper.control.sensing import delayed, sense
 from hopper.control.stance import Body, stance
-from hopper.control.wheel import SATURATION_TORQUE, wheel_ctrl, wheel_pid, wheel_torque_bound
+from hopper.control.wheel import wheel_ctrl, wheel_pid, wheel_torque_bound
 
 LANDING, STANCE, CROUCH, PUSH, FLIGHT, FALLEN = (int(p) for p in Phase)
 PITCH_LIMIT, HIP_HEIGHT = int(FallCause.PITCH_LIMIT), int(FallCause.HIP_HEIGHT)
@@ -119,7 +118,7 @@ def share_attitude(m, pitch: float, rate: float, wheel_speed: float, kicked: boo
     wait = m.wait_gain * max(abs(pitch) - m.wait_from, 0.0)  # m
     if pitch * rate < 0.0:
         wait = min(wait, m.wait_max)
-    elif abs(wheel_speed) > WHEEL_FULL * WHEEL_NO_LOAD_SPEED:
+    elif abs(wheel_speed) > WHEEL_FULL * m.wheel_top:
         # The wheel is full and the torso still turns away: reach for the ground, which can take
         # the momentum, rather than turn on to the fall limit in the air.
         wait = -min(wait, m.push - m.flight_length)
@@ -161,7 +160,7 @@ def command_wheel(m, ctrl: np.ndarray, wheel: float, wheel_speed: float) -> None
     if not m.wheel_on:
         wheel = 0.0
     m.wheel_command = wheel
-    ctrl[m.a_wheel] = wheel_ctrl(delayed(m, wheel), wheel_speed)
+    ctrl[m.a_wheel] = wheel_ctrl(m, delayed(m, wheel), wheel_speed)
 
 
 @njit(cache=True)
@@ -170,7 +169,7 @@ def finish_wheel(qvel: np.ndarray, ctrl: np.ndarray, mem: np.ndarray, command: f
     envelope, mark saturation as wheel_pid does, and send it. Returns the torque sent (N m)."""
     m = mem[0]
     wheel_speed = qvel[m.v_wheel]
-    torque = wheel_torque_bound(wheel_speed, command)
+    torque = wheel_torque_bound(m, wheel_speed, command)
     m.saturated = torque != command
     command_wheel(m, ctrl, torque, wheel_speed)
     return torque
@@ -190,15 +189,15 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
     on_l, m.pending_l = debounce(sensors[m.s_foot_l], time, m.contact_l, m.pending_l, m.contact_on, m.contact_off)
     on_r, m.pending_r = debounce(sensors[m.s_foot_r], time, m.contact_r, m.pending_r, m.contact_on, m.contact_off)
     m.contact_l, m.contact_r = on_l, on_r
-    left = leg_state(pitch, qpos[m.q_hip_l], qpos[m.q_knee_l], qvel[m.v_hip_l], qvel[m.v_knee_l], on_l)
-    right = leg_state(pitch, qpos[m.q_hip_r], qpos[m.q_knee_r], qvel[m.v_hip_r], qvel[m.v_knee_r], on_r)
+    left = leg_state(m, pitch, qpos[m.q_hip_l], qpos[m.q_knee_l], qvel[m.v_hip_l], qvel[m.v_knee_l], on_l)
+    right = leg_state(m, pitch, qpos[m.q_hip_r], qpos[m.q_knee_r], qvel[m.v_hip_r], qvel[m.v_knee_r], on_r)
     contact = on_l or on_r
     # The whole robot's CoM relative to the torso's (the legs are 15 % of the mass).
     com_dx = sensors[m.s_com] - (qpos[m.q_x] + m.x0)
     com_dz = sensors[m.s_com + 2] - (qpos[m.q_z] + m.z0)
     com_vz = sensors[m.s_com_vel + 2]  # ballistic in flight, unlike the torso's (the legs swing)
-    lean = HIP_OFFSET_Z * math.sin(pitch)  # hip ahead of the torso's CoM
-    hip_x, hip_z = lean - com_dx, HIP_OFFSET_Z * math.cos(pitch) - com_dz  # hip relative to the robot's CoM
+    lean = m.hip_z * math.sin(pitch)  # hip ahead of the torso's CoM
+    hip_x, hip_z = lean - com_dx, m.hip_z * math.cos(pitch) - com_dz  # hip relative to the robot's CoM
     # Support geometry: hip above the feet' centres, the robot's CoM ahead of the feet's midpoint.
     if on_l and on_r:
         height, px = -0.5 * (left.pz + right.pz), 0.5 * (left.px + right.px)
@@ -310,23 +309,23 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
             scale, flown = m.swing_scale * m.sweep_scale, time - m.phase_start
             if flown < m.sweep_time:
                 s = trapezoid(flown / m.sweep_time, SWEEP_RAMP)
-                hl, kl = swing_to_angle(left, m.sweep_len_l, m.sweep_from_l + m.sweep_angle * s, scale)
-                hr, kr = swing_to_angle(right, m.sweep_len_r, m.sweep_from_r + m.sweep_angle * s, scale)
+                hl, kl = swing_to_angle(m, left, m.sweep_len_l, m.sweep_from_l + m.sweep_angle * s, scale)
+                hr, kr = swing_to_angle(m, right, m.sweep_len_r, m.sweep_from_r + m.sweep_angle * s, scale)
             else:
                 s = minimum_jerk((flown - m.sweep_time) / m.sweep_return if m.sweep_return > 0.0 else 1.0)
                 held_l, held_r = m.sweep_from_l + m.sweep_angle, m.sweep_from_r + m.sweep_angle
                 land_l = -math.asin(clamp((mid + half) / m.land_l, 0.9))
                 land_r = -math.asin(clamp((mid - half) / m.land_r, 0.9))
-                hl, kl = swing_to_angle(left, m.land_l, held_l + (land_l - held_l) * s, scale)
-                hr, kr = swing_to_angle(right, m.land_r, held_r + (land_r - held_r) * s, scale)
+                hl, kl = swing_to_angle(m, left, m.land_l, held_l + (land_l - held_l) * s, scale)
+                hr, kr = swing_to_angle(m, right, m.land_r, held_r + (land_r - held_r) * s, scale)
         else:
             kicked = abs(rate) > KICK_RATE
             share, share_rate, wait = 0.0, 0.0, 0.0
             if phase == FLIGHT:
                 share, share_rate, wait = share_attitude(m, pitch, rate, wheel_speed, kicked)
             len_l, len_r = (m.tuck_length, m.tuck_length) if tucked else (m.land_l - wait, m.land_r - wait)
-            hl, kl = swing_torques(left, len_l, mid + half, m.swing_scale, share, share_rate, rigid=kicked)
-            hr, kr = swing_torques(right, len_r, mid - half, m.swing_scale, share, share_rate, rigid=kicked)
+            hl, kl = swing_torques(m, left, len_l, mid + half, m.swing_scale, share, share_rate, rigid=kicked)
+            hr, kr = swing_torques(m, right, len_r, mid - half, m.swing_scale, share, share_rate, rigid=kicked)
         if phase == FLIGHT and not m.external:
             wheel = wheel_pid(m, pitch, rate, wheel_speed)
     elif m.push_done:
@@ -334,7 +333,7 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
         # them against the ground now would push the body into a spin; the wheel holds the torso.
         hl, kl = -LIMP_DAMPING * left.hip_rate, -LIMP_DAMPING * left.knee_rate
         hr, kr = -LIMP_DAMPING * right.hip_rate, -LIMP_DAMPING * right.knee_rate
-        wheel = wheel_torque_bound(wheel_speed, m.hold_kp * pitch + m.hold_kd * rate)
+        wheel = wheel_torque_bound(m, wheel_speed, m.hold_kp * pitch + m.hold_kd * rate)
     else:
         body = Body(pitch, rate, vx, vz, wheel_speed, height, offset_x, sensors[m.s_angmom], hip_x, hip_z)
         skip_l, skip_r = phase == PUSH and m.push_skip_l, phase == PUSH and m.push_skip_r
@@ -356,7 +355,7 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
 
     # -- metrics of the hop in progress --
     torque = sensors[m.s_wheel_torque] * m.wheel_gear  # motor-side actuator force through the gear
-    if torque >= SATURATION_TORQUE or torque <= -SATURATION_TORQUE:
+    if torque >= m.saturation_torque or torque <= -m.saturation_torque:
         m.acc_saturation += dt
     m.acc_peak_wheel = max(m.acc_peak_wheel, abs(wheel_speed))
     spend(m, qvel, sensors)  # every tick: the energy of a hop covers its ground phase and its flight

@@ -12,9 +12,9 @@ from __future__ import annotations
 
 import math
 
-from hopper.config import FOOT_RADIUS, HIP_OFFSET_Z
+from hopper.robot import PACKAGED, Robot
 
-FOOT_Y = 0.11  # m, each foot's lateral offset (models/hopper.xml: the thighs sit at y = +-0.11)
+FOOT_Y = PACKAGED.foot_y  # m, the packaged robot's feet's lateral offset (the flown one's: Robot.foot_y)
 
 
 def plan_reach(
@@ -25,12 +25,14 @@ def plan_reach(
     length: float,
     longest: float,
     ground: callable,  # type: ignore[valid-type]
+    foot_radius: float = PACKAGED.foot_radius,
 ) -> tuple[float, float]:
     """Leg lengths (m) for the left and right foot so that both touch down together.
 
     hip: (x, z) of the hip now (m); velocity: (vx, vz) (m/s), ballistic from here on;
     feet_ahead: where each foot will be ahead of the hip (m); length: the nominal landing leg
-    length; longest: the most a leg may reach; ground(x, foot) -> terrain height under it.
+    length; longest: the most a leg may reach; ground(x, foot) -> terrain height under it;
+    foot_radius: the feet's (m).
     """
     (x, z), (vx, vz) = hip, velocity
     lengths, t = (length, length), 0.0
@@ -41,7 +43,7 @@ def plan_reach(
         # The foot over the higher ground keeps the nominal length and sets the touchdown time;
         # the other reaches down by the difference.
         lengths = tuple(min(length + (high - floor), longest) for floor in floors)
-        t = _fall_time(z - length - FOOT_RADIUS - high, vz, gravity)
+        t = _fall_time(z - length - foot_radius - high, vz, gravity)
     return lengths  # type: ignore[return-value]
 
 
@@ -50,7 +52,7 @@ def _fall_time(height: float, vz: float, gravity: float) -> float:
     return (vz + math.sqrt(max(vz * vz + 2.0 * gravity * height, 0.0))) / gravity
 
 
-def hip_position(torso: tuple[float, float], pitch: float) -> tuple[float, float]:
-    """The hip's world (x, z) from the torso CoM's and the pitch (rad)."""
+def hip_position(torso: tuple[float, float], pitch: float, robot: Robot = PACKAGED) -> tuple[float, float]:
+    """The hip's world (x, z) from the torso frame's origin and the pitch (rad)."""
     x, z = torso
-    return x + HIP_OFFSET_Z * math.sin(pitch), z + HIP_OFFSET_Z * math.cos(pitch)
+    return x + robot.hip_z * math.sin(pitch), z + robot.hip_z * math.cos(pitch)

@@ -7,9 +7,6 @@ from typing import NamedTuple
 
 from numba import njit
 
-from hopper.config import LEG_TORQUE_LIMIT, SHANK_LENGTH, THIGH_LENGTH
-
-L1, L2 = THIGH_LENGTH, SHANK_LENGTH
 # Flight: the legs swing as a virtual leg (length, angle) with PD gains about the hip.
 SWING_K, SWING_D = 15.0, 2.5  # N m/rad, N m s/rad  (wn ~ 10 rad/s for ~0.15 kg m^2)
 KNEE_K, KNEE_D = 20.0, 1.5  # N m/rad, N m s/rad (wn ~ 10 rad/s for the shank about the knee)
@@ -42,8 +39,10 @@ def clamp(value: float, limit: float) -> float:
 
 
 @njit(cache=True)
-def leg_state(pitch: float, hip: float, knee: float, hip_rate: float, knee_rate: float, on: bool) -> Leg:
-    """The leg's kinematics at torso `pitch` and joint angles `hip`, `knee` (rad)."""
+def leg_state(m, pitch: float, hip: float, knee: float, hip_rate: float, knee_rate: float, on: bool) -> Leg:  # noqa: ANN001
+    """The leg's kinematics at torso `pitch` and joint angles `hip`, `knee` (rad); the links' lengths
+    are the MEMORY record `m`'s (hopper.robot.Robot's thigh and shank)."""
+    L1, L2 = m.thigh, m.shank  # noqa: N806 (the links' usual names)
     a1 = pitch + hip
     a2 = a1 + knee
     s2, c2 = math.sin(a2), math.cos(a2)
@@ -53,23 +52,25 @@ def leg_state(pitch: float, hip: float, knee: float, hip_rate: float, knee_rate:
 
 
 @njit(cache=True)
-def push_torques(leg: Leg, fx: float, fz: float) -> tuple[float, float]:
-    """Hip and knee torques that make the ground push on the foot with (fx, fz): tau = -J^T f."""
+def push_torques(m, leg: Leg, fx: float, fz: float) -> tuple[float, float]:  # noqa: ANN001
+    """Hip and knee torques that make the ground push on the foot with (fx, fz): tau = -J^T f,
+    within the leg motors' limit (m.leg_limit, N m)."""
     return (
-        clamp(leg.px * fz - leg.pz * fx, LEG_TORQUE_LIMIT),
-        clamp(-(leg.jx * fx + leg.jz * fz), LEG_TORQUE_LIMIT),
+        clamp(leg.px * fz - leg.pz * fx, m.leg_limit),
+        clamp(-(leg.jx * fx + leg.jz * fz), m.leg_limit),
     )
 
 
 @njit(cache=True)
 def swing_torques(
+    m,  # noqa: ANN001 (a MEMORY record)
     leg: Leg,
     length: float,
     foot_x: float,
     scale: float = 1.0,
     offset: float = 0.0,
     rate: float = 0.0,
-    max_knee_torque: float = LEG_TORQUE_LIMIT,
+    max_knee_torque: float = -1.0,
     rigid: bool = False,
 ) -> tuple[float, float]:
     """PD toward a foot `foot_x` ahead of the hip, `length` from it (a swing, not a support).
@@ -81,11 +82,11 @@ def swing_torques(
     legs do not fight the torso's rotation. `scale` (>= 1) multiplies the natural frequency for
     short flights; `offset` (rad) shifts the world angle and `rate` (rad/s) the world rate the
     damping holds, relative to the torso's (hopper.control.kernel.share_attitude);
-    `max_knee_torque` caps the length servo (N m). `rigid`: the knee takes RIGID_KNEE, not half,
-    of the hip's torque, so a hard turn moves each leg as one body and its foot keeps its height.
+    `max_knee_torque` caps the length servo (N m; negative: the motor's limit). `rigid`: the knee takes
+    RIGID_KNEE, not half, of the hip's torque, so a hard turn moves each leg as one body and its foot keeps its height.
     """
     angle = -math.asin(clamp(foot_x / length, 0.9)) + offset  # world angle, + = foot behind the hip
-    return swing_to_angle(leg, length, angle, scale, rate, max_knee_torque, rigid)
+    return swing_to_angle(m, leg, length, angle, scale, rate, max_knee_torque, rigid)
 
 
 @njit(cache=True)
@@ -96,20 +97,22 @@ def leg_angle(leg: Leg) -> float:
 
 @njit(cache=True)
 def swing_to_angle(
+    m,  # noqa: ANN001 (a MEMORY record)
     leg: Leg,
     length: float,
     angle: float,
     scale: float = 1.0,
     rate: float = 0.0,
-    max_knee_torque: float = LEG_TORQUE_LIMIT,
+    max_knee_torque: float = -1.0,
     rigid: bool = False,
 ) -> tuple[float, float]:
     """PD of the virtual leg toward world `angle` (rad, + = foot behind the hip) and `length` (m);
     see swing_torques."""
     k, d = scale * scale, scale
     torque = k * SWING_K * (angle - leg_angle(leg)) - d * SWING_D * (leg.hip_rate + leg.knee_rate / 2 - rate)
-    knee_target = -2.0 * math.acos(min(length / (L1 + L2), 0.999))
-    bend = clamp(k * KNEE_K * (knee_target - leg.knee) - d * KNEE_D * leg.knee_rate, max_knee_torque)
-    hip = clamp(torque, LEG_TORQUE_LIMIT)
+    knee_target = -2.0 * math.acos(min(length / (m.thigh + m.shank), 0.999))
+    cap = m.leg_limit if max_knee_torque < 0.0 else max_knee_torque
+    bend = clamp(k * KNEE_K * (knee_target - leg.knee) - d * KNEE_D * leg.knee_rate, cap)
+    hip = clamp(torque, m.leg_limit)
     follow = RIGID_KNEE * hip if rigid else torque / 2  # the knee's part of the turn
-    return hip, clamp(follow + bend, LEG_TORQUE_LIMIT)
+    return hip, clamp(follow + bend, m.leg_limit)

@@ -37,6 +37,16 @@ _PARAMS = [
     ("sweep_time", "f8"),  # s the sweep takes
     ("sweep_return", "f8"),  # s the forward swing to the landing pose takes after the sweep
     ("sweep_scale", "f8"),  # x the swing servo's natural frequency during the sweep
+    # The robot flown (hopper.robot.Robot, read from its model; SI units there).
+    ("mass", "f8"),  # kg
+    ("wheel_limit", "f8"),  # N m, the wheel's stall torque
+    ("wheel_damping", "f8"),  # N m s/rad, its back-EMF slope
+    ("wheel_top", "f8"),  # rad/s, its no-load speed
+    ("saturation_torque", "f8"),  # N m: SATURATION_FRACTION of the stall torque counts as saturated
+    ("leg_limit", "f8"),  # N m, each leg motor's
+    ("thigh", "f8"),  # m
+    ("shank", "f8"),  # m
+    ("hip_z", "f8"),  # m, the hips above the torso frame's origin (negative: below)
     ("x0", "f8"),  # m, torso x in the XML (root_x measures from it)
     ("z0", "f8"),  # m, torso z in the XML (root_z measures from it)
     # The gait at this gravity: every field of hopper.control.gait.Gait (units there).

@@ -7,8 +7,7 @@ from typing import NamedTuple
 
 from numba import njit
 
-from hopper.config import LEG_TORQUE_LIMIT, TOTAL_MASS
-from hopper.control.legs import L2, Leg, clamp, push_torques, swing_torques
+from hopper.control.legs import Leg, clamp, push_torques, swing_torques
 from hopper.control.phases import Phase
 from hopper.control.wheel import wheel_torque_bound
 
@@ -41,11 +40,11 @@ class Body(NamedTuple):
 
 
 @njit(cache=True)
-def leg_capacity(leg: Leg, k: float) -> float:
+def leg_capacity(m, leg: Leg, k: float) -> float:  # noqa: ANN001 (a MEMORY record)
     """Largest vertical force (N) the foot can push with, the horizontal one k times it, before a
     hip or knee motor reaches its limit (push_torques' tau = -J^T f, here per newton)."""
-    hip, knee = push_torques(leg, k, 1.0)
-    return LEG_TORQUE_LIMIT / max(abs(hip), abs(knee), 1e-6)
+    hip, knee = push_torques(m, leg, k, 1.0)
+    return m.leg_limit / max(abs(hip), abs(knee), 1e-6)
 
 
 @njit(cache=True)
@@ -90,8 +89,8 @@ def stance(m, phase: int, body: Body, left: Leg, right: Leg) -> tuple[float, flo
         ax = -m.kx * offset_x - m.dx * vx
     # Never ask the ground for less than MIN_SUPPORT of the weight: a limp leg loses its foot, and
     # in low gravity the body sinks slowly enough that a crouch needs no faster drop.
-    fz = TOTAL_MASS * m.gravity * max(1.0 + az / m.gravity, MIN_SUPPORT)
-    fx = TOTAL_MASS * ax
+    fz = m.mass * m.gravity * max(1.0 + az / m.gravity, MIN_SUPPORT)
+    fx = m.mass * ax
 
     # Moments. With the wheel, the feet drive the whole robot's pitch momentum to zero (only
     # they can change it) while the wheel holds the torso's attitude (an internal torque). With
@@ -102,7 +101,7 @@ def stance(m, phase: int, body: Body, left: Leg, right: Leg) -> tuple[float, flo
     wheel_on = m.wheel_on
     if wheel_on:
         torso = m.hold_kp * pitch + m.hold_kd * rate  # torque the torso needs, as a wheel command
-        wheel = wheel_torque_bound(wheel_speed, torso)
+        wheel = wheel_torque_bound(m, wheel_speed, torso)
         feet = -m.momentum_gain * body.momentum - (torso - wheel)
     else:
         wheel = 0.0
@@ -130,7 +129,7 @@ def stance(m, phase: int, body: Body, left: Leg, right: Leg) -> tuple[float, flo
         low = min(max(SUPPORT_MARGIN, CONTACT_LOAD * m.contact_on / fz), 0.5)
         # Nor more on a foot than its leg's motors can push: a leg bent deep (its foot high on a
         # crater wall) saturates its knee, and the force asked of it never reaches the ground.
-        top_l, top_r = leg_capacity(left, k) / fz, leg_capacity(right, k) / fz
+        top_l, top_r = leg_capacity(m, left, k) / fz, leg_capacity(m, right, k) / fz
         lo, hi = max(low, 1.0 - top_r), min(1.0 - low, top_l)
         if lo > hi:  # the legs together cannot carry fz: each carries its share of what they can
             lo = hi = min(max(top_l / (top_l + top_r), low), 1.0 - low)
@@ -141,8 +140,8 @@ def stance(m, phase: int, body: Body, left: Leg, right: Leg) -> tuple[float, flo
             k = clamp((want + rbx + s * (rax - rbx)) / (rzb + s * (rza - rzb)), mu)
         fz_l = s * fz
         fz_r = fz - fz_l
-        hl, kl = push_torques(left, k * fz_l, fz_l)
-        hr, kr = push_torques(right, k * fz_r, fz_r)
+        hl, kl = push_torques(m, left, k * fz_l, fz_l)
+        hr, kr = push_torques(m, right, k * fz_r, fz_r)
         return wheel, hl, kl, hr, kr
     # One support point: the feet's moment is rz fx + offset_x fz, so the moment sets fx, but
     # while balancing fx may stray from it toward the force the CoM needs by `stray` N m.
@@ -151,17 +150,17 @@ def stance(m, phase: int, body: Body, left: Leg, right: Leg) -> tuple[float, flo
     fx = min(max(fx, fx_moment - stray / -rz), fx_moment + stray / -rz) if balance else fx_moment
     fx = clamp(fx, mu * fz)
     if both:
-        hl, kl = push_torques(left, fx / 2, fz / 2)
-        hr, kr = push_torques(right, fx / 2, fz / 2)
+        hl, kl = push_torques(m, left, fx / 2, fz / 2)
+        hr, kr = push_torques(m, right, fx / 2, fz / 2)
         return wheel, hl, kl, hr, kr
     # The free foot reaches a little below the stance foot to find the ground, gently: a leg
     # that keeps extending into the ground launches the robot in lunar gravity.
     half = 0.5 * m.spread
-    gentle = REACH_FORCE * TOTAL_MASS * m.gravity * 0.5 * L2  # knee torque, ~0.5 L2 lever
+    gentle = REACH_FORCE * m.mass * m.gravity * 0.5 * m.shank  # knee torque, ~0.5 L2 lever
     if left.on:
-        hl, kl = push_torques(left, fx, fz)
-        hr, kr = swing_torques(right, m.push, -half, 1.0, max_knee_torque=gentle)
+        hl, kl = push_torques(m, left, fx, fz)
+        hr, kr = swing_torques(m, right, m.push, -half, 1.0, max_knee_torque=gentle)
     else:
-        hr, kr = push_torques(right, fx, fz)
-        hl, kl = swing_torques(left, m.push, half, 1.0, max_knee_torque=gentle)
+        hr, kr = push_torques(m, right, fx, fz)
+        hl, kl = swing_torques(m, left, m.push, half, 1.0, max_knee_torque=gentle)
     return wheel, hl, kl, hr, kr

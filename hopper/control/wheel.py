@@ -4,29 +4,32 @@ from __future__ import annotations
 
 from numba import njit
 
-from hopper.config import SATURATION_FRACTION, WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT
 from hopper.control.legs import clamp
+from hopper.robot import PACKAGED
 
-WHEEL_DAMPING = WHEEL_TORQUE_LIMIT / WHEEL_NO_LOAD_SPEED  # N m s/rad, back-EMF slope at the wheel
-SATURATION_TORQUE = SATURATION_FRACTION * WHEEL_TORQUE_LIMIT  # N m
+# The packaged robot's back-EMF slope, N m s/rad at the wheel; the kernel reads the flown robot's
+# (m.wheel_damping, hopper.robot.Robot.wheel_damping).
+WHEEL_DAMPING = PACKAGED.wheel_damping
 
 
 @njit(cache=True)
-def wheel_torque_bound(wheel_speed: float, torque: float) -> float:
-    """Clamp a wheel torque (N m) to the motor's torque-speed envelope at `wheel_speed` (rad/s)."""
-    back_emf = WHEEL_DAMPING * wheel_speed
-    low = max(-WHEEL_TORQUE_LIMIT, -WHEEL_TORQUE_LIMIT - back_emf)
-    high = min(WHEEL_TORQUE_LIMIT, WHEEL_TORQUE_LIMIT - back_emf)
+def wheel_torque_bound(m, wheel_speed: float, torque: float) -> float:  # noqa: ANN001 (a MEMORY record)
+    """Clamp a wheel torque (N m) to the motor's torque-speed envelope at `wheel_speed` (rad/s):
+    the stall torque m.wheel_limit less the back-EMF m.wheel_damping * speed."""
+    limit = m.wheel_limit
+    back_emf = m.wheel_damping * wheel_speed
+    low = max(-limit, -limit - back_emf)
+    high = min(limit, limit - back_emf)
     return low if torque < low else high if torque > high else torque
 
 
 @njit(cache=True)
-def wheel_ctrl(torque: float, wheel_speed: float) -> float:
+def wheel_ctrl(m, torque: float, wheel_speed: float) -> float:  # noqa: ANN001 (a MEMORY record)
     """Normalised motor voltage in [-1, 1] giving `torque` (N m at the wheel) at `wheel_speed`.
 
     Inverts the model's DC motor: torque = limit * u - damping * speed, clamped to the limit.
     """
-    return clamp((torque + WHEEL_DAMPING * wheel_speed) / WHEEL_TORQUE_LIMIT, 1.0)
+    return clamp((torque + m.wheel_damping * wheel_speed) / m.wheel_limit, 1.0)
 
 
 @njit(cache=True)
@@ -38,7 +41,7 @@ def wheel_pid(m, pitch: float, rate: float, wheel_speed: float) -> float:  # noq
     D acts on the measured rate, so a gain change causes no derivative kick.
     """
     command = m.kp * pitch + m.kd * rate + m.ki * m.integral
-    torque = wheel_torque_bound(wheel_speed, command)
+    torque = wheel_torque_bound(m, wheel_speed, command)
     m.saturated = torque != command
     if not m.saturated:  # conditional integration: no windup while saturated
         m.integral += pitch * m.dt
