@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from importlib import resources
 from pathlib import Path
 
@@ -30,9 +31,15 @@ def terrain_heights(config: SimConfig) -> np.ndarray:
     return terrain_window(config).heights
 
 
-def build_model(config: SimConfig, window: terrain.Window | None = None) -> mujoco.MjModel:
+Derive = Callable[[mujoco.MjSpec], None]  # edits the model's spec before it compiles (hopper.stand)
+
+
+def build_model(
+    config: SimConfig, window: terrain.Window | None = None, derive: Derive | None = None
+) -> mujoco.MjModel:
     """Compile models/hopper.xml with the config's gravity, timestep and terrain (`window`, by
-    default the start window of the config's)."""
+    default the start window of the config's), edited by `derive` if given: a variant of the robot
+    (the test stand) is derived from the one model, not kept as a second XML."""
     if window is None:
         window = terrain_window(config)
     spec = model_spec(config)
@@ -47,6 +54,8 @@ def build_model(config: SimConfig, window: terrain.Window | None = None) -> mujo
     geom.pos = [window.x0 + params.length / 2, 0.0, offset]
     spec.option.gravity = [0.0, 0.0, -config.gravity]
     spec.option.timestep = config.timestep
+    if derive is not None:
+        derive(spec)
     try:
         model = spec.compile()
     except ValueError as exc:

@@ -61,7 +61,7 @@ from hopper.events import (
 from hopper.layout import ModelLayout
 from hopper.metrics import HopMetrics, MetricsTracker
 from hopper.mismatch import Nominal
-from hopper.model import build_model, model_source, set_terrain, set_wheel_enabled, terrain_window
+from hopper.model import Derive, build_model, model_source, set_terrain, set_wheel_enabled, terrain_window
 from hopper.perturb import Pull
 from hopper.robot import Robot
 from hopper.schedule import KickSchedule
@@ -103,10 +103,11 @@ class Simulation:
     recompile) at a flight's apex when the robot nears its edge, sooner if it must (_follow).
     """
 
-    def __init__(self, config: SimConfig) -> None:
+    def __init__(self, config: SimConfig, derive: Derive | None = None) -> None:
+        """`derive` edits the model's spec before it compiles (a variant: hopper.stand)."""
         self.config = config
         self.terrain = terrain_window(config)
-        self.model = build_model(config, self.terrain)
+        self.model = build_model(config, self.terrain, derive)
         # What the controller knows of the robot: its model's, as built (a mismatch is the real robot's).
         self.robot = Robot.of(self.model, model_source(config))
         self._nominal = Nominal.of(self.model)  # what a mismatch scales (hopper.mismatch)
@@ -125,7 +126,7 @@ class Simulation:
         self._qpos, self._qvel, self._sensors, self._ctrl = d.qpos, d.qvel, d.sensordata, d.ctrl
         self._mem, self._dt = self.controller.mem, self.model.opt.timestep
         # Views the observation reads each flight tick of an API controller (hopper.controllers).
-        self._pitch_est, self._rate_est = self._mem["pitch_est"], self._mem["rate_est"]
+        self._law_pitch, self._rate_est = self._mem["law_pitch"], self._mem["rate_est"]
         self._v_wheel = self.layout.v_wheel
         self._q_x = self.layout.q_x
         self.ticks = 0  # control ticks stepped since construction
@@ -315,7 +316,7 @@ class Simulation:
         w, t = float(self._qvel[self._v_wheel]), self.data.time
         back_emf, limit, top, spin = self._damping * w, self._limit, self._top, self._spin_inertia
         return Observation(
-            float(self._pitch_est[0]),
+            float(self._law_pitch[0]),  # the estimate less the pitch reference
             float(self._rate_est[0]),
             w,
             t,

@@ -26,14 +26,17 @@ PHYSICS = mujoco.mjtState.mjSTATE_FULLPHYSICS
 CHECK_TICKS = 100  # settled_flight polls its cancel flag this often: 0.1 s of simulation, ~1 ms of work
 
 
-def flight_plant(sim: Simulation) -> Plant:
-    """The plant at the simulation's present state (which should be in flight)."""
+def flight_plant(sim: Simulation, lagged_gyro: bool = False) -> Plant:
+    """The plant at the simulation's present state (which should be in flight).
+
+    `lagged_gyro`: the leg servos' use of the gyro (which the kernel reads a tick late) is left out
+    of `a` and given as `gyro`, for a loop that models the lag (hopper.analysis.predict)."""
     model, data, lay = sim.model, sim.data, sim.layout
     nv = model.nv
     n = 2 * nv + model.na
     a, b = np.zeros((n, n)), np.zeros((n, model.nu))
     mujoco.mjd_transitionFD(model, data, EPS, True, a, b, None, None)
-    legs = _kernel_jacobian(sim)
+    legs, gyro = _kernel_jacobian(sim, lagged_gyro)
     # Close everything the kernel does but the wheel's PID: the leg servos, and the wheel driver's
     # back-EMF feedforward (wheel_ctrl adds damping * speed so that the torque is what was asked).
     legs[lay.a_wheel, :] = 0.0
@@ -50,11 +53,13 @@ def flight_plant(sim: Simulation) -> Plant:
         kick=kick,
         dt=model.opt.timestep,
         inertia=pitch_inertia(model, data),
+        gyro=None if gyro is None else b @ gyro,
     )
 
 
-def _kernel_jacobian(sim: Simulation) -> np.ndarray:
-    """d ctrl / d x of one controller tick, x in MuJoCo's tangent space [dq, dv], by central differences.
+def _kernel_jacobian(sim: Simulation, lagged_gyro: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
+    """d ctrl / d x of one controller tick, x in MuJoCo's tangent space [dq, dv], by central
+    differences, and (`lagged_gyro`) d ctrl / d gyro, with the gyro's reading held in the first.
 
     The kernel runs on scratch copies (MjData and its memory record), so the run is untouched.
     """
@@ -64,11 +69,16 @@ def _kernel_jacobian(sim: Simulation) -> np.ndarray:
     mujoco.mj_getState(model, data, state, PHYSICS)
     scratch = mujoco.MjData(model)
 
-    def ctrl_at(dq: np.ndarray, dv: np.ndarray) -> np.ndarray:
+    gyro = sim.layout.s_gyro_pitch
+    held = float(data.sensordata[gyro])
+
+    def ctrl_at(dq: np.ndarray, dv: np.ndarray, dgyro: float = 0.0) -> np.ndarray:
         mujoco.mj_setState(model, scratch, state, PHYSICS)
         mujoco.mj_integratePos(model, scratch.qpos, dq, 1.0)
         scratch.qvel[:] += dv
         mujoco.mj_forward(model, scratch)
+        if lagged_gyro:  # the reading is last tick's, not the perturbed state's
+            scratch.sensordata[gyro] = held + dgyro
         ctrl = np.zeros(model.nu)
         control_tick(scratch.qpos, scratch.qvel, scratch.sensordata, ctrl, sim.controller.mem.copy())
         return ctrl
@@ -78,7 +88,12 @@ def _kernel_jacobian(sim: Simulation) -> np.ndarray:
         step = np.zeros(2 * nv)
         step[i] = EPS
         jacobian[:, i] = (ctrl_at(step[:nv], step[nv:]) - ctrl_at(-step[:nv], -step[nv:])) / (2.0 * EPS)
-    return jacobian
+    if not lagged_gyro:
+        return jacobian, None
+    zero = np.zeros(nv)
+    by_gyro = (ctrl_at(zero, zero, EPS) - ctrl_at(zero, zero, -EPS)) / (2.0 * EPS)
+    by_gyro[sim.layout.a_wheel] = 0.0  # the wheel's law is closed by the loop, with its own lag
+    return jacobian, by_gyro
 
 
 class Cancelled(Exception):

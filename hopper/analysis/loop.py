@@ -73,6 +73,9 @@ class Plant:
     kick: np.ndarray  # (n,): the state change of a 1 N m s angular impulse on the torso
     dt: float  # s
     inertia: PitchInertia | None = None
+    # (n,): the state change per rad/s of the gyro's reading when it is modelled as a tick late
+    # (hopper.analysis.predict); None: whatever reads the gyro reads this tick's rate, in `a`.
+    gyro: np.ndarray | None = None
 
 
 def reduced_plant(inertia: float, dt: float = TIMESTEP) -> Plant:

@@ -164,13 +164,27 @@ def command_wheel(m, ctrl: np.ndarray, wheel: float, wheel_speed: float) -> None
 
 
 @njit(cache=True)
+def inject(m, law: float, wheel_speed: float) -> float:  # noqa: ANN001 (a MEMORY record)
+    """The flight law's torque `law` (N m) plus this tick's injected torque, within the envelope."""
+    m.law_command = law
+    if m.inject_torque == 0.0:
+        return law
+    asked = law + m.inject_torque
+    torque = wheel_torque_bound(m, wheel_speed, asked)
+    m.saturated = m.saturated or torque != asked
+    return torque
+
+
+@njit(cache=True)
 def finish_wheel(qvel: np.ndarray, ctrl: np.ndarray, mem: np.ndarray, command: float) -> float:
     """End a tick that returned EV_WHEEL: clamp an external law's `command` (N m) to the motor's
-    envelope, mark saturation as wheel_pid does, and send it. Returns the torque sent (N m)."""
+    envelope, mark saturation as wheel_pid does, add the injection and send it. Returns the torque
+    sent (N m)."""
     m = mem[0]
     wheel_speed = qvel[m.v_wheel]
     torque = wheel_torque_bound(m, wheel_speed, command)
     m.saturated = torque != command
+    torque = inject(m, torque, wheel_speed)
     command_wheel(m, ctrl, torque, wheel_speed)
     return torque
 
@@ -185,6 +199,7 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
     m = mem[0]
     time, dt = m.clock, m.dt
     pitch, rate = sense(m, qpos, sensors)  # the truth, or the IMU's estimate (SimConfig.sensing)
+    m.law_pitch = pitch - m.pitch_ref - m.inject_ref  # what the flight's attitude law holds to zero
     vx, vz, wheel_speed = qvel[m.v_x], qvel[m.v_z], qvel[m.v_wheel]
     on_l, m.pending_l = debounce(sensors[m.s_foot_l], time, m.contact_l, m.pending_l, m.contact_on, m.contact_off)
     on_r, m.pending_r = debounce(sensors[m.s_foot_r], time, m.contact_r, m.pending_r, m.contact_on, m.contact_off)
@@ -220,6 +235,12 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
             enter(m, FALLEN, time)
             m.fall_cause, m.fall_height = PITCH_LIMIT, height
             events |= EV_FALL
+        elif m.on_stand:
+            # The stand holds the torso up: its attitude loop is the flight's, for as long as it runs.
+            if phase != FLIGHT:
+                enter(m, FLIGHT, time)
+                m.integral = 0.0
+                m.land_l = m.land_r = m.flight_length
         elif contact and phase != FLIGHT and height < FALL_HIP_HEIGHT:
             enter(m, FALLEN, time)
             m.fall_cause, m.fall_height = HIP_HEIGHT, height
@@ -300,8 +321,8 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
         m.feet_mid = mid  # the landing planner reads where the swing puts the feet
         half = 0.5 * m.spread
         # Tucked while rising, for clearance over rims ahead; reaching for the landing after the apex.
-        tucked = phase == FLIGHT and com_vz >= 0.0
-        if phase == FLIGHT and m.sweep_angle > 0.0:
+        tucked = phase == FLIGHT and com_vz >= 0.0 and not m.on_stand
+        if phase == FLIGHT and m.sweep_angle > 0.0 and not m.on_stand:
             # The paper's flight: both legs swing back hard from their liftoff angle (world frame) at
             # their liftoff length (extending them could drive a foot back into the ground), then
             # forward to the landing pose along a minimum-jerk path. The torso takes the legs'
@@ -327,7 +348,7 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
             hl, kl = swing_torques(m, left, len_l, mid + half, m.swing_scale, share, share_rate, rigid=kicked)
             hr, kr = swing_torques(m, right, len_r, mid - half, m.swing_scale, share, share_rate, rigid=kicked)
         if phase == FLIGHT and not m.external:
-            wheel = wheel_pid(m, pitch, rate, wheel_speed)
+            wheel = inject(m, wheel_pid(m, m.law_pitch, rate, wheel_speed), wheel_speed)
     elif m.push_done:
         # The push is over but a foot still touches: limp legs until it leaves, since swinging
         # them against the ground now would push the body into a spin; the wheel holds the torso.
@@ -347,6 +368,8 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
                 hr, kr = -LIMP_DAMPING * right.hip_rate, -LIMP_DAMPING * right.knee_rate
         else:
             wheel, hl, kl, hr, kr = stance(m, phase, body, left, right)
+    if m.legs_locked:  # the stand holds them: a torque would only load its constraints
+        hl = kl = hr = kr = 0.0
     ctrl[m.a_hip_l], ctrl[m.a_knee_l], ctrl[m.a_hip_r], ctrl[m.a_knee_r] = hl, kl, hr, kr
     if phase == FLIGHT and m.external:
         events |= EV_WHEEL  # its obs reads m.pitch_est and m.rate_est, which sense() wrote
@@ -365,7 +388,7 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
         m.acc_flight_ticks += 1.0
         m.acc_apex_z = max(m.acc_apex_z, qpos[m.q_z] + m.z0)
         respond(m, time, torque, wheel_speed)
-        if m.prev_vz > 0.0 >= com_vz:
+        if m.prev_vz > 0.0 >= com_vz and not m.on_stand:
             events |= EV_APEX
     m.prev_vz = com_vz
     m.clock = time + dt

@@ -22,6 +22,8 @@ _PARAMS = [
     ("gravity", "f8"),  # m/s^2, magnitude
     ("wheel_on", "?"),  # False: zero wheel torque, wheel free to spin
     ("external", "?"),  # True: a Python controller flies the wheel (kernel.EV_WHEEL); False: wheel_pid
+    ("on_stand", "?"),  # True: on the test stand (hopper.stand): the flight's attitude loop, no gait
+    ("legs_locked", "?"),  # True: the stand holds the legs in the landing pose (no leg torques)
     ("stand", "f8"),  # m, hip height above the feet in stance
     ("crouch", "f8"),  # m, before the push
     ("push", "f8"),  # m, leg length where the push stops
@@ -105,6 +107,12 @@ _STATE = [
     ("contact_r", "?"),
     ("pending_r", "f8"),
     ("wheel_command", "f8"),  # N m asked of the wheel this tick
+    # The flight's attitude loop as a bench drives it (hopper.stand, hopper.analysis.frequency).
+    ("pitch_ref", "f8"),  # rad, the pitch the flight law holds (0: upright)
+    ("inject_ref", "f8"),  # rad, added to pitch_ref this tick (an injected excitation)
+    ("inject_torque", "f8"),  # N m, added to the law's wheel torque this tick: the plant input's injection
+    ("law_pitch", "f8"),  # rad, the pitch error the flight law sees: pitch_est - pitch_ref - inject_ref
+    ("law_command", "f8"),  # N m, the flight law's torque this tick, before the injection
     ("prev_vz", "f8"),  # m/s, the CoM's, for the apex
     ("last_contact", "f8"),  # s, last tick with a foot down
     ("clock", "f8"),  # s, the kernel's own copy of data.time
