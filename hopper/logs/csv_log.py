@@ -18,11 +18,12 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.csv as pacsv
 
-from hopper.logs.schema import COLUMNS, Log, LogError, check_columns, find_gaps, to_si
+from hopper.logs.columns import Columns
+from hopper.logs.schema import COLUMNS, Log, LogError, check_columns, located, to_si
 
 HEADER_CELL = re.compile(r"\s*([A-Za-z_][A-Za-z0-9_]*)\s*(?:\[\s*([^\]]*?)\s*\])?\s*")
 HEADER_LINES = 1  # the data's first line is line 2
-BLOCK_BYTES = 4 << 20  # pyarrow's parse block: each batch a few tens of thousands of rows
+BLOCK_BYTES = 1 << 20  # pyarrow's parse block (its default): larger ones cost memory (in flight at once), not time
 
 
 def _header(path: Path) -> list[tuple[str, float]]:
@@ -80,31 +81,6 @@ def _bad_row(path: Path, names: list[str]) -> str:
     return "a row the parser refused"
 
 
-class _Columns:
-    """Float64 columns filled batch by batch, grown 1.5x when full: the only full copy of the data."""
-
-    def __init__(self, names: list[str], capacity: int) -> None:
-        self.arrays = {name: np.empty(capacity) for name in names}
-        self.n = 0
-
-    def append(self, batch: pa.RecordBatch) -> None:
-        rows = batch.num_rows
-        if self.n + rows > len(next(iter(self.arrays.values()))):
-            capacity = int(1.5 * (self.n + rows)) + 1024
-            for name, array in self.arrays.items():  # one column at a time: a column's worth extra
-                grown = np.empty(capacity)
-                grown[: self.n] = array[: self.n]
-                self.arrays[name] = grown
-        for name, column in zip(batch.schema.names, batch.columns, strict=True):
-            self.arrays[name][self.n : self.n + rows] = column.to_numpy(zero_copy_only=False)
-        self.n += rows
-
-    def take(self, name: str) -> np.ndarray:
-        """Column `name`, trimmed to the rows read (the spare capacity freed)."""
-        array = self.arrays.pop(name)
-        return array[: self.n].copy() if len(array) > self.n else array
-
-
 def _rows_estimate(path: Path) -> int:
     """About how many rows the file has, from its size and the length of its first lines."""
     with path.open("rb") as f:
@@ -121,7 +97,7 @@ def read(path: str | Path) -> Log:
     path = Path(path)
     columns = _header(path)
     names = [name for name, _ in columns]
-    data = _Columns(names, _rows_estimate(path))
+    data = Columns(names, _rows_estimate(path))
     try:
         batches = pacsv.open_csv(
             path,
@@ -137,7 +113,7 @@ def read(path: str | Path) -> Log:
                 if column.null_count:
                     i = data.n + pc.index(column.is_null(), True).as_py()
                     raise LogError(f"{path}: column {name} is empty at line {i + HEADER_LINES + 1}", i)
-            data.append(batch)
+            data.append({name: column.to_numpy() for name, column in zip(names, batch.columns, strict=True)})
     except pa.ArrowInvalid:
         raise LogError(f"{path}: {_bad_row(path, names)}") from None
     values: dict[str, np.ndarray] = {}
@@ -146,12 +122,7 @@ def read(path: str | Path) -> Log:
         if factor != 1.0:
             values[name] *= factor
     time = values.pop("time")
-    try:
-        return Log(time, values, str(path), find_gaps(time))
-    except LogError as exc:
-        if exc.sample is None:
-            raise
-        raise LogError(f"{exc} (line {exc.sample + HEADER_LINES + 1})", exc.sample) from None
+    return located(time, values, str(path), lambda i: f"line {i + HEADER_LINES + 1}")
 
 
 def write(log: Log, path: str | Path) -> Path:

@@ -5,18 +5,21 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
-from hopper.logs import csv_log
+from hopper.logs import csv_log, mcap_log, npz
 from hopper.logs.schema import Log, LogError
 
 # Suffix -> the module function that reads it (each returns a validated Log, gaps marked).
-# A new format (.npz: numpy's archive of the schema's columns) is one module with read/write and
-# one line in each table.
+# A new format is one module with read (and write) and one line in each table.
 READERS: dict[str, Callable[[str | Path], Log]] = {
     ".csv": csv_log.read,
+    ".mcap": mcap_log.read,
+    ".npz": npz.read,
 }
 # Suffix -> the function that writes a Log there (a .rrd is a recording, not a log: read only).
 WRITERS: dict[str, Callable[[Log, str | Path], Path]] = {
     ".csv": csv_log.write,
+    ".mcap": mcap_log.write,
+    ".npz": npz.write,
 }
 
 

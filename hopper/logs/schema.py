@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from typing import NamedTuple
 
 import numpy as np
@@ -178,3 +178,14 @@ def to_si(name: str, unit: str, where: str) -> float:
 def schema_line() -> str:
     """The required columns with their units, for error messages."""
     return ", ".join(f"{c.name} [{c.unit}]" for c in REQUIRED)
+
+
+def located(time: np.ndarray, signals: dict[str, np.ndarray], source: str, where: Callable[[int], str]) -> Log:
+    """The Log of a reader's columns, its gaps found; a LogError at a sample says `where(sample)` it
+    is in the file too (a CSV's line, an MCAP's message)."""
+    try:
+        return Log(time, signals, source, find_gaps(time))
+    except LogError as exc:
+        if exc.sample is None:
+            raise
+        raise LogError(f"{exc} ({where(exc.sample)})", exc.sample) from None
