@@ -131,6 +131,31 @@ def controller_param(text: str) -> tuple[str, float]:
         raise argparse.ArgumentTypeError(f"{name.strip()}: {value!r} is not a finite number") from None
 
 
+def model_file(text: str) -> str:
+    """A user's MJCF of the robot (--model), loaded and checked now (its names, hopper.robot's
+    assumptions): its absolute path, so that workers started elsewhere find it."""
+    from hopper.errors import ModelError
+    from hopper.model import robot_of
+
+    path = str(Path(text).expanduser().absolute())
+    try:
+        robot_of(SimConfig(model=path, terrain="flat"))
+    except ModelError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return path
+
+
+def add_model_flag(p: argparse.ArgumentParser) -> None:
+    """--model, as every command that flies the robot takes it (README: Your own model)."""
+    p.add_argument(
+        "--model",
+        type=model_file,
+        metavar="PATH.xml",
+        help="fly your own MJCF of the robot, its constants read from it (README: Your own model; default the "
+        "packaged models/hopper.xml)",
+    )
+
+
 def add_controller_flags(p: argparse.ArgumentParser) -> None:
     """--controller and --controller-param, as every command that flies the robot takes them."""
     p.add_argument(
@@ -205,6 +230,7 @@ def add_run_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ki", type=finite, default=defaults.ki, help=f"N m/(rad s) (default {defaults.ki:g})")
     p.add_argument("--kd", type=finite, default=defaults.kd, help=f"N m s/rad (default {defaults.kd:g})")
     add_controller_flags(p)
+    add_model_flag(p)
     p.add_argument(
         "--sensing",
         choices=("ideal", "realistic"),

@@ -24,6 +24,7 @@ from hopper.app.cli_common import (
     EXIT_STATUSES,
     Parser,
     add_controller_flags,
+    add_model_flag,
     add_run_flags,
     checked_controller,
     fail,
@@ -123,6 +124,7 @@ def parser() -> Parser:
     stress.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
     stress.add_argument("--json", type=writable_file, metavar="PATH", help="write every case's outcome as JSON")
     add_controller_flags(stress)
+    add_model_flag(stress)
 
     league = commands.add_parser(
         "league",
@@ -140,6 +142,7 @@ def parser() -> Parser:
     league.add_argument("--executor", choices=("auto", "local", "ray"), default="auto", help="as for sweep")
     league.add_argument("--address", help="a Ray cluster's address (as for sweep)")
     league.add_argument("--json", type=writable_file, metavar="PATH", help="write the table and every episode as JSON")
+    add_model_flag(league)
 
     envelope = commands.add_parser(
         "envelope",
@@ -156,6 +159,7 @@ def parser() -> Parser:
     )  # fmt: skip
     envelope.add_argument("--out", type=Path, metavar="DIR", help="write envelope.png, .pdf and .json here")
     envelope.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
+    add_model_flag(envelope)
 
     sweep_cli.add_commands(commands)  # sweep and tune
     export = commands.add_parser(
@@ -181,6 +185,7 @@ def make_config(args: argparse.Namespace, seed: int, wheel: bool) -> SimConfig:
         gains=Gains(kp=args.kp, ki=args.ki, kd=args.kd),
         sensing=args.sensing,
         gait=scenario(args.scenario).gait,
+        model=args.model,
     )
     return with_controller_flags(config, args)
 
@@ -230,7 +235,8 @@ def summary(result: dict[str, Any]) -> str:
             f", round trip p50 {trip['p50']:.1f} us p99 {trip['p99']:.1f} us)" if trip else ")"
         )
     lines = [
-        f"terrain {s['terrain']}, seed {s['seed']}, gravity {s['gravity']:g} m/s^2, "
+        (f"model {s['model']}, " if s.get("model") else "")
+        + f"terrain {s['terrain']}, seed {s['seed']}, gravity {s['gravity']:g} m/s^2, "
         f"{flown}, wheel {wheel}: {len(done)} hops"
         + (", FELL" if result["fell"] else "")
         + f"; {result['sim_time_s']:.2f} s simulated in {result['wall_time_s']:.2f} s wall"
@@ -243,7 +249,7 @@ def summary(result: dict[str, Any]) -> str:
 
         mean_distance = statistics.fmean(h["distance_m"] for h in done)
         lines.append(
-            f"mean distance {mean_distance:.3f} m/hop, {energy_means(done, s['gravity'])}; "
+            f"mean distance {mean_distance:.3f} m/hop, {energy_means(done, s['gravity'], robot_mass(s))}; "
             f"worst: peak pitch {stat('peak_pitch_deg'):.2f} deg, "
             f"landing pitch {stat('landing_pitch_deg'):.2f} deg, saturation {stat('saturation_time_s'):.3f} s/hop, "
             f"wheel {stat('peak_wheel_rpm'):.0f} rpm"
@@ -261,14 +267,23 @@ def energy_per_hop(hops: list[dict[str, Any]]) -> float:
     return statistics.fmean(h["wheel_energy_j"] + h["leg_energy_j"] for h in done) if done else 0.0
 
 
-def energy_means(done: list[dict[str, Any]], gravity: float) -> str:
+def robot_mass(settings: dict[str, Any]) -> float:
+    """kg, the mass of the robot a result's `settings` flew (its --model's, else the packaged one's)."""
+    if settings.get("model") is None:
+        return TOTAL_MASS
+    from hopper.model import robot_of
+
+    return robot_of(sim_config(settings)).mass
+
+
+def energy_means(done: list[dict[str, Any]], gravity: float, mass: float = TOTAL_MASS) -> str:
     """The completed hops' mean energy and their cost of transport: all their energy over m g times
     all their distance."""
     from hopper.metrics import cost_of_transport  # numba's import, not paid by --help
 
     wheel, legs = (statistics.fmean(h[k] for h in done) for k in ("wheel_energy_j", "leg_energy_j"))
     distance = sum(abs(h["distance_m"]) for h in done)
-    transport = cost_of_transport(len(done) * (wheel + legs), TOTAL_MASS, gravity, distance)
+    transport = cost_of_transport(len(done) * (wheel + legs), mass, gravity, distance)
     return (
         f"energy {wheel + legs:.1f} J/hop (wheel {wheel:.1f}, legs {legs:.1f}; braking not recovered), "
         f"cost of transport {transport:.2f}"  # NaN if they went nowhere
@@ -320,7 +335,7 @@ def command_compare(args: argparse.Namespace) -> int:
     episodes = [
         Episode(kp=g.kp, ki=g.ki, kd=g.kd, gravity=args.gravity, seed=seed, hops_target=args.hops,
                 terrain=args.terrain, wheel=wheel, sensing=args.sensing, gait=changed,
-                controller=flown.controller, params=params)
+                controller=flown.controller, params=params, mjcf=flown.model)
         for seed in range(args.seeds)
         for wheel in (True, False)
     ]  # fmt: skip
@@ -395,7 +410,7 @@ def command_stress(args: argparse.Namespace) -> int:
 
     from hopper.experiments.stress import battery, run_case, table
 
-    flown = with_controller_flags(SimConfig(), args)
+    flown = with_controller_flags(SimConfig(model=args.model), args)
     cases = battery(seeds=args.seeds, gravity_seeds=args.gravity_seeds, quick=args.quick, controller=flown)
     cases = [c for c in cases if c.group in args.groups]
     workers = max(1, min(args.workers, len(cases)))
@@ -424,9 +439,11 @@ def command_league(args: argparse.Namespace) -> int:
     if not specs:
         fail("--controllers: name at least one controller")
     for spec in specs:  # each flies a probe tick before any episode
-        checked_controller(SimConfig(sensing="realistic"), spec)
-    entries = league.battery(quick=args.quick)
-    episodes = [e for spec in specs for e in league.episodes(spec, (), entries)]
+        checked_controller(SimConfig(sensing="realistic", model=args.model), spec)
+    from hopper.model import robot_of
+
+    entries = league.battery(quick=args.quick, robot=robot_of(SimConfig(terrain="flat", model=args.model)))
+    episodes = [e for spec in specs for e in league.episodes(spec, (), entries, args.model)]
     done = run_all(episodes, args.executor, args.workers, args.address, "league")
     rows = [league.row(spec, [done[e.episode_id] for e in episodes if e.controller == spec]) for spec in specs]
     print(f"league: {len(entries)} episodes per controller, realistic sensing; landing |pitch| in deg")
@@ -472,7 +489,7 @@ def command_envelope(args: argparse.Namespace) -> int:
         fail(f"--sizes must lie in (0, {top:g}] N m s")
     if not all(0 < v < 1 for v in args.moments):
         fail("--moments are fractions of the flight, between 0 and 1")
-    config = SimConfig(terrain="flat")
+    config = SimConfig(terrain="flat", model=args.model)
     moments = envelope.flight_moments(config)
     flight = moments[-1].t + moments[-1].to_go
     sizes = [s * v for v in args.sizes for s in (1.0, -1.0)]

@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from hopper.app.cli_common import EXIT_OK, checked_controller, fail, writable_file
+from hopper.app.cli_common import EXIT_OK, add_model_flag, checked_controller, fail, model_file, writable_file
 
 SWEEP_EPILOG = (
     "exit status: 0 finished (falls are results), 2 bad spec or arguments, 130 interrupted "
@@ -54,6 +54,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         "--param", action="append", default=[], metavar="NAME=VALUES", help="an axis of the controllers' params"
     )
     model_options(sweep)
+    add_model_flag(sweep)
     executor_options(sweep)
 
     tune = commands.add_parser(
@@ -93,6 +94,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     tune.add_argument("--json", type=writable_file, metavar="PATH", help="write the search and its evidence as JSON")
     robust_options(tune)
+    add_model_flag(tune)
     executor_options(tune)
 
 
@@ -228,6 +230,8 @@ def spec_overrides(args: argparse.Namespace) -> dict[str, Any]:
         data["controller"] = [c.strip() for c in args.controller.split(",") if c.strip()]
     if model_table(args):
         data["model"] = model_table(args)
+    if args.model is not None:
+        data["mjcf"] = args.model
     if getattr(args, "param", None):
         data["params"] = {
             name: flag_value(f"param {name}", values) for name, values in map(lambda t: _named("param", t), args.param)
@@ -241,7 +245,7 @@ def check_controllers(spec: Any) -> None:  # noqa: ANN401 (hopper.experiments.sp
 
     first = [(name, values[0]) for name, values in spec.params]
     for controller in spec.controller:
-        checked_controller(SimConfig(), controller, [] if controller == "pid" else first)
+        checked_controller(SimConfig(model=spec.mjcf), controller, [] if controller == "pid" else first)
 
 
 def check_out(out: Path) -> None:
@@ -273,6 +277,11 @@ def command_sweep(args: argparse.Namespace) -> int:
         spec = load_spec(args.spec, overrides) if args.spec is not None else parse_spec(overrides)
     except SpecError as exc:
         fail(str(exc))
+    if spec.mjcf is not None:  # a spec file's, checked as --model's
+        try:
+            model_file(spec.mjcf)
+        except argparse.ArgumentTypeError as exc:
+            fail(f"mjcf: {exc}")
     check_controllers(spec)
     check_out(args.out)
 
@@ -333,7 +342,7 @@ def command_tune(args: argparse.Namespace) -> int:
             seeds=axes.seeds, heldout=heldout, gravities=axes.gravity, hops=args.hops, terrain=args.terrain,
             sensing=args.sensing, ranges=ranges, trials=args.trials, batch=args.batch, seed=args.seed,
             energy_weight=args.energy_weight, controller=args.controller, model=model, judge=judge,
-            objective=args.objective, quantile=args.quantile,
+            objective=args.objective, quantile=args.quantile, mjcf=args.model,
         )  # fmt: skip
     except (SpecError, ValueError) as exc:
         fail(str(exc))
@@ -394,7 +403,7 @@ def controller_ranges(args: argparse.Namespace) -> dict[str, tuple[float, float,
     from hopper.controllers import ControllerError, load_class
     from hopper.controllers.loading import canonical, declared_params
 
-    checked_controller(SimConfig(), args.controller)
+    checked_controller(SimConfig(model=args.model), args.controller)
     args.controller = canonical(args.controller)
     try:
         declared = {p.name: p for p in declared_params(load_class(args.controller))}

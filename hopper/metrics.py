@@ -7,10 +7,9 @@ import math
 
 import numpy as np
 
-from hopper.config import TOTAL_MASS, WHEEL_ARMATURE, WHEEL_INERTIA
-from hopper.control.gait import momentum_capacity
 from hopper.control.kernel import RESPONSE_THRESHOLD, SETTLE_BAND
 from hopper.control.memory import ACC, FLIGHT_ACC, RESPONSE_ACC
+from hopper.robot import PACKAGED, Robot
 
 RAD_S_TO_RPM = 60.0 / (2.0 * math.pi)
 MIN_HOP_FLIGHT_S = 0.05  # s; a shorter flight (a foot skipping after a weak push) is no hop
@@ -106,9 +105,10 @@ class MetricsTracker:
     """The hop in progress: the control kernel accumulates into the `acc_*` fields of its memory
     record every tick (cheap), and liftoff / touchdown turn them into a HopMetrics."""
 
-    def __init__(self, mem: np.ndarray, x0: float = 0.0) -> None:
+    def __init__(self, mem: np.ndarray, x0: float = 0.0, robot: Robot = PACKAGED) -> None:
         self.hops: list[HopMetrics] = []
         self.mem = mem  # the control kernel's MEMORY record, shared
+        self.robot = robot  # its mass and wheel, for the cost of transport and the momentum's share
         self.dt = float(mem["dt"][0])  # s, a control tick
         self.progress = HopInProgress()
         self.reset(x0)
@@ -183,11 +183,11 @@ class MetricsTracker:
             settling_time_s=max(settling, 0.0),
             settled=settled,
             peak_wheel_torque_nm=acc("acc_peak_torque"),
-            peak_momentum_pct=100.0 * (WHEEL_INERTIA + WHEEL_ARMATURE) * acc("acc_resp_wheel") / momentum_capacity(),
+            peak_momentum_pct=100.0 * self.robot.spin_inertia * acc("acc_resp_wheel") / self.robot.momentum_capacity,
             landing_error_deg=math.degrees(pitch),
             wheel_energy_j=wheel_energy,
             leg_energy_j=leg_energy,
-            cost_of_transport=cost_of_transport(wheel_energy + leg_energy, TOTAL_MASS, gravity, distance),
+            cost_of_transport=cost_of_transport(wheel_energy + leg_energy, self.robot.mass, gravity, distance),
         )
         self.hops.append(hop)
         p.last_touchdown_x = x

@@ -116,7 +116,7 @@ class Simulation:
         self.data = mujoco.MjData(self.model)
         self.layout = ModelLayout.of(self.model)
         self.controller = HopController(self.layout, config, self.robot)
-        self.metrics = MetricsTracker(self.controller.mem)
+        self.metrics = MetricsTracker(self.controller.mem, robot=self.robot)
         self.events: collections.deque[Event] = collections.deque(maxlen=EVENT_RECORD)  # the newest
         self.listeners: list[Listener] = []
         self.run_index = -1  # counts resets: the one at construction makes it 0
@@ -207,6 +207,10 @@ class Simulation:
             raise SnapshotMismatch(f"state has {snap.physics.size} values, this model needs {size}")
         if snap.sensors.shape != self.data.sensordata.shape:
             raise SnapshotMismatch(f"{snap.sensors.size} sensor values, this model has {self.data.sensordata.size}")
+        if snap.config.model != self.config.model:
+            raise SnapshotMismatch(
+                f"state of model {model_source(snap.config)}, this one flies {model_source(self.config)}"
+            )
         if snap.memory.dtype != MEMORY or snap.memory.shape != (1,):
             raise SnapshotMismatch("the controller memory has another layout")
         for name in ("q_x", "q_pitch", "v_x", "s_gyro", "s_wheel_torque", "a_wheel"):
@@ -262,8 +266,8 @@ class Simulation:
         and crater parameters (a new terrain or seed is written in place). A batch runs thousands
         of episodes this way on one model; each begins with empty events and a fresh controller."""
         c = self.config
-        if config.timestep != c.timestep or config.craters != c.craters:
-            raise InvalidConfig("episodes on one model share the timestep and crater parameters")
+        if config.timestep != c.timestep or config.craters != c.craters or config.model != c.model:
+            raise InvalidConfig("episodes on one model share the model, the timestep and the crater parameters")
         if (config.terrain, config.seed) != (c.terrain, c.seed):
             self.terrain = terrain_window(config)
             set_terrain(self.model, self.terrain)

@@ -151,3 +151,15 @@ def test_the_model_path_travels_in_the_config() -> None:
     assert math.isfinite(hash(config))
     with pytest.raises(ValueError, match="model must be"):
         SimConfig(model="  ")
+
+
+def test_a_snapshot_of_another_model_is_refused_and_episodes_do_not_share_a_model(tmp_path: Path) -> None:
+    from hopper.config import InvalidConfig
+    from hopper.snapshot import SnapshotMismatch
+
+    path = str(variants.variant(tmp_path))
+    other, packaged = Simulation(SimConfig(model=path, terrain="flat")), Simulation(SimConfig(terrain="flat"))
+    with pytest.raises(SnapshotMismatch, match=f"state of model {path}, this one flies models/hopper.xml"):
+        packaged.check_fits(other.snapshot())
+    with pytest.raises(InvalidConfig, match="share the model"):
+        packaged.start_over(SimConfig(model=path, terrain="flat"))

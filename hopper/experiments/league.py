@@ -15,11 +15,11 @@ from collections.abc import Iterable
 import numpy as np
 
 from hopper.config import GRAVITY_PRESETS, SimConfig
-from hopper.control.gait import momentum_capacity
 from hopper.control.phases import Phase
 from hopper.experiments.spec import Episode
 from hopper.experiments.stress import Schedule
 from hopper.experiments.worker import EpisodeResult
+from hopper.robot import PACKAGED, Robot
 from hopper.sim import TORQUE_PULSE_S
 
 GRAVITIES = (
@@ -52,8 +52,9 @@ class Entry:
     mismatch: tuple[tuple[str, float], ...] = ()
 
 
-def battery(quick: bool = False) -> list[Entry]:
-    """The league's episodes; `quick` keeps a few of each group (for the tests)."""
+def battery(quick: bool = False, robot: Robot = PACKAGED) -> list[Entry]:
+    """The league's episodes; `quick` keeps a few of each group (for the tests). The flight's kicks
+    are a share of `robot`'s wheel."""
     seeds = 2 if quick else 10
     entries = [Entry("terrain", GRAVITY_PRESETS["moon"], s, 10) for s in range(seeds)]
     for g in (GRAVITY_PRESETS["ceres"], GRAVITY_PRESETS["earth"]) if quick else GRAVITIES:
@@ -62,7 +63,7 @@ def battery(quick: bool = False) -> list[Entry]:
     ground = [("push_forward", 4.0, Phase.STANCE), ("pitch_kick", 1.0, Phase.CROUCH)]
     for kind, size, phase in ground if quick else ground + [("push_backward", 4.0, Phase.CROUCH)]:
         entries.append(Entry("ground", moon, 200, 4, "flat", Schedule(kind, size, phase, 0.1, hop=2)))
-    kick = 0.5 * momentum_capacity()  # N m s
+    kick = 0.5 * robot.momentum_capacity  # N m s
     flight = 2.0 * math.sqrt(2.0 * moon * SimConfig().gait.apex_height) / moon  # s, nominal
     fractions = (0.3,) if quick else (0.2, 0.5, 0.8)
     for sign in (1.0, -1.0):
@@ -75,13 +76,16 @@ def battery(quick: bool = False) -> list[Entry]:
     return entries
 
 
-def episodes(controller: str, params: Iterable[tuple[str, float]], entries: list[Entry]) -> list[Episode]:
-    """The battery flown by one controller (realistic sensing, the default gait)."""
+def episodes(
+    controller: str, params: Iterable[tuple[str, float]], entries: list[Entry], mjcf: str | None = None
+) -> list[Episode]:
+    """The battery flown by one controller (realistic sensing, the default gait) on `mjcf`'s robot
+    (SimConfig.model; None: the packaged one)."""
     params = tuple(params)
     return [
         Episode(kp=450.0, ki=50.0, kd=30.0, gravity=e.gravity, seed=e.seed, hops_target=e.hops, terrain=e.terrain,
                 wheel=True, sensing="realistic", disturbance=e.disturbance, controller=controller, params=params,
-                mismatch=e.mismatch)
+                mismatch=e.mismatch, mjcf=mjcf)
         for e in entries
     ]  # fmt: skip
 

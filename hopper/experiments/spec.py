@@ -90,6 +90,7 @@ class Episode:
     mismatch: tuple[tuple[str, float], ...] = ()  # the simulated robot's factors off nominal (hopper.mismatch)
     sample: int = -1  # which robot of the [model] table's draws (hopper.experiments.uncertainty); -1: none
     model: Sample = ()  # that robot's sampled values, each in its parameter's unit
+    mjcf: str | None = None  # a user's MJCF of the robot (SimConfig.model); None: the packaged one
 
     def settings(self) -> dict[str, Any]:
         """The setting columns of its Parquet rows (hopper.experiments.store)."""
@@ -101,6 +102,7 @@ class Episode:
             "controller": self.controller, **{PARAM_PREFIX + name: v for name, v in self.params},
             **({"mismatch": " ".join(f"{k} x{v:g}" for k, v in self.mismatch)} if self.mismatch else {}),
             **({"sample": self.sample, **{MODEL_PREFIX + k: v for k, v in self.model}} if self.model else {}),
+            **({"mjcf": self.mjcf} if self.mjcf is not None else {}),
         }  # fmt: skip
 
     @property
@@ -120,6 +122,7 @@ class Episode:
             sensing=self.sensing,  # type: ignore[arg-type]
             mismatch=self.mismatch + mismatch_of(self.model),
             sensor=sensor_of(self.model),
+            model=self.mjcf,
         )
         return with_controller(config, self.controller, self.params) if self.controller != "pid" else config
 
@@ -153,6 +156,7 @@ class SweepSpec:
     controller: tuple[str, ...] = ("pid",)  # specs (hopper.controllers.loading)
     params: tuple[tuple[str, tuple[float, ...]], ...] = ()  # declared params of the (non-pid) controllers
     model: ModelAxis | None = None  # robots drawn from distributions (hopper.experiments.uncertainty)
+    mjcf: str | None = None  # a user's MJCF of the robot (SimConfig.model, `--model`); None: the packaged one
 
     @property
     def size(self) -> int:
@@ -185,6 +189,7 @@ class SweepSpec:
                 kp=kp, ki=ki, kd=kd, gravity=gravity, seed=seed, hops_target=hops, terrain=terrain, wheel=wheel,
                 sensing=sensing, disturbance=disturbance, gait=tuple(zip(names, gait, strict=True)),
                 controller=controller, params=tuple(zip(param_names, params, strict=True)), sample=sample, model=model,
+                mjcf=self.mjcf,
             )  # fmt: skip
 
     def axes(self) -> dict[str, tuple[Any, ...]]:
@@ -198,6 +203,8 @@ class SweepSpec:
         lines = ["# hopper-sim sweep: the resolved spec, every axis as its list of values"]
         lines += [f"{a} = {_toml(list(getattr(self, a)))}" for a in AXES]
         lines.append(f"controller = {_toml(list(self.controller))}")
+        if self.mjcf is not None:
+            lines.append(f"mjcf = {_toml(self.mjcf)}")
         if self.gait:
             lines += ["", "[gait]", *(f"{name} = {_toml(list(values))}" for name, values in self.gait)]
         if self.params:
@@ -245,7 +252,7 @@ def load_spec(path: Path, overrides: dict[str, Any] | None = None) -> SweepSpec:
 
 def parse_spec(data: dict[str, Any]) -> SweepSpec:
     """A SweepSpec from TOML-shaped data; raises SpecError saying what is wrong, in one line."""
-    known = (*AXES, "gait", "disturbance", "controller", "params", "model")
+    known = (*AXES, "gait", "disturbance", "controller", "params", "model", "mjcf")
     unknown = sorted(set(data) - set(known))
     if unknown:
         raise SpecError(f"unknown key {unknown[0]!r} (known: {', '.join(known)})")
@@ -275,8 +282,12 @@ def parse_spec(data: dict[str, Any]) -> SweepSpec:
         axes["disturbance"] = _disturbances(data["disturbance"])
     if "model" in data:
         axes["model"] = _model(data["model"], axes.get("sensing", ("ideal",)))
+    if "mjcf" in data:
+        if not isinstance(data["mjcf"], str) or not data["mjcf"].strip():
+            raise SpecError(f"mjcf: the path of an MJCF file, got {data['mjcf']!r}")
+        axes["mjcf"] = data["mjcf"]
     for name, values in axes.items():
-        if name == "model":
+        if name in ("model", "mjcf"):
             continue
         if len(values) == 0:
             raise SpecError(f"{name}: no values")

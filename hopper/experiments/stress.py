@@ -13,9 +13,10 @@ from typing import Literal
 
 from hopper.config import GRAVITY_PRESETS, SimConfig
 from hopper.control import Phase
-from hopper.control.gait import momentum_capacity
 from hopper.controllers import ControllerError, params_of, with_controller
 from hopper.events import EventKind
+from hopper.model import robot_of
+from hopper.robot import PACKAGED, Robot
 from hopper.sim import TORQUE_PULSE_S, Simulation
 
 LANDING_LIMIT_DEG = 3.5  # paper: landing attitude error within 3.5 deg
@@ -127,15 +128,20 @@ def battery(
     *, seeds: int = 100, gravity_seeds: int = 5, quick: bool = False, controller: SimConfig | None = None
 ) -> list[Case]:
     """The issue's acceptance cases; `quick` keeps a few of each group (for the tests). Every case flies
-    `controller`'s controller and params (its other settings are ignored; default the PID)."""
-    cases = _cases(seeds, gravity_seeds, quick)
+    `controller`'s controller and params on `controller`'s model (SimConfig.model; its other settings are
+    ignored; default the PID on the packaged robot). The flight's kicks are a share of that robot's wheel."""
     if controller is None:
-        return cases
+        return _cases(seeds, gravity_seeds, quick, PACKAGED)
+    cases = _cases(seeds, gravity_seeds, quick, robot_of(SimConfig(model=controller.model, terrain="flat")))
     spec, params = controller.controller, params_of(controller)
-    return [dataclasses.replace(c, config=with_controller(c.config, spec, params.items())) for c in cases]
+    flown = [dataclasses.replace(c.config, model=controller.model) for c in cases]
+    return [
+        dataclasses.replace(c, config=with_controller(f, spec, params.items()))
+        for c, f in zip(cases, flown, strict=True)
+    ]
 
 
-def _cases(seeds: int, gravity_seeds: int, quick: bool) -> list[Case]:
+def _cases(seeds: int, gravity_seeds: int, quick: bool, robot: Robot) -> list[Case]:
     if quick:
         seeds, gravity_seeds = 2, 1
     cases: list[Case] = []
@@ -152,7 +158,7 @@ def _cases(seeds: int, gravity_seeds: int, quick: bool) -> list[Case]:
             for delay in moments:
                 name = f"{kind} {size:+g} at {phase.label} +{delay:g} s"
                 cases.append(Case("ground", name, flat, 4, Schedule(kind, size, phase, delay)))
-    kick = 0.7 * momentum_capacity()  # N m s, as a kick or as a torque pulse of that impulse
+    kick = 0.7 * robot.momentum_capacity  # N m s, as a kick or as a torque pulse of that impulse
     fractions = (0.2, 0.8) if quick else (0.05, 0.2, 0.4, 0.6, 0.8)
     flight = 2.0 * math.sqrt(2.0 * flat.gravity * flat.gait.apex_height) / flat.gravity  # s, nominal
     pulse = kick / TORQUE_PULSE_S  # N m over the pulse: the same angular impulse, spread

@@ -97,6 +97,7 @@ class TuneSetup:
     # over them, and the best and the defaults are judged on `judge`'s robots, drawn with another seed.
     model: ModelAxis | None = None
     judge: ModelAxis | None = None
+    mjcf: str | None = None  # a user's MJCF of the robot (SimConfig.model, `--model`); None: the packaged one
     objective: Objective = "landing"
     quantile: float = 0.9
 
@@ -174,6 +175,7 @@ class TuneSetup:
                 params=own,
                 sample=sample,
                 model=model,
+                mjcf=self.mjcf,
             )  # fmt: skip
             for g in self.gravities
             for s in seeds

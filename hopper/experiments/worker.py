@@ -11,7 +11,7 @@ import math
 import time
 from typing import Any
 
-from hopper.config import WHEEL_NO_LOAD_SPEED, SimConfig
+from hopper.config import SimConfig
 from hopper.controllers import ControllerError
 from hopper.experiments.spec import Episode
 from hopper.experiments.stress import run_episode
@@ -106,7 +106,7 @@ class Worker:
             sim_time_s=sim.time,
             wall_s=time.perf_counter() - start,
             saturation_s=saturation,
-            momentum_used_pct=100.0 * peak_wheel / WHEEL_NO_LOAD_SPEED,
+            momentum_used_pct=100.0 * peak_wheel / sim.robot.wheel_no_load_speed,
             applied=applied,
             controller_fault=sim.controller_fault or "",
             compute_us=_compute_us(sim),
@@ -114,7 +114,7 @@ class Worker:
 
     def _prepare(self, config: SimConfig) -> Simulation:
         """The simulation set to `config`, standing at the start, as Simulation(config) leaves it."""
-        if self.sim is None:
+        if self.sim is None or self.sim.config.model != config.model:  # another robot: build its model
             self.sim = Simulation(config)
             self.built += 1
         else:
