@@ -129,20 +129,26 @@ class StandSimulation(Simulation):
 def record(sim: Simulation, d: np.ndarray, at: Literal["input", "reference"]) -> dict[str, np.ndarray]:
     """Step `sim` one tick per sample of `d`, adding it at the plant input (N m on the wheel torque)
     or at the pitch reference (rad). Returns the arrays hopper.analysis.frequency reads, shape
-    (len(d),): "d", "u" (the torque sent, N m), "uc" (the law's, N m), "pitch" (true, rad), and
-    "saturated" (bool: the envelope clamped the torque that tick)."""
+    (len(d),): "d", "u" (the torque sent, N m), "uc" (the law's, N m), "pitch" (true, rad),
+    "saturated" (bool: the envelope clamped the torque that tick) and "phase" (the kernel's)."""
     m = sim.controller.mem
     inject = m["inject_torque" if at == "input" else "inject_ref"]
-    sent, law, pitch, saturated = m["wheel_command"], m["law_command"], m["pitch_true"], m["saturated"]
+    sent, law, pitch, saturated, phase = (
+        m["wheel_command"],
+        m["law_command"],
+        m["pitch_true"],
+        m["saturated"],
+        m["phase"],
+    )
     out = {name: np.empty(len(d)) for name in ("u", "uc", "pitch")}
-    clamped = np.zeros(len(d), bool)
+    clamped, phases = np.zeros(len(d), bool), np.zeros(len(d), np.int64)
     u, uc, y = out["u"], out["uc"], out["pitch"]
     try:
         for i, di in enumerate(d.tolist()):
             inject[0] = di
             sim.step()
-            u[i], uc[i], y[i], clamped[i] = sent[0], law[0], pitch[0], saturated[0]
+            u[i], uc[i], y[i], clamped[i], phases[i] = sent[0], law[0], pitch[0], saturated[0], phase[0]
     finally:
         inject[0] = 0.0
-    out["d"], out["saturated"] = np.asarray(d, float), clamped
+    out["d"], out["saturated"], out["phase"] = np.asarray(d, float), clamped, phases
     return out

@@ -19,6 +19,9 @@ from hopper.stand import LEGS, StandSimulation, record
 pytestmark = pytest.mark.unit
 
 SPEC = ChirpSpec(f_min=1.0, f_max=200.0, amplitude=0.5, length=20.0)
+PID, SOFT, STIFF, MID = (
+    Gains(kp=p, ki=i, kd=d) for p, i, d in ((450, 50, 30), (200, 20, 12), (900, 100, 45), (300, 30, 20))
+)
 
 
 def stand(legs: str = "locked", **config: object) -> StandSimulation:
@@ -47,15 +50,7 @@ def test_the_stand_holds_the_robot_up_and_lets_it_pitch(legs: str):
     assert not [e for e in sim.events if type(e.payload).__name__ in ("Liftoff", "Touchdown", "Apex", "Fall")]
 
 
-@pytest.mark.parametrize(
-    ("legs", "gains"),
-    [
-        ("locked", Gains(kp=450.0, ki=50.0, kd=30.0)),
-        ("locked", Gains(kp=900.0, ki=100.0, kd=45.0)),
-        ("free", Gains(kp=300.0, ki=30.0, kd=20.0)),
-        ("free", Gains(kp=200.0, ki=20.0, kd=12.0)),
-    ],
-)
+@pytest.mark.parametrize(("legs", "gains"), [("locked", PID), ("locked", STIFF), ("free", MID), ("free", SOFT)])
 def test_the_loop_measured_on_the_stand_is_the_predicted_one(legs: str, gains: Gains):
     sim = stand(legs, gains=gains)
     predicted_loop = loop_of(sim)
@@ -111,14 +106,7 @@ def test_the_pitch_reference_is_held_and_refused_out_of_range():
         sim.set_reference(1.0)
 
 
-@pytest.mark.parametrize(
-    ("legs", "gains"),
-    [
-        ("locked", Gains(kp=450.0, ki=50.0, kd=30.0)),
-        ("locked", Gains(kp=200.0, ki=20.0, kd=12.0)),
-        ("free", Gains(kp=900.0, ki=100.0, kd=45.0)),
-    ],
-)
+@pytest.mark.parametrize(("legs", "gains"), [("locked", PID), ("locked", SOFT), ("free", STIFF)])
 def test_a_reference_step_on_the_stand_responds_as_predicted(legs: str, gains: Gains):
     sim = stand(legs, gains=gains)
     loop = loop_of(sim)
