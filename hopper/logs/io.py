@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
-from hopper.logs import csv_log, mcap_log, npz
+from hopper.logs import csv_log, mcap_log, npz, rrd_log
 from hopper.logs.schema import Log, LogError
 
 # Suffix -> the module function that reads it (each returns a validated Log, gaps marked).
@@ -14,6 +14,7 @@ READERS: dict[str, Callable[[str | Path], Log]] = {
     ".csv": csv_log.read,
     ".mcap": mcap_log.read,
     ".npz": npz.read,
+    ".rrd": rrd_log.read,  # our own recordings (hopper.telemetry)
 }
 # Suffix -> the function that writes a Log there (a .rrd is a recording, not a log: read only).
 WRITERS: dict[str, Callable[[Log, str | Path], Path]] = {

@@ -1,0 +1,102 @@
+"""Our own `.rrd` recordings as hopper logs, read with rerun's own reader (rerun.chunk.RrdReader).
+
+A recording (hopper/telemetry/schema.py) keeps at 1 kHz the `signals` struct (pitch, pitch rate,
+wheel rpm, wheel torque in float32; leg angles and torques, foot forces in float16) and at 50 Hz
+the body poses (`world/tf`). It does not keep the commands: the torques the actuators applied
+(after the wheel motor's delay and torque-speed envelope) stand in for them, as the Log's source
+says. Nor the IMU as the controller read it: `gyro_pitch` is MuJoCo's gyro (noise-free). The
+state: `pitch` and `pitch_rate` at 1 kHz; `x`, `z` the torso frame's position (its CoM in
+models/hopper.xml) and `vx`, `vz` its central differences, at the 50 Hz poses interpolated.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+from rerun.chunk import RrdReader
+
+from hopper.layout import LEG_JOINTS
+from hopper.logs.schema import Log, LogError, located
+
+DEG = math.pi / 180.0
+RPM = 2.0 * math.pi / 60.0
+# Log column <- (the recording's signal field, factor to SI).
+FROM_SIGNALS = {
+    "wheel_torque_cmd": ("wheel_torque_nm", 1.0),  # applied, at the wheel
+    **{f"{j}_torque_cmd": (f"{j}_torque_nm", 1.0) for j in LEG_JOINTS},  # applied
+    "gyro_pitch": ("pitch_rate_deg_s", DEG),
+    "wheel_speed": ("wheel_rpm", RPM),
+    **{j: (f"{j}_deg", DEG) for j in LEG_JOINTS},
+    "foot_L_force": ("foot_L_n", 1.0),
+    "foot_R_force": ("foot_R_n", 1.0),
+    "pitch": ("pitch_deg", DEG),
+    "pitch_rate": ("pitch_rate_deg_s", DEG),
+}
+NOTE = "our .rrd: applied torques stand in for the commands, gyro noise-free, x z vx vz from 50 Hz poses"
+
+
+def _chunks(path: Path) -> tuple[list[pa.RecordBatch], list[pa.RecordBatch]]:
+    """The recording's `signals` and `world/tf` record batches; LogError if it is no rerun recording."""
+    signals: list[pa.RecordBatch] = []
+    poses: list[pa.RecordBatch] = []
+    try:
+        for chunk in RrdReader(path).stream().filter(content=["/signals", "/world/tf"], is_static=False):
+            (signals if chunk.entity_path == "/signals" else poses).append(chunk.to_record_batch())
+    except Exception as exc:  # rerun raises its own types (and ValueError, RuntimeError) for a bad file
+        why = str(exc).splitlines()[0].replace(f"Failed to read RRD file at {path}: ", "")
+        raise LogError(f"{path}: not a rerun recording, or one cut short ({why})") from None
+    return signals, poses
+
+
+def _seconds(table: pa.Table) -> np.ndarray:
+    return table.column("sim_time").cast(pa.int64()).to_numpy() / 1e9
+
+
+def _torso(poses: list[pa.RecordBatch], time: np.ndarray, path: Path) -> dict[str, np.ndarray]:
+    """x, z (m) and vx, vz (m/s) of the torso at `time`, from its 50 Hz poses."""
+    if not poses:
+        raise LogError(f"{path}: no world/tf poses in the recording (the torso's position)")
+    tf = pa.Table.from_batches(poses)
+    frames = pa.chunked_array([c.flatten() for c in tf.column("Transform3D:child_frame").chunks])
+    rows = np.flatnonzero(np.asarray(frames.to_pylist(), dtype=object) == "torso")
+    if rows.size < 2:
+        raise LogError(f"{path}: fewer than 2 torso poses in world/tf")
+    torso = tf.take(pa.array(rows)).sort_by("sim_time")
+    t = _seconds(torso)
+    translations = pa.chunked_array([c.flatten() for c in torso.column("Transform3D:translation").chunks])
+    xyz = np.asarray(translations.combine_chunks().flatten().to_numpy(zero_copy_only=False), dtype=float)
+    xyz = xyz.reshape(-1, 3)
+    out = {}
+    for axis, name in ((0, "x"), (2, "z")):
+        position, velocity = xyz[:, axis], np.gradient(xyz[:, axis], t)
+        # Samples before the first pose or after the last (up to 20 ms) carry on at the end's velocity.
+        ends = np.clip(time, t[0], t[-1])
+        out[name] = np.interp(ends, t, position) + np.interp(ends, t, velocity) * (time - ends)
+        out[f"v{name}"] = np.interp(time, t, velocity)
+    return out
+
+
+def read(path: str | Path) -> Log:
+    """Our recording at `path` as a Log (see the module's docstring for what stands in for what)."""
+    path = Path(path)
+    if path.stat().st_size == 0:
+        raise LogError(f"{path}: empty file (not a rerun recording)")
+    batches, poses = _chunks(path)
+    if not batches:
+        raise LogError(f"{path}: no 'signals' entity: not a hopper recording")
+    table = pa.Table.from_batches(batches).sort_by("sim_time")
+    time = _seconds(table)
+    struct = pa.chunked_array([c.flatten() for c in table.column("signals").chunks]).combine_chunks()
+    recorded = set(struct.type.names) if pa.types.is_struct(struct.type) else set()
+    missing = sorted({field for field, _ in FROM_SIGNALS.values()} - recorded)
+    if missing:
+        raise LogError(f"{path}: the recording's signals lack {', '.join(missing)}: not a hopper recording")
+    signals = {
+        name: struct.field(field).to_numpy(zero_copy_only=False).astype(np.float64) * factor
+        for name, (field, factor) in FROM_SIGNALS.items()
+    }
+    signals |= _torso(poses, time, path)
+    return located(time, signals, f"{path} ({NOTE})", lambda i: f"sim_time {time[i]:.3f} s")
