@@ -20,7 +20,7 @@ from hopper.app.episode import sim_config, simulate
 
 from hopper.controllers import ControllerError
 
-KINDS = ("run JSON", "compare JSON", "league JSON", ".rrd recording", "sweep directory or Parquet")
+KINDS = ("run JSON", "compare JSON", "league JSON", "stand JSON", ".rrd recording", "sweep directory or Parquet")
 
 
 def add_parser(commands: argparse._SubParsersAction, epilog: str) -> None:
@@ -96,6 +96,10 @@ def _json_report(path: Path, args: argparse.Namespace):  # noqa: ANN202 (hopper.
             from hopper.report.league import league_report
 
             return league_report(document, f"Hopper league report: {path.name}")
+        if isinstance(document, dict) and document.get("kind") == "frequency":  # hopper-sim stand --json
+            from hopper.report.frequency import frequency_report
+
+            return frequency_report(document, f"Hopper loop measurement: {path.name}")
         what = kind_of(document)
     except (OSError, ValueError) as exc:
         raise ValueError(f"{path}: {exc}") from None

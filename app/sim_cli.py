@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from hopper.app import report_cli, sweep_cli
+from hopper.app import report_cli, stand_cli, sweep_cli
 from hopper.app.cli_common import (
     EXIT_CONTROLLER,
     EXIT_FELL,
@@ -172,6 +172,7 @@ def parser() -> Parser:
         help=f"world x (m) of the window's -x edge; the field has no end (default {CRATER_DEFAULTS.x0:g}, the start)",
     )  # fmt: skip
     report_cli.add_parser(commands, EXIT_STATUSES)
+    stand_cli.add_parser(commands, EXIT_STATUSES)
     return top
 
 
@@ -539,6 +540,8 @@ def main(argv: list[str] | None = None) -> int:
             return sweep_cli.run(args)
         if args.command == "report":
             return report_cli.command_report(args)
+        if args.command == "stand":
+            return stand_cli.command_stand(args)
         if args.command == "league":
             return command_league(args)
         check_counts(args)

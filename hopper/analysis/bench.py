@@ -42,6 +42,33 @@ class Measurement:
     saturated_ticks: int  # ticks the motor's envelope clamped: then the response is not linear
     note: str = ""
 
+    def to_json(self) -> dict:
+        """A JSON-ready dict (hopper.report.frequency draws it): the curves on the measured grid."""
+        r = self.response
+        shown = r.loop if r.loop is not None else r.complementary
+        predicted = None
+        if self.predicted is not None:
+            predicted = self.predicted.loop if r.loop is not None else self.predicted.reference
+        return {
+            "where": self.where,
+            "controller": self.controller,
+            "at": self.spec.at,
+            "spec": dataclasses.asdict(self.spec),
+            "records": self.records,
+            "saturated_ticks": self.saturated_ticks,
+            "note": self.note,
+            "f": r.f.tolist(),
+            "coherence": r.coherence.tolist(),
+            "measured_re": shown.real.tolist(),
+            "measured_im": shown.imag.tolist(),
+            "predicted_re": None if predicted is None else predicted.real.tolist(),
+            "predicted_im": None if predicted is None else predicted.imag.tolist(),
+            "measured_margins": None if self.measured is None else _finite(dataclasses.asdict(self.measured)),
+            "predicted_margins": None
+            if self.predicted is None
+            else _finite(dataclasses.asdict(self.predicted.margins)),
+        }
+
     def lines(self) -> list[str]:
         """The comparison as the CLI prints it."""
         m, p = self.measured, self.predicted
@@ -66,6 +93,11 @@ class Measurement:
         if m is not None and not math.isfinite(m.gain_margin_db):
             out.append(f"  no -180 deg crossing measured up to {self.response.f[-1]:.0f} Hz: gain margin not measured")
         return out
+
+
+def _finite(values: dict) -> dict:
+    """JSON has no inf or NaN: those become None."""
+    return {k: (v if not isinstance(v, float) or math.isfinite(v) else None) for k, v in values.items()}
 
 
 def _fmt(value: float) -> str:
@@ -165,6 +197,17 @@ class StepResult:
     predicted: np.ndarray | None
     measured_metrics: StepMetrics
     predicted_metrics: StepMetrics | None
+
+    def to_json(self) -> dict:
+        p = self.predicted_metrics
+        return {
+            "step_deg": math.degrees(self.step_rad),
+            "t": self.t.tolist(),
+            "measured": self.measured.tolist(),
+            "predicted": None if self.predicted is None else self.predicted.tolist(),
+            "measured_metrics": dataclasses.asdict(self.measured_metrics),
+            "predicted_metrics": None if p is None else dataclasses.asdict(p),
+        }
 
     def lines(self) -> list[str]:
         m, p = self.measured_metrics, self.predicted_metrics

@@ -1,0 +1,188 @@
+"""`hopper-sim stand`: the robot on a gimbal test stand (or in flight): kicks, reference steps, and the
+attitude loop measured by injection against the model's prediction.
+
+    hopper-sim stand --measure [--legs locked|free] [--chirp log|linear|stepped] [--f-min HZ]
+        [--f-max HZ] [--amplitude A] [--length S] [--at input|reference] [--bode PATH.png]
+    hopper-sim stand --measure --flight --flights 30 [--length 0.4]
+    hopper-sim stand --step 2 --kick 0.5 [--kp --ki --kd | --controller SPEC] [--json PATH]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from typing import Any
+
+from hopper.app.cli_common import (
+    EXIT_OK,
+    add_controller_flags,
+    add_model_flag,
+    fail,
+    finite,
+    gravity,
+    with_controller_flags,
+    writable_file,
+)
+
+from hopper.config import GRAVITY_PRESETS, Gains, InvalidConfig, SimConfig
+
+FLIGHT_CHIRP_S = 0.4  # s: a chirp that fits after the apex of a lunar flight (~1.2 s)
+KICK_WATCH_S = 1.0  # s of the response to a kick that is shown
+
+
+def add_parser(commands: argparse._SubParsersAction, epilog: str) -> None:
+    """Register `stand` on hopper-sim's subcommands."""
+    p = commands.add_parser(
+        "stand",
+        help="the robot on a gimbal test stand: kicks, reference steps, the loop measured by injection",
+        epilog=epilog,
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("--legs", choices=("locked", "free"), default="locked", help="locked in the landing pose (default)")
+    p.add_argument("--flight", action="store_true", help="measure in flight (short chirps over many flights)")
+    p.add_argument("--flights", type=int, default=30, help="flights a --flight measurement averages (default 30)")
+    p.add_argument("--gravity", type=gravity, default=GRAVITY_PRESETS["moon"], help="m/s^2 or a preset (default moon)")
+    defaults = Gains()
+    p.add_argument("--kp", type=finite, default=defaults.kp, help=f"N m/rad (default {defaults.kp:g})")
+    p.add_argument("--ki", type=finite, default=defaults.ki, help=f"N m/(rad s) (default {defaults.ki:g})")
+    p.add_argument("--kd", type=finite, default=defaults.kd, help=f"N m s/rad (default {defaults.kd:g})")
+    add_controller_flags(p)
+    add_model_flag(p)
+    p.add_argument("--sensing", choices=("ideal", "realistic"), default="ideal", help="default ideal")
+    p.add_argument("--kick", type=finite, metavar="NMS", help="a pitch kick on the stand, N m s")
+    p.add_argument("--step", type=finite, metavar="DEG", help="a step of the pitch reference on the stand, deg")
+    p.add_argument("--measure", action="store_true", help="inject a chirp and compare the loop with the model's")
+    p.add_argument("--chirp", choices=("log", "linear", "stepped"), default=None, help="default log (flight: linear)")
+    p.add_argument("--f-min", type=finite, default=None, metavar="HZ", help="default 1 Hz (flight: 5 Hz)")
+    p.add_argument("--f-max", type=finite, default=None, metavar="HZ", help="default 400 Hz (flight: 200 Hz)")
+    p.add_argument(
+        "--amplitude", type=finite, default=None, help="N m at the input (default 0.5; flight 1), rad at the reference"
+    )
+    p.add_argument("--length", type=finite, default=None, metavar="S", help=f"s (default 20; flight {FLIGHT_CHIRP_S})")
+    p.add_argument("--steps", type=int, default=24, help="stepped sines: how many frequencies (default 24)")
+    p.add_argument("--at", choices=("input", "reference"), default="input", help="where the chirp is injected")
+    p.add_argument(
+        "--settle", type=finite, default=0.5, metavar="S", help="s on the stand before anything (default 0.5)"
+    )
+    p.add_argument("--bode", type=writable_file, metavar="PATH", help="write the Bode figure (PNG or PDF)")
+    p.add_argument(
+        "--json", type=writable_file, metavar="PATH", help="write the measurements (hopper-sim report reads it)"
+    )
+
+
+def _config(args: argparse.Namespace) -> SimConfig:
+    try:
+        config = SimConfig(
+            terrain="flat" if not args.flight else "crater",
+            gravity=args.gravity,
+            gains=Gains(kp=args.kp, ki=args.ki, kd=args.kd),
+            sensing=args.sensing,
+            model=args.model,
+        )
+    except (InvalidConfig, ValueError) as exc:
+        fail(str(exc))
+    return with_controller_flags(config, args)
+
+
+def _spec(args: argparse.Namespace):  # noqa: ANN202 (hopper.analysis.frequency.ChirpSpec)
+    from hopper.analysis.frequency import ChirpSpec, InvalidChirp
+
+    flight = args.flight
+    try:
+        return ChirpSpec(
+            f_min=args.f_min if args.f_min is not None else 5.0 if flight else 1.0,
+            f_max=args.f_max if args.f_max is not None else 200.0 if flight else 400.0,
+            amplitude=args.amplitude if args.amplitude is not None else 1.0 if flight else 0.5,
+            length=args.length if args.length is not None else FLIGHT_CHIRP_S if flight else 20.0,
+            kind=args.chirp or ("linear" if flight else "log"),
+            at=args.at,
+            steps=args.steps,
+        )
+    except InvalidChirp as exc:
+        fail(str(exc))
+
+
+def command_stand(args: argparse.Namespace) -> int:
+    if not (args.measure or args.step is not None or args.kick is not None):
+        fail("stand: say what to do: --measure, --step DEG and/or --kick NMS")
+    if args.flight and not args.measure:
+        fail("--flight measures the loop in flight: add --measure (kicks and steps are on the stand)")
+    if args.flights < 1:
+        fail(f"--flights must be at least 1, got {args.flights}")
+    if not 0.0 <= args.settle <= 60.0:
+        fail(f"--settle must be in [0, 60] s, got {args.settle:g}")
+    spec = _spec(args) if args.measure else None
+    config = _config(args)
+    from hopper.app.episode import version
+
+    from hopper.analysis import bench
+    from hopper.analysis.frequency import NotMeasured
+
+    document: dict[str, Any] = {"kind": "frequency", "version": version(), "settings": _settings(args, config)}
+    document["measurements"] = []
+    try:
+        sim = None if args.flight else bench.stand(config, args.legs, args.settle)
+        if args.kick is not None:
+            _kick(sim, args.kick)
+        if args.step is not None:
+            if not abs(args.step) <= 30.0:
+                fail(f"--step must be within +-30 deg, got {args.step:g}")
+            result = bench.step_response(sim, math.radians(args.step))
+            print("\n".join(result.lines()))
+            document["step"] = result.to_json()
+        if spec is not None:
+            if args.flight:
+                measurement = bench.measure_flight(config, spec, args.flights)
+            else:
+                measurement = bench.measure_stand(sim, spec)
+            print("\n".join(measurement.lines()))
+            document["measurements"].append(measurement.to_json())
+    except NotMeasured as exc:
+        print(f"hopper-sim: not measured: {exc}")
+        return 1
+    if args.json:
+        args.json.write_text(json.dumps(document))
+        print(f"wrote {args.json}")
+    if args.bode and document["measurements"]:
+        from hopper.report import frequency, style
+
+        fig = frequency.bode(document["measurements"][0])
+        fig.tight_layout()
+        fig.savefig(args.bode)
+        style.close(fig)
+        print(f"wrote {args.bode}")
+    return EXIT_OK
+
+
+def _kick(sim, magnitude: float) -> None:  # noqa: ANN001 (hopper.stand.StandSimulation)
+    """A pitch kick on the stand, and the pitch's peak and return."""
+    try:
+        sim.disturb("pitch_kick", magnitude)
+    except ValueError as exc:
+        fail(str(exc))
+    start, peak, peak_t = sim.time, 0.0, 0.0
+    pitch = []
+    for _ in range(round(KICK_WATCH_S / sim.model.opt.timestep)):
+        sim.step()
+        p = sim.state().pitch
+        pitch.append(abs(p))
+        if abs(p) > peak:
+            peak, peak_t = abs(p), sim.time - start
+    back = next((i for i in range(len(pitch) - 1, -1, -1) if pitch[i] > 0.1 * peak), 0) + 1
+    print(
+        f"kick {magnitude:g} N m s on the stand: peak pitch {math.degrees(peak):.3f} deg at {peak_t * 1e3:.0f} ms, "
+        f"back within 10 % of it from {back * sim.model.opt.timestep * 1e3:.0f} ms"
+    )
+
+
+def _settings(args: argparse.Namespace, config: SimConfig) -> dict[str, Any]:
+    return {
+        "legs": "flight" if args.flight else args.legs,
+        "gravity": config.gravity,
+        "gains": {"kp": config.gains.kp, "ki": config.gains.ki, "kd": config.gains.kd},
+        "controller": config.controller,
+        "controller_params": dict(config.controller_params),
+        "sensing": config.sensing,
+    }

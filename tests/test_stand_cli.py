@@ -1,0 +1,55 @@
+"""`hopper-sim stand` as a user runs it (a real process): measured against predicted, the Bode figure,
+the JSON that `hopper-sim report` draws, and bad chirps refused in one line with exit 2."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.integration  # processes (conftest: the suite in parts)
+
+
+def hopper_sim(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "hopper.app.sim_cli", *args], capture_output=True, text=True, timeout=300
+    )
+
+
+def test_stand_measures_steps_and_writes_what_the_report_draws(tmp_path: Path):
+    out, bode = tmp_path / "stand.json", tmp_path / "bode.png"
+    done = hopper_sim("stand", "--measure", "--length", "10", "--step", "2", "--json", str(out), "--bode", str(bode))
+    assert done.returncode == 0, done.stderr
+    assert "crossover Hz" in done.stdout and "rise ms" in done.stdout
+    document = json.loads(out.read_text())
+    (m,) = document["measurements"]
+    assert m["where"] == "stand (legs locked)" and m["controller"] == "PaperPID"
+    measured, predicted = m["measured_margins"], m["predicted_margins"]
+    assert measured["crossover_hz"] == pytest.approx(predicted["crossover_hz"], rel=0.05)
+    assert bode.stat().st_size > 10_000
+    report = hopper_sim("report", str(out), "--out", str(tmp_path / "report"))
+    assert report.returncode == 0, report.stderr
+    assert {p.name for p in (tmp_path / "report").iterdir()} >= {"bode_1.png", "step.png", "report.html"}
+
+
+@pytest.mark.parametrize(
+    ("flags", "said"),
+    [
+        (["--length", "0"], "length must be a positive number"),
+        (["--f-max", "600"], "beyond the Nyquist frequency"),
+        (["--amplitude", "40"], "the motor's limit"),
+    ],
+)
+def test_a_bad_chirp_is_refused_in_one_line(flags: list[str], said: str):
+    done = hopper_sim("stand", "--measure", *flags)
+    assert done.returncode == 2
+    assert said in done.stderr and done.stderr.count("\n") == 1
+    assert done.stdout == ""
+
+
+def test_stand_without_an_action_says_what_it_takes():
+    done = hopper_sim("stand")
+    assert done.returncode == 2 and "--measure" in done.stderr
