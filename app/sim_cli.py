@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from hopper.app import report_cli, stand_cli, sweep_cli
+from hopper.app import log_cli, report_cli, stand_cli, sweep_cli
 from hopper.app.cli_common import (
     EXIT_CONTROLLER,
     EXIT_FELL,
@@ -173,6 +173,7 @@ def parser() -> Parser:
     )  # fmt: skip
     report_cli.add_parser(commands, EXIT_STATUSES)
     stand_cli.add_parser(commands, EXIT_STATUSES)
+    log_cli.add_parser(commands, EXIT_STATUSES)
     return top
 
 
@@ -542,6 +543,8 @@ def main(argv: list[str] | None = None) -> int:
             return report_cli.command_report(args)
         if args.command == "stand":
             return stand_cli.command_stand(args)
+        if args.command == "log":
+            return log_cli.run(args)
         if args.command == "league":
             return command_league(args)
         check_counts(args)

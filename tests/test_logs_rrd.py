@@ -107,11 +107,11 @@ def test_our_rrd_exported_to_mcap_reads_back_the_same(recorded, tmp_path: Path) 
     path, _ = recorded
     log = rrd_log.read(path)
     back = mcap_log.read(mcap_log.write(log, tmp_path / "hop.mcap"))
+    assert back.source == f"{tmp_path / 'hop.mcap'} (written from {log.source})"
     np.testing.assert_array_equal(back.time, log.time)
     assert all(np.array_equal(back.signals[k], v) for k, v in log.signals.items())
 
 
-@pytest.mark.filterwarnings("ignore:RRD file has no footer")  # rerun's, on the torn file: it scans it whole
 def test_files_that_are_no_hopper_recording_are_refused(recorded, tmp_path: Path) -> None:
     empty = tmp_path / "empty.rrd"
     empty.write_bytes(b"")

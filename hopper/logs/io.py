@@ -40,7 +40,12 @@ def read_log(path: str | Path) -> Log:
     return reader(path)
 
 
+def writer(path: str | Path) -> Callable[[Log, str | Path], Path]:
+    """The writer of `path`'s suffix; LogError naming the known ones (checked before any work)."""
+    path = Path(path)
+    return WRITERS[_suffix(path, WRITERS, "write")]
+
+
 def write_log(log: Log, path: str | Path) -> Path:
     """Write `log` at `path` in its suffix's format; returns the path."""
-    path = Path(path)
-    return WRITERS[_suffix(path, WRITERS, "write")](log, path)
+    return writer(path)(log, path)

@@ -8,7 +8,8 @@ Each message is a `hopper_msgs/msg/SignalBlock` (schema encoding `ros2msg`, mess
     uint32 samples    # n, the samples in this block
     float64[] values  # column-major, len(names) * n: values[k * n + i] is column k at sample i
 
-A block is BLOCK_SAMPLES samples (1 s at 1 kHz); its log time is its first sample's. The raw
+A block is BLOCK_SAMPLES samples (1 s at 1 kHz); its log time is its first sample's. The
+channel's metadata `source` says what the log was written from (the reader's Log.source keeps it). The raw
 float arrays make a 1-hour log 3,600 messages, decoded with one numpy view each. Messages are
 read in file order, one chunk at a time, so a file whose time goes backwards is refused rather
 than silently sorted, and memory stays near one copy of the log.
@@ -120,8 +121,9 @@ def write(log: Log, path: str | Path) -> Path:
     return path
 
 
-def _channel(reader, path: Path) -> tuple[int, int]:  # noqa: ANN001 (mcap's McapReader)
-    """The id of the /hopper/signals channel and its message count; LogError if there is none."""
+def _channel(reader, path: Path) -> tuple[int, int, str]:  # noqa: ANN001 (mcap's McapReader)
+    """The /hopper/signals channel's id, message count and `source` (what the log was written from);
+    LogError if there is none."""
     summary = reader.get_summary()
     if summary is None:
         raise LogError(f"{path}: an MCAP file without its summary (not finished?); write it again")
@@ -135,7 +137,7 @@ def _channel(reader, path: Path) -> tuple[int, int]:  # noqa: ANN001 (mcap's Mca
         got = f"{schema.name if schema else 'no schema'} in {channel.message_encoding or 'no encoding'}"
         raise LogError(f"{path}: {TOPIC} carries {got}, expected {SCHEMA_NAME} in cdr")
     count = summary.statistics.channel_message_counts.get(channel.id, 0) if summary.statistics else 0
-    return channel.id, count
+    return channel.id, count, channel.metadata.get("source", "")
 
 
 def read(path: str | Path) -> Log:
@@ -148,7 +150,7 @@ def read(path: str | Path) -> Log:
     starts: list[int] = []  # each message's first sample, to say where a bad sample is
     with path.open("rb") as f:
         try:
-            channel, count = _channel(make_reader(f), path)
+            channel, count, origin = _channel(make_reader(f), path)
             # Then one pass in file order, a chunk in memory at a time (the seeking reader's file
             # order decompresses every chunk before it yields the first message).
             f.seek(0)
@@ -189,4 +191,5 @@ def read(path: str | Path) -> Log:
         m = int(np.searchsorted(starts, sample, side="right")) - 1
         return f"{TOPIC} message {m}, its sample {sample - starts[m]}"
 
-    return located(time, signals, str(path), where)
+    source = f"{path} (written from {origin})" if origin and origin != str(path) else str(path)
+    return located(time, signals, source, where)

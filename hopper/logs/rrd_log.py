@@ -12,6 +12,7 @@ models/hopper.xml) and `vx`, `vz` its central differences, at the 50 Hz poses in
 from __future__ import annotations
 
 import math
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -43,7 +44,10 @@ def _chunks(path: Path) -> tuple[list[pa.RecordBatch], list[pa.RecordBatch]]:
     signals: list[pa.RecordBatch] = []
     poses: list[pa.RecordBatch] = []
     try:
-        for chunk in RrdReader(path).stream().filter(content=["/signals", "/world/tf"], is_static=False):
+        with warnings.catch_warnings():  # rerun warns of a file without its footer: said below if it is torn
+            warnings.filterwarnings("ignore", "RRD file has no footer")
+            reader = RrdReader(path)
+        for chunk in reader.stream().filter(content=["/signals", "/world/tf"], is_static=False):
             (signals if chunk.entity_path == "/signals" else poses).append(chunk.to_record_batch())
     except Exception as exc:  # rerun raises its own types (and ValueError, RuntimeError) for a bad file
         why = str(exc).splitlines()[0].replace(f"Failed to read RRD file at {path}: ", "")
