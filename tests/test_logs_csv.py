@@ -78,6 +78,8 @@ def test_missing_unknown_and_repeated_columns_are_refused(log: Log, tmp_path: Pa
     assert "missing column(s) wheel_speed;" in refused(written(tmp_path, cut))
     extra = [lines[0] + ",banana [m]", *(line + ",1.0" for line in lines[1:])]
     assert "unknown column(s) banana;" in refused(written(tmp_path, extra))
+    misspelt = [lines[0].replace("gyro_pitch [", "gyro_pich ["), *lines[1:]]
+    assert "missing column(s) gyro_pitch, unknown column(s) gyro_pich;" in refused(written(tmp_path, misspelt))
     twice = [lines[0] + ",hip_L [rad]", *(line + ",1.0" for line in lines[1:])]
     assert "column(s) hip_L appear more than once" in refused(written(tmp_path, twice))
 
@@ -93,6 +95,16 @@ def test_time_going_backwards_is_refused_at_its_line(log: Log, tmp_path: Path) -
     lines[51], lines[52] = lines[52], lines[51]  # samples 50 and 51, lines 52 and 53
     message = refused(written(tmp_path, lines))
     assert "time goes backwards or repeats at sample 51" in message and message.endswith("(line 53)"), message
+
+
+def test_blank_lines_are_skipped_and_lines_still_counted_right(log: Log, tmp_path: Path) -> None:
+    lines = lines_of(log, tmp_path)
+    cells = lines[41].split(",")
+    cells[6] = "inf"  # sample 40, gyro_pitch
+    spaced = [*lines[:11], "", "", *lines[11:41], ",".join(cells), *lines[42:], ""]  # two blank lines before it
+    message = refused(written(tmp_path, spaced))
+    assert "column gyro_pitch is not finite at sample 40" in message and message.endswith("(line 44)"), message
+    assert len(csv_log.read(written(tmp_path, [*lines[:11], "", *lines[11:]], "blank.csv")).time) == 200
 
 
 def test_a_gap_is_read_and_marked(log: Log, tmp_path: Path) -> None:

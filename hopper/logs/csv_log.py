@@ -62,8 +62,21 @@ def _header(path: Path) -> list[tuple[str, float]]:
     return columns
 
 
-def _bad_row(path: Path, names: list[str]) -> str:
-    """Where the fast parser failed, found by a slow scan: 'line L: ...' (or why it is not found)."""
+def _line_of(path: Path, sample: int) -> int:
+    """The file's line number of sample `sample` (the parser skips blank lines; an error path only)."""
+    with path.open("rb") as f:
+        for _ in range(HEADER_LINES):
+            f.readline()
+        seen = -1
+        for line, text in enumerate(f, start=HEADER_LINES + 1):
+            seen += bool(text.rstrip(b"\r\n"))  # as pyarrow: a line of spaces is a (short) row
+            if seen == sample:
+                return line
+    return sample + HEADER_LINES + 1
+
+
+def _bad_row(path: Path, names: list[str], error: pa.ArrowInvalid) -> str:
+    """Where the fast parser failed, found by a slow scan: 'line L: ...' (or the parser's own word)."""
     with path.open(newline="", encoding="utf-8", errors="replace") as f:
         rows = csv.reader(f)
         next(rows, None)
@@ -78,7 +91,7 @@ def _bad_row(path: Path, names: list[str]) -> str:
                 except ValueError:
                     if cell.strip():
                         return f"line {line}, column {name}: '{cell[:40]}' is not a number"
-    return "a row the parser refused"
+    return f"cannot parse it ({error})"
 
 
 def _rows_estimate(path: Path) -> int:
@@ -112,17 +125,17 @@ def read(path: str | Path) -> Log:
             for name, column in zip(names, batch.columns, strict=True):
                 if column.null_count:
                     i = data.n + pc.index(column.is_null(), True).as_py()
-                    raise LogError(f"{path}: column {name} is empty at line {i + HEADER_LINES + 1}", i)
+                    raise LogError(f"{path}: column {name} is empty at line {_line_of(path, i)}", i)
             data.append({name: column.to_numpy() for name, column in zip(names, batch.columns, strict=True)})
-    except pa.ArrowInvalid:
-        raise LogError(f"{path}: {_bad_row(path, names)}") from None
+    except pa.ArrowInvalid as exc:
+        raise LogError(f"{path}: {_bad_row(path, names, exc)}") from None
     values: dict[str, np.ndarray] = {}
     for name, factor in columns:
         values[name] = data.take(name)
         if factor != 1.0:
             values[name] *= factor
     time = values.pop("time")
-    return located(time, values, str(path), lambda i: f"line {i + HEADER_LINES + 1}")
+    return located(time, values, str(path), lambda i: f"line {_line_of(path, i)}")
 
 
 def write(log: Log, path: str | Path) -> Path:

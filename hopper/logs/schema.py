@@ -159,9 +159,10 @@ def check_columns(names: Iterable[str], where: str) -> None:
     """LogError unless `names` (time among them) hold every required column and only the schema's."""
     names = set(names)
     missing = [c.name for c in REQUIRED if c.name not in names]
-    if missing:
-        raise LogError(f"{where}: missing column(s) {', '.join(missing)}; the schema needs {schema_line()}")
     unknown = sorted(names - set(COLUMNS))
+    if missing:  # both at once: a misspelt column is one of each
+        also = f", unknown column(s) {', '.join(unknown)}" if unknown else ""
+        raise LogError(f"{where}: missing column(s) {', '.join(missing)}{also}; the schema needs {schema_line()}")
     if unknown:
         raise LogError(f"{where}: unknown column(s) {', '.join(unknown)}; the schema has {', '.join(COLUMNS)}")
 
