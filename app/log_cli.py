@@ -56,22 +56,25 @@ def summary(log: Log) -> list[str]:
 
 def run(args: argparse.Namespace) -> int:
     """hopper-sim log check / export; a refused log exits 2 (fail) with its one line."""
+    check = args.log_command == "check"
     try:
-        if args.log_command == "check":
+        if check:
             log = read_log(args.file)
-            print(f"{args.file}: a hopper log" + (" (read with its gaps marked)" if log.gaps else ""))
-            for line in summary(log):
-                print(f"  {line}")
-            return EXIT_OK
-        writer(args.output)  # its suffix, before reading
-        if args.output.resolve() == args.input.resolve():
-            fail(f"{args.output}: is the input; write the export to another file")
-        log = read_log(args.input)
-        path = write_log(log, args.output)
+        else:
+            writer(args.output)  # its suffix, before reading
+            if args.output.resolve() == args.input.resolve():
+                fail(f"{args.output}: is the input; write the export to another file")
+            log = read_log(args.input)
+            path = write_log(log, args.output)
     except LogError as exc:
         fail(str(exc))
-    except OSError as exc:
-        fail(f"{exc.filename or args}: {exc.strerror or exc}")
+    except OSError as exc:  # reading or writing the files (not printing)
+        fail(f"{exc.filename or (args.file if check else args.output)}: {exc.strerror or exc}")
+    if check:
+        print(f"{args.file}: a hopper log" + (" (read with its gaps marked)" if log.gaps else ""))
+        for line in summary(log):
+            print(f"  {line}")
+        return EXIT_OK
     size = path.stat().st_size / 1e6
     print(f"{args.input} -> {path}: {len(log.time):,} samples, {1 + len(log.signals)} columns, {size:.1f} MB")
     if log.gaps:
