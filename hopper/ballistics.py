@@ -13,8 +13,7 @@ import dataclasses
 
 import numpy as np
 
-from hopper.config import FOOT_RADIUS
-from hopper.control.landing import FOOT_Y
+from hopper.robot import PACKAGED, Robot
 from hopper.terrain import Window
 
 STEP_S = 0.005  # s between predicted points
@@ -38,18 +37,20 @@ class Arc:
 
 
 class Ground:
-    """The terrain's height under each foot's line (y = +-FOOT_Y) in a window, vectorised in x.
+    """The terrain's height under each foot's line (y = +-`robot.foot_y`) in a window, vectorised in x,
+    and the feet's radius (m) that meets it.
 
     The simulation keeps AHEAD_M of window ahead of the robot (hopper.terrain.window), more than
     any flight's arc spans; beyond the window's edges the edge heights are used."""
 
-    def __init__(self, window: Window) -> None:
+    def __init__(self, window: Window, robot: Robot = PACKAGED) -> None:
         heights, params = window.heights, window.params
+        self.foot_radius = robot.foot_radius
         self.heights = heights  # the window's array this was built from (a moved window has a new one)
         nrow, ncol = heights.shape
         self.xs = window.x0 + params.cell * np.arange(ncol)
         rows = []
-        for y in (FOOT_Y, -FOOT_Y):  # bilinear in y between the two grid rows around the foot's line
+        for y in (robot.foot_y, -robot.foot_y):  # bilinear in y between the two grid rows around the foot's line
             fy = min(max((y + params.width / 2) / params.cell, 0.0), nrow - 1.000001)
             i, a = int(fy), fy - int(fy)
             rows.append(heights[i] * (1 - a) + heights[i + 1] * a)
@@ -81,7 +82,7 @@ def predict(
     for side, (fx, fz) in enumerate(feet):
         foot_x, foot_z = x + (fx - com[0]), z + (fz - com[1])
         paths.append(foot_x)
-        below = foot_z - FOOT_RADIUS <= ground.height(side, foot_x)
+        below = foot_z - ground.foot_radius <= ground.height(side, foot_x)
         below[0] = False  # a foot on the ground now is lifting off, not landing
         hits = np.flatnonzero(below)
         if hits.size and (first is None or hits[0] < first):

@@ -174,7 +174,7 @@ class Simulation:
     def ground_profile(self) -> Ground:
         """The terrain under the feet's lines in the window now (hopper.ballistics), built once per window."""
         if self._ground_profile is None or self._ground_profile.heights is not self.terrain.heights:
-            self._ground_profile = Ground(self.terrain)
+            self._ground_profile = Ground(self.terrain, self.robot)
         return self._ground_profile
 
     def state(self) -> RobotState:

@@ -53,14 +53,14 @@ def _ended(process: subprocess.Popen[str]) -> str:
     return f"exit {process.returncode}; stdout {out[-300:]!r}; stderr {err[-600:]!r}"
 
 
-def dashboard_process(*args: str) -> subprocess.Popen[str]:
-    """hopper-dashboard running in the background, its output piped."""
+def dashboard_process(*args: str, cwd: Path = REPO) -> subprocess.Popen[str]:
+    """hopper-dashboard running in the background (in folder `cwd`), its output piped."""
     return subprocess.Popen(
         [sys.executable, "-m", "hopper.app.dashboard.cli", *args],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
-        cwd=REPO,
+        cwd=cwd,
     )
 
 

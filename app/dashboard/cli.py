@@ -10,7 +10,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
 
-from hopper.app.cli_common import add_controller_flags
+from hopper.app.cli_common import add_controller_flags, add_model_flag
 from hopper.app.dashboard.config import DashboardConfig, check_sessions_dir
 
 from hopper.config import GAIN_RANGES
@@ -131,6 +131,7 @@ def parser() -> Parser:
         help="wall seconds between recording flushes: the most a killed server loses",
     )
     add_controller_flags(p)
+    add_model_flag(p)
     p.add_argument(
         "--controller-choice",
         action="append",

@@ -68,6 +68,8 @@ class DashboardConfig:
     """The controller's declared params, (NAME, VALUE) pairs (for pid: kp, ki, kd)."""
     controller_choice: tuple[str, ...] = ()
     """More controllers the Gains tab's selector offers (the built-ins always are)."""
+    model: str | None = None
+    """A user's MJCF of the robot (absolute path; README: Your own model), or None: the packaged one."""
 
     def __post_init__(self) -> None:
         try:
@@ -119,7 +121,9 @@ class DashboardConfig:
 
     def sim_config(self) -> SimConfig:
         """The simulation this dashboard starts with."""
-        config = SimConfig(seed=self.seed, terrain=self.terrain, gains=self.gains, sensing=self.sensing)
+        config = SimConfig(
+            seed=self.seed, terrain=self.terrain, gains=self.gains, sensing=self.sensing, model=self.model
+        )
         return with_controller(config, self.controller, self.controller_param)
 
 

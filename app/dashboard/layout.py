@@ -26,6 +26,7 @@ from hopper.app.dashboard.recording import Recorder
 from hopper.app.dashboard.scene import CameraFollow, GhostRobot, RobotView, Trail
 
 from hopper.config import Gains
+from hopper.robot import PACKAGED, Robot
 
 
 @dataclasses.dataclass
@@ -81,6 +82,7 @@ def build_layout(
     physics: PhysicsView | None = None,
     controller: str = "pid",
     controller_choices: tuple[str, ...] = (),
+    flown: Robot = PACKAGED,
 ) -> Layout:
     configure_theme(server)
     gui, theme = server.gui, assets.theme()
@@ -100,7 +102,7 @@ def build_layout(
         )
         controller_panel.pid_handles += (gains_panel.reset_button,)
         analysis = build_analysis_panel(
-            gui, gains, lambda g, source: gains_panel.apply(source=source, kp=g.kp, ki=g.ki, kd=g.kd)
+            gui, gains, lambda g, source: gains_panel.apply(source=source, kp=g.kp, ki=g.ki, kd=g.kd), flown
         )
     with tabs.add_tab("Disturb", viser.Icon.BOLT):
         disturbances = build_disturbances_panel(gui, ctx)
@@ -119,7 +121,7 @@ def build_layout(
 
     live = gui.add_panel()
     with live.add_tab("Live", viser.Icon.CHART_LINE):
-        plots = LivePlots(gui)
+        plots = LivePlots(gui, flown)
         with gui.add_folder("Hops"):
             hops = build_hop_table(gui)
         with gui.add_folder("Events"):

@@ -21,7 +21,6 @@ from hopper.app.dashboard.scene import WORLD, CameraFollow, RobotView
 from hopper.ballistics import Arc, predict
 from hopper.commands import Grab, PullTo, Release
 from hopper.control import Phase
-from hopper.control.landing import FOOT_Y
 from hopper.sim import Command, Simulation
 
 FORCE_COLOR = (88, 166, 255)  # blue: what the ground pushes
@@ -60,6 +59,7 @@ class PhysicsView:
         ]  # fmt: skip
         self.pull = scene.add_arrows(f"{WORLD}/physics/pull", zero, PULL_COLOR, visible=False, **self._arrow_style)
         self._feet = [sim.model.geom(f"foot_{side}").id for side in "LR"]
+        self._foot_y = sim.robot.foot_y  # m, each foot's line
         self._force = np.zeros(6)
         self._tips: list[np.ndarray | None] = [None, None]
         self._next_forces = -math.inf
@@ -124,7 +124,7 @@ class PhysicsView:
         for side, mark in enumerate(self.marks):
             if arc.feet:
                 x, z = arc.feet[side]
-                mark.position = (x, FOOT_Y if side == 0 else -FOOT_Y, z + 0.004)
+                mark.position = (x, self._foot_y if side == 0 else -self._foot_y, z + 0.004)
             mark.visible = bool(arc.feet)
 
     def _hide_arc(self) -> None:

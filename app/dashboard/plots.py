@@ -9,8 +9,8 @@ import viser
 import viser.uplot as uplot
 from hopper.app.dashboard import viser_compat as compat
 
-from hopper.config import WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT
 from hopper.metrics import RAD_S_TO_RPM
+from hopper.robot import PACKAGED, Robot
 
 PLOT_WINDOW_S = 10.0  # s of simulation shown
 PLOT_SAMPLE_S = 0.025  # s of simulation between samples: 8 a period of the wn = 30 rad/s pitch loop
@@ -146,11 +146,12 @@ def _send(chart: viser.GuiUplotHandle, data: tuple[np.ndarray, ...]) -> None:
 class LivePlots:
     """Pitch, wheel RPM and wheel torque (applied and asked) over the last PLOT_WINDOW_S, with the wheel's limits."""
 
-    def __init__(self, gui: viser.GuiApi) -> None:
+    def __init__(self, gui: viser.GuiApi, robot: Robot = PACKAGED) -> None:
         self.window = RollingWindow(_N, 5)
         self._next_publish = -math.inf
         self._dirty = False
-        self.rpm_limit = WHEEL_NO_LOAD_SPEED * RAD_S_TO_RPM  # 400 rpm
+        self.rpm_limit = robot.wheel_no_load_speed * RAD_S_TO_RPM  # 400 rpm on the packaged robot
+        self.torque_limit = robot.wheel_torque_limit  # N m
         time = _series("t (s)", "")
         self.pitch = _chart(gui, (time, _series("pitch (°)", "#ffb03b")), None)
         self.rpm_range = 2 * self.rpm_limit * 1.05  # rpm, fixed
@@ -159,7 +160,7 @@ class LivePlots:
             (time, _series("wheel speed (rpm)", "#5aa9ff"), *_limit_series()),
             (-self.rpm_range / 2, self.rpm_range / 2),
         )
-        limit = WHEEL_TORQUE_LIMIT * 1.08
+        limit = self.torque_limit * 1.08
         self.torque_range = 2 * limit  # N m, fixed
         torque = (_series("torque (N m)", "#f25f5c"), _series("asked", "#cfd6dd", 1.0, (4, 3)))
         self.torque = _chart(gui, (time, *torque, *_limit_series()), (-limit, limit))
@@ -195,7 +196,7 @@ class LivePlots:
         q = self._needed(t, c[_TORQUE], self.torque_range) | self._needed(t, c[_COMMAND], self.torque_range)
         _send(self.pitch, (c[_T][p], c[_PITCH][p]))
         _send(self.rpm, (c[_T][r], c[_RPM][r], *_constant(c[_T][r], self.rpm_limit)))
-        _send(self.torque, (c[_T][q], c[_TORQUE][q], c[_COMMAND][q], *_constant(c[_T][q], WHEEL_TORQUE_LIMIT)))
+        _send(self.torque, (c[_T][q], c[_TORQUE][q], c[_COMMAND][q], *_constant(c[_T][q], self.torque_limit)))
 
     @staticmethod
     def _needed(t: np.ndarray, y: np.ndarray, y_range: float) -> np.ndarray:

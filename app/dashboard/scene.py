@@ -10,9 +10,9 @@ import numpy as np
 import trimesh
 import viser
 
-from hopper.config import WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT
 from hopper.control import Phase
 from hopper.meshes import BodyMesh, body_meshes, body_poses
+from hopper.robot import PACKAGED, Robot
 
 # A client can leave between listing the clients and moving its camera; viser then warns that the
 # message will never be delivered, which is exactly right and not worth a warning per frame.
@@ -44,9 +44,10 @@ def configure_lighting(scene: viser.SceneApi, shadows: bool = True) -> None:
     scene.configure_default_lights(enabled=True, cast_shadow=shadows)
 
 
-def saturation(wheel_torque: float, wheel_speed: float) -> float:
-    """How close the wheel is to its limits, 0..1: the larger of torque/limit and speed/no-load speed."""
-    return min(max(abs(wheel_torque) / WHEEL_TORQUE_LIMIT, abs(wheel_speed) / WHEEL_NO_LOAD_SPEED), 1.0)
+def saturation(wheel_torque: float, wheel_speed: float, robot: Robot = PACKAGED) -> float:
+    """How close `robot`'s wheel is to its limits, 0..1: the larger of torque/limit and speed/no-load speed."""
+    torque, speed = abs(wheel_torque) / robot.wheel_torque_limit, abs(wheel_speed) / robot.wheel_no_load_speed
+    return min(max(torque, speed), 1.0)
 
 
 def saturation_color(level: float) -> tuple[int, int, int]:

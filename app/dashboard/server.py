@@ -39,8 +39,6 @@ from hopper.app.dashboard.terrain_view import TerrainView
 from hopper.app.dashboard.wire import guard_gui_updates
 from hopper.app.recordings import FileLimits
 
-from hopper.config import WHEEL_NO_LOAD_SPEED
-from hopper.control.gait import momentum_capacity
 from hopper.errors import HopperError
 from hopper.events import Event, EventKind, Fall
 from hopper.history import History
@@ -147,6 +145,7 @@ class Dashboard:
             physics=self.physics,
             controller=sim.config.controller,
             controller_choices=config.controller_choice,
+            flown=sim.robot,
         )
         self.layout.controller.show(sim.law)
         self.layout.analysis.show_law(sim.law, sim.config)  # a controller given at start: its analysis, or why none
@@ -350,7 +349,7 @@ class Dashboard:
         while self._events:
             self._handle(self._events.popleft())
         self.terrain.sync(sim)  # the window moved (or a new terrain): its new tiles, before the poses on them
-        level = saturation(s.wheel_torque, s.wheel_speed)
+        level = saturation(s.wheel_torque, s.wheel_speed, sim.robot)
         # One read of the phase for the label over the robot and the status badge, sent in the same
         # window. The label goes with every frame, the strip every STATUS_S: a phase change re-sends the
         # strip at once, or the badge would show the phase before it for up to STATUS_S (a landing lasts
@@ -388,8 +387,8 @@ class Dashboard:
             pitch_deg=math.degrees(s.pitch),
             wheel_rpm=s.wheel_speed * RAD_S_TO_RPM,
             saturation=level,
-            capacity=s.wheel_speed / WHEEL_NO_LOAD_SPEED,
-            capacity_nms=momentum_capacity(),
+            capacity=s.wheel_speed / sim.robot.wheel_no_load_speed,
+            capacity_nms=sim.robot.momentum_capacity,
             gravity=sim.config.gravity,
             recording=self.recorder.active,
         )

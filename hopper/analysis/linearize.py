@@ -15,9 +15,8 @@ import mujoco
 import numpy as np
 
 from hopper.analysis.loop import Plant, pitch_inertia
-from hopper.config import WHEEL_TORQUE_LIMIT, SimConfig
+from hopper.config import SimConfig
 from hopper.control.kernel import EV_APEX, control_tick
-from hopper.control.wheel import WHEEL_DAMPING
 from hopper.sim import Simulation
 
 EPS = 1e-6  # finite-difference step (rad, m, rad/s, m/s)
@@ -40,20 +39,22 @@ def flight_plant(sim: Simulation, lagged_gyro: bool = False) -> Plant:
     # Close everything the kernel does but the wheel's PID: the leg servos, and the wheel driver's
     # back-EMF feedforward (wheel_ctrl adds damping * speed so that the torque is what was asked).
     legs[lay.a_wheel, :] = 0.0
-    legs[lay.a_wheel, nv + lay.v_wheel] = WHEEL_DAMPING / WHEEL_TORQUE_LIMIT
+    robot = sim.robot
+    legs[lay.a_wheel, nv + lay.v_wheel] = robot.wheel_damping / robot.wheel_torque_limit
     full = np.zeros((nv, nv))
     mujoco.mj_fullM(model, data, full)
     kick = np.zeros(n)
     kick[nv : 2 * nv] = np.linalg.solve(full, np.eye(nv)[lay.v_pitch])  # as Simulation.disturb does
     return Plant(
         a=a + b @ legs,
-        b=b[:, lay.a_wheel : lay.a_wheel + 1] / WHEEL_TORQUE_LIMIT,
+        b=b[:, lay.a_wheel : lay.a_wheel + 1] / robot.wheel_torque_limit,
         pitch=lay.v_pitch,
         rate=nv + lay.v_pitch,
         kick=kick,
         dt=model.opt.timestep,
         inertia=pitch_inertia(model, data),
         gyro=None if gyro is None else b @ gyro,
+        robot=robot,
     )
 
 

@@ -19,9 +19,9 @@ import control as ct
 import mujoco
 import numpy as np
 
-from hopper.config import TIMESTEP, WHEEL_TORQUE_LIMIT, Gains
-from hopper.control.gait import momentum_capacity
+from hopper.config import TIMESTEP, Gains
 from hopper.layout import ModelLayout
+from hopper.robot import PACKAGED, Robot
 
 SETTLE_S = 2.0  # s simulated for a disturbance's peak torque and momentum: a lunar flight and more
 HORIZON_S = 1.0  # s over which a mode's share of the pitch response counts: about a lunar flight
@@ -76,6 +76,7 @@ class Plant:
     # (n,): the state change per rad/s of the gyro's reading when it is modelled as a tick late
     # (hopper.analysis.predict); None: whatever reads the gyro reads this tick's rate, in `a`.
     gyro: np.ndarray | None = None
+    robot: Robot = PACKAGED  # whose wheel: its torque limit and momentum capacity
 
 
 def reduced_plant(inertia: float, dt: float = TIMESTEP) -> Plant:
@@ -102,16 +103,18 @@ class LoopAnalysis:
     rate_disturbance_deg_s: float  # the whole robot turning at this rate, as after a skewed push-off
     peak_torque: float  # N m the loop asks for after that rate disturbance (no limit applied)
     peak_momentum: float  # N m s the wheel takes up meanwhile
+    torque_limit: float = PACKAGED.wheel_torque_limit  # N m, the plant's wheel motor's
+    momentum_capacity: float = PACKAGED.momentum_capacity  # N m s, the plant's wheel's
 
     @property
     def torque_fraction(self) -> float:
-        """Peak torque over the motor's limit (29.5 N m): above 1 the wheel saturates."""
-        return self.peak_torque / WHEEL_TORQUE_LIMIT
+        """Peak torque over the motor's limit (29.5 N m on the packaged robot): above 1 the wheel saturates."""
+        return self.peak_torque / self.torque_limit
 
     @property
     def momentum_fraction(self) -> float:
         """Peak wheel momentum over its capacity: above 1 the wheel alone cannot absorb it."""
-        return self.peak_momentum / momentum_capacity()
+        return self.peak_momentum / self.momentum_capacity
 
 
 @dataclasses.dataclass(frozen=True)
@@ -178,6 +181,8 @@ def analyse(plant: Plant, gains: Gains, delay: int = 0, rate_disturbance_deg_s: 
         rate_disturbance_deg_s=rate_disturbance_deg_s,
         peak_torque=torque,
         peak_momentum=momentum,
+        torque_limit=plant.robot.wheel_torque_limit,
+        momentum_capacity=plant.robot.momentum_capacity,
     )
 
 

@@ -21,7 +21,6 @@ import numpy as np
 import pyarrow as pa
 import rerun as rr
 
-from hopper.config import WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT
 from hopper.control import Phase
 from hopper.events import EventKind
 from hopper.interrupts import held
@@ -98,7 +97,7 @@ class Telemetry:
       row costs a row id, a time and an offset (~14 B compressed) and every chunk ~1 kB of schema,
       so fourteen float32 entities take ~14 MB per simulated minute and this ~3 MB. The blueprint
       plots the fields through component mappings (selector `.pitch_deg`, ...).
-    - `limits/wheel_torque`: +-WHEEL_TORQUE_LIMIT reference lines.
+    - `limits/wheel_torque`: +- the flown robot's wheel torque limit (hopper.robot), reference lines.
     - `phase`: StateChange at each change, exact to the tick. `events`: TextLog and a `kind`.
     - `hops`: a row per touchdown (or fall in flight), a component per HopMetrics field, the
       floats rounded to schema.HOP_DECIMALS (1 mm, 1 ms, 0.01 deg, ...) for a readable table.
@@ -367,7 +366,7 @@ class Telemetry:
             "pitch_deg": (lay.s_pitch, math.degrees(1.0)),
             "pitch_rate_deg_s": (lay.s_gyro_pitch, math.degrees(1.0)),
             "wheel_rpm": (lay.s_wheel_speed, RAD_S_TO_RPM),
-            "wheel_capacity_pct": (lay.s_wheel_speed, 100.0 / WHEEL_NO_LOAD_SPEED),
+            "wheel_capacity_pct": (lay.s_wheel_speed, 100.0 / sim.robot.wheel_no_load_speed),
             "wheel_torque_nm": (self._nsens + lay.a_wheel, lay.wheel_gear),
             "foot_L_n": (lay.s_foot_l, 1.0),
             "foot_R_n": (lay.s_foot_r, 1.0),
@@ -589,7 +588,8 @@ class Telemetry:
         rr.send_columns("world/trail", time_columns(times[-1:]), [Column(STRIPS, strip)], recording=self.rec)
 
     def _send_limits(self, times: np.ndarray | list[int]) -> None:
-        limits = pa.array(np.tile([WHEEL_TORQUE_LIMIT, -WHEEL_TORQUE_LIMIT], len(times)))
+        limit = self.sim.robot.wheel_torque_limit
+        limits = pa.array(np.tile([limit, -limit], len(times)))
         self._chunks += 1
         rr.send_columns("limits/wheel_torque", time_columns(times), [Column(SCALARS, limits, 2)], recording=self.rec)
 

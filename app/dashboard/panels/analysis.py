@@ -23,9 +23,9 @@ from hopper.app.dashboard.panels.entry import NumberEntry
 from hopper.analysis.design import lqr_bryson, place_poles
 from hopper.analysis.linearize import Cancelled, flight_plant, settled_flight
 from hopper.analysis.loop import LoopAnalysis, Plant, analyse
-from hopper.config import WHEEL_TORQUE_LIMIT, Gains, SimConfig
-from hopper.control.gait import momentum_capacity
+from hopper.config import Gains, SimConfig
 from hopper.controllers import FlightLaw
+from hopper.robot import PACKAGED, Robot
 
 log = logging.getLogger(__name__)
 
@@ -206,8 +206,8 @@ def _render(
         (
             f"{result.rate_disturbance_deg_s:g}°/s turn",
             f"<span class='{torque_class}'>{result.peak_torque:.1f} N m ({result.torque_fraction:.0%} of"
-            f" {WHEEL_TORQUE_LIMIT:g})</span> · <span class='{momentum_class}'>{result.peak_momentum:.2f} N m s"
-            f" ({result.momentum_fraction:.0%} of {momentum_capacity():.2f})</span>",
+            f" {result.torque_limit:g})</span> · <span class='{momentum_class}'>{result.peak_momentum:.2f} N m s"
+            f" ({result.momentum_fraction:.0%} of {result.momentum_capacity:.2f})</span>",
         )
     )
     delay = f", {result.delay_ticks} ms command delay" if result.delay_ticks else ""
@@ -228,8 +228,11 @@ def _pole(p: complex) -> str:
     return f"{p.real:.3g}±{abs(p.imag):.3g}j"
 
 
-def build_analysis_panel(gui: viser.GuiApi, initial: Gains, apply_gains: ApplyGains) -> AnalysisPanel:
-    """The analysis (HTML) and the two design helpers, in folders of the Gains tab."""
+def build_analysis_panel(
+    gui: viser.GuiApi, initial: Gains, apply_gains: ApplyGains, robot: Robot = PACKAGED
+) -> AnalysisPanel:
+    """The analysis (HTML) and the two design helpers, in folders of the Gains tab; Bryson's torque
+    is `robot`'s wheel limit by default."""
     with gui.add_folder("Loop analysis"):
         handle = gui.add_html(_render(None, initial, None, pending=True))
         rate = _entry(gui, "Turn to stop", 60.0, 1.0, 1000.0, "deg/s", "The rate disturbance whose cost is shown")
@@ -238,7 +241,9 @@ def build_analysis_panel(gui: viser.GuiApi, initial: Gains, apply_gains: ApplyGa
         zeta = _entry(gui, "ζ", 0.7, 0.05, 2.0, "", "Damping ratio of the dominant pair")
         place = gui.add_button("Place poles", icon=viser.Icon.TARGET, hint="Kp, Ki, Kd giving this pair in flight")
         max_pitch = _entry(gui, "max pitch", 3.0, 0.1, 90.0, "deg", "Bryson: the pitch error worth the full torque")
-        max_torque = _entry(gui, "max torque", WHEEL_TORQUE_LIMIT, 0.1, 100.0, "N m", "Bryson: the torque allowed")
+        max_torque = _entry(
+            gui, "max torque", robot.wheel_torque_limit, 0.1, 100.0, "N m", "Bryson: the torque allowed"
+        )
         lqr = gui.add_button("LQR (Bryson)", icon=viser.Icon.MATH_FUNCTION, hint="Kp, Kd of the 2-state LQR; Ki kept")
     panel = AnalysisPanel(
         html=handle,
