@@ -203,7 +203,8 @@ def estimate(records: list[dict[str, np.ndarray]], spec: ChirpSpec, nperseg: int
     response = Response(f, loop, sens, comp, coherence, spec.at).band(spec.f_min, spec.f_max)
     # A bin the chirp barely excites (its ends, a taper) is estimated from what leaks into it; a
     # record's transient can dominate it while the coherence of one segment still reads ~1.
-    pdd = s["dd"][(f >= spec.f_min) & (f <= spec.f_max)]
+    inside = (f >= spec.f_min) & (f <= spec.f_max)
+    pdd = s["dd"][inside] * (f[inside] if spec.kind == "log" else 1.0)  # a log chirp's spectrum falls as 1/f
     excited = pdd >= EXCITED_SHARE * np.median(pdd)
     return dataclasses.replace(
         response,

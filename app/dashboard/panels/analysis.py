@@ -1,9 +1,12 @@
-"""Loop analysis beside the gains, and the design helpers that write them.
+"""Loop analysis beside the gains, the design helpers that write them, and the loop measured.
 
 The analysis is of the flight plant (hopper.analysis.linearize): the whole model linearized early in a
 flight of the present configuration, computed on a worker thread whenever gravity, terrain or
 sensing change; a gain change only re-closes the loop (about 60 ms), so it follows every change,
 on a worker thread of its own: never on the simulation's 1 kHz loop, which reports gain changes.
+*Measure* injects a chirp into a simulation of its own (on the test stand, or over flights) at the
+present gains or controller, on a worker thread, and draws the measured Bode plot over the model's
+(hopper.analysis.bench, hopper.report.frequency).
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 
+import numpy as np
 import viser
 from hopper.app.dashboard.feedback import guarded, notify
 from hopper.app.dashboard.panels.entry import NumberEntry
@@ -30,6 +34,8 @@ from hopper.robot import PACKAGED, Robot
 log = logging.getLogger(__name__)
 
 ApplyGains = Callable[[Gains, str], None]  # (gains, what chose them)
+MEASURE_ON = {"stand, legs locked": "locked", "stand, legs free": "free", "flight": "flight"}
+MEASURE_FLIGHTS = 20  # flights a measurement in flight averages (~2 s of work)
 
 
 @dataclasses.dataclass
@@ -42,8 +48,14 @@ class AnalysisPanel:
     max_torque: NumberEntry
     place_button: viser.GuiButtonHandle
     lqr_button: viser.GuiButtonHandle
+    measure_on: viser.GuiDropdownHandle
+    measure_button: viser.GuiButtonHandle
+    measured_html: viser.GuiHtmlHandle
+    bode: viser.GuiImageHandle
     apply_gains: ApplyGains
     gains: Gains
+    config: SimConfig | None = None  # the simulation's, as last shown (show_law, update_plant)
+    measuring: threading.Thread | None = None
     delay: int = 0
     note: str = ""  # what the analysis is of when not the PID's gains
     plant: Plant | None = None
@@ -69,6 +81,7 @@ class AnalysisPanel:
         """Analyse the controller flying now: the PID at its gains; a law with `state_feedback()`
         (N m per rad, rad/s and rad/s of the wheel, e.g. LQR) as the PD part of it; others not."""
         with self._lock:
+            self.config = config
             if law.compiled == "pid":
                 self.note = ""
                 self.show_gains(config.gains)
@@ -98,6 +111,7 @@ class AnalysisPanel:
         with self._lock:
             self._generation += 1
             generation = self._generation
+            self.config = config
             self.delay = config.sensor.motor_delay_ticks if config.sensing == "realistic" else 0
             self.html.content = _render(None, self.gains, self.plant, pending=True)
 
@@ -129,6 +143,8 @@ class AnalysisPanel:
             self._generation += 1
             self._closed = True
             workers = list(self._workers)
+        if self.measuring is not None:
+            workers.append(self.measuring)
         for worker in workers:
             worker.join(timeout)
         self._closer.shutdown(wait=True, cancel_futures=True)
@@ -178,6 +194,65 @@ class AnalysisPanel:
             notify(client, "Design refused", str(exc), "warning")
             return
         self.apply_gains(designed, source)
+
+    def measure(self, client: viser.ClientHandle | None) -> None:
+        """Measure the loop at the present gains or controller, on a worker thread, and draw it."""
+        with self._lock:
+            if self.measuring is not None and self.measuring.is_alive():
+                notify(client, "Measuring", "A measurement is under way; its plot comes when it ends.")
+                return
+            if self.config is None or self._closed:
+                notify(client, "Not ready", "The simulation is starting; try again in a second.")
+                return
+            config = self.config
+            if config.controller == "pid":
+                config = dataclasses.replace(config, gains=self.gains)
+            where = MEASURE_ON[self.measure_on.value]
+            self.measured_html.content = (
+                f"<div class='hd-measured hd-dim'>measuring ({html.escape(self.measure_on.value)})…</div>"
+            )
+            self.measuring = threading.Thread(
+                target=self._measure, args=(config, where, client), name="measure", daemon=True
+            )
+            self.measuring.start()
+
+    def _measure(self, config: SimConfig, where: str, client: viser.ClientHandle | None) -> None:
+        from hopper.analysis import bench
+        from hopper.analysis.frequency import ChirpSpec
+        from hopper.report import frequency, style
+
+        try:
+            if where == "flight":
+                spec = ChirpSpec(f_min=5.0, f_max=200.0, amplitude=1.0, length=0.4, kind="linear")
+                result = bench.measure_flight(config, spec, MEASURE_FLIGHTS)
+            else:
+                spec = ChirpSpec(f_min=1.0, f_max=300.0, amplitude=0.5, length=10.0)
+                sim = bench.stand(dataclasses.replace(config, terrain="flat"), where)
+                result = bench.measure_stand(sim, spec)
+            fig = frequency.bode(result.to_json())
+            fig.set_size_inches(6.4, 5.2)
+            fig.tight_layout()
+            fig.canvas.draw()
+            image = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
+            style.close(fig)
+        except Exception as exc:  # a controller that cannot fly the stand, no flight: say so, go on
+            log.warning("measurement failed: %s", exc)
+            with self._lock:
+                self.measured_html.content = (
+                    f"<div class='hd-measured hd-bad'>not measured: {html.escape(str(exc))}</div>"
+                )
+            notify(client, "Not measured", str(exc), "warning")
+            return
+        with self._lock:
+            if self._closed:
+                return
+            self.bode.image = image
+            self.bode.visible = True
+            text = "<br>".join(html.escape(line).replace("  ", "&nbsp;&nbsp;") for line in result.lines())
+            self.measured_html.content = f"<div class='hd-measured'><pre>{text}</pre></div>"
+        m = result.measured
+        summary = f"crossover {m.crossover_hz:.2f} Hz, phase margin {m.phase_margin_deg:.1f} deg" if m else result.note
+        notify(client, "Loop measured", summary)
 
 
 def _render(
@@ -236,6 +311,15 @@ def build_analysis_panel(
     with gui.add_folder("Loop analysis"):
         handle = gui.add_html(_render(None, initial, None, pending=True))
         rate = _entry(gui, "Turn to stop", 60.0, 1.0, 1000.0, "deg/s", "The rate disturbance whose cost is shown")
+        measure_on = gui.add_dropdown("Measure on", tuple(MEASURE_ON), initial_value="stand, legs locked",
+                                      hint="Inject a chirp on the test stand, or over flights")  # fmt: skip
+        measure = gui.add_button(
+            "Measure", icon=viser.Icon.WAVE_SINE, hint="The loop measured by injection, over the model's"
+        )
+        measured_html = gui.add_html("<div class='hd-measured hd-dim'>not measured yet</div>")
+        bode = gui.add_image(
+            np.full((8, 8, 3), 255, np.uint8), label="Bode: measured over predicted", format="png", visible=False
+        )
     with gui.add_folder("Design gains", expand_by_default=False):
         wn = _entry(gui, "ωn", 25.0, 1.0, 200.0, "rad/s", "Natural frequency of the dominant pair")
         zeta = _entry(gui, "ζ", 0.7, 0.05, 2.0, "", "Damping ratio of the dominant pair")
@@ -254,12 +338,17 @@ def build_analysis_panel(
         max_torque=max_torque,
         place_button=place,
         lqr_button=lqr,
+        measure_on=measure_on,
+        measure_button=measure,
+        measured_html=measured_html,
+        bode=bode,
         apply_gains=apply_gains,
         gains=initial,
     )
     rate.on_apply = lambda _value, _client: panel.show_gains(panel.gains)
     place.on_click(guarded(lambda event: panel.design("poles", event.client)))
     lqr.on_click(guarded(lambda event: panel.design("lqr", event.client)))
+    measure.on_click(guarded(lambda event: panel.measure(event.client)))
     return panel
 
 
