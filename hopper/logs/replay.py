@@ -1,0 +1,261 @@
+"""Replay a log beside the simulation: the log's commands, open loop, from the log's state at a moment.
+
+`simulate` is pure: a model, a log and a span of its rows in, the simulated signals out (the
+model's own data, never a Simulation). The wheel's commands go through what the robot's drive
+does (the delay line, then the voltage that gives the torque at the wheel speed it measures, as
+hopper.control.wheel.wheel_ctrl inverts the nominal motor): a motor that is not the nominal one
+then turns the same commands into other torques, as a real one does. `replay_hops` flies each hop
+of the log from its liftoff; `errors` compares the two (pitch, wheel speed, contact timing).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import mujoco
+import numpy as np
+
+from hopper.config import MOON_GRAVITY, SensingParams, SimConfig
+from hopper.control.wheel import WHEEL_DAMPING, WHEEL_TORQUE_LIMIT
+from hopper.errors import HopperError
+from hopper.layout import LEG_JOINTS, ModelLayout
+from hopper.logs.schema import STATE, Log
+from hopper.model import build_model, set_terrain, terrain_window
+
+MIN_FLIGHT_S = 0.1  # s: both feet off the ground this long is a flight (a stance's flicker is shorter)
+DELAY_TICKS = SensingParams().motor_delay_ticks  # the realistic sensing's wheel command delay (capture's)
+LEG_COMMANDS = tuple(f"{j}_torque_cmd" for j in LEG_JOINTS)
+SIMULATED = ("pitch", "pitch_rate", "wheel_speed", "x", "z", *LEG_JOINTS, "foot_L_force", "foot_R_force")
+
+
+class ReplayError(HopperError, ValueError):
+    """A log that cannot be replayed as asked (no state to start from, a span outside it, ...)."""
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class World:
+    """Where the log was recorded: the ground and gravity the replay puts the model in."""
+
+    terrain: str = "flat"  # "flat" or "crater"
+    seed: int = 0  # the crater field's
+    gravity: float = MOON_GRAVITY  # m/s^2
+
+    def config(self) -> SimConfig:
+        return SimConfig(terrain=self.terrain, seed=self.seed, gravity=self.gravity)  # type: ignore[arg-type]
+
+
+def world_model(world: World):  # noqa: ANN201
+    """(the packaged robot compiled in `world`, the terrain window it holds: simulate moves it)."""
+    config = world.config()
+    window = terrain_window(config)
+    return build_model(config, window), window
+
+
+@dataclasses.dataclass(frozen=True)
+class Trajectory:
+    """The simulated signals over rows `first`..`first + len(time) - 1` of the log, schema names and units."""
+
+    first: int
+    time: np.ndarray  # s, (n,)
+    signals: dict[str, np.ndarray]  # SIMULATED names -> (n,)
+
+
+def check_replayable(log: Log) -> None:
+    if not log.has_state():
+        missing = ", ".join(c.name for c in STATE if c.name not in log.signals)
+        raise ReplayError(f"{log.source}: a replay starts from the log's state, and it has no {missing} column(s)")
+
+
+def set_state(model: mujoco.MjModel, data: mujoco.MjData, log: Log, k: int) -> None:
+    """Put the robot into the log's state at row k: pitch, legs, wheel speed and the torso CoM's position
+    and velocity as logged (the model's own CoM offset accounted for); the legs' rates by backward
+    differences of their encoders (exact for MuJoCo's integrators, which move q by dt times the new
+    velocity; a central difference misses the swing that starts at a liftoff); the wheel's angle
+    (which nothing depends on) at 0."""
+    lay = ModelLayout.of(model)
+    s, time = log.signals, log.time
+    mujoco.mj_resetData(model, data)
+    data.time = float(time[k])
+    a, b = (k - 1, k) if k > 0 else (0, 1)
+    for joint, q, v in zip(LEG_JOINTS, lay.q_legs, lay.v_legs, strict=True):
+        data.qpos[q] = s[joint][k]
+        data.qvel[v] = (s[joint][b] - s[joint][a]) / (time[b] - time[a])
+    rate = s["pitch_rate"][k]
+    data.qpos[lay.q_pitch], data.qvel[lay.v_pitch], data.qvel[lay.v_wheel] = s["pitch"][k], rate, s["wheel_speed"][k]
+    mujoco.mj_kinematics(model, data)  # the root at 0: where the torso's CoM is from its frame
+    r = data.xipos[lay.torso] - data.xpos[lay.torso]
+    x0, z0 = lay.torso_origin
+    data.qpos[lay.q_x], data.qpos[lay.q_z] = s["x"][k] - x0 - r[0], s["z"][k] - z0 - r[2]
+    data.qvel[lay.v_x], data.qvel[lay.v_z] = s["vx"][k] - rate * r[2], s["vz"][k] + rate * r[0]
+    mujoco.mj_forward(model, data)
+
+
+def place_terrain(model: mujoco.MjModel, window, x: float) -> None:  # noqa: ANN001 (a terrain.Window)
+    """Move the model's terrain window under world x (m) if it is not there already."""
+    if window.follow(x, urgent=False):
+        set_terrain(model, window)
+
+
+def simulate(
+    model: mujoco.MjModel,
+    log: Log,
+    start: int,
+    stop: int,
+    *,
+    delay_ticks: int = DELAY_TICKS,
+    data: mujoco.MjData | None = None,
+    window=None,  # noqa: ANN001 (a terrain.Window: moved under the start if given)
+) -> Trajectory:
+    """Fly rows start..stop-1 of `log` open loop on `model` from the log's state at row `start`.
+
+    Row k's simulated values are those of t_k, as the log's are (hopper.logs.capture): pitch, rates
+    and positions before the step that applies row k's commands, the feet's forces of its forward pass.
+    A state that goes non-finite (a diverging open-loop flight) stops the run: the rest is NaN.
+    """
+    check_replayable(log)
+    n = len(log.time)
+    if not 0 <= start < stop <= n:
+        raise ReplayError(f"{log.source}: rows {start}..{stop} are outside its {n} samples")
+    data = mujoco.MjData(model) if data is None else data
+    lay = ModelLayout.of(model)
+    if window is not None:
+        place_terrain(model, window, float(log.signals["x"][start]))
+    set_state(model, data, log, start)
+    s = log.signals
+    wheel_cmd = s["wheel_torque_cmd"]
+    delayed = np.zeros(stop - start)  # what the delay line hands the drive at each row
+    src = np.arange(start, stop) - delay_ticks
+    ok = src >= 0
+    delayed[ok] = wheel_cmd[src[ok]]
+    legs = np.column_stack([s[c][start:stop] for c in LEG_COMMANDS]) / lay.leg_gear
+    m = stop - start
+    out = np.full((m, len(SIMULATED)), np.nan)
+    q, v, sensors, ctrl = data.qpos, data.qvel, data.sensordata, data.ctrl
+    a_wheel, a_legs, torso = lay.a_wheel, list(lay.a_legs), lay.torso
+    q_legs = list(lay.q_legs)
+    xipos = data.xipos
+    limit, damping = WHEEL_TORQUE_LIMIT, WHEEL_DAMPING
+    for i in range(m):
+        w = v[lay.v_wheel]
+        u = (delayed[i] + damping * w) / limit  # hopper.control.wheel.wheel_ctrl, the nominal drive
+        ctrl[a_wheel] = 1.0 if u > 1.0 else -1.0 if u < -1.0 else u
+        ctrl[a_legs] = legs[i]
+        row = out[i]
+        row[0], row[1], row[2] = q[lay.q_pitch], v[lay.v_pitch], w
+        row[5:9] = q[q_legs]
+        mujoco.mj_step(model, data)
+        row[3], row[4] = xipos[torso, 0], xipos[torso, 2]
+        row[9], row[10] = sensors[lay.s_foot_l], sensors[lay.s_foot_r]
+        if not math.isfinite(row[0]) or not math.isfinite(q[lay.q_pitch]):
+            out[i:] = np.nan
+            break
+    return Trajectory(start, log.time[start:stop].copy(), {name: out[:, j] for j, name in enumerate(SIMULATED)})
+
+
+def contact(force_l: np.ndarray, force_r: np.ndarray) -> np.ndarray:
+    """Either foot on the ground, sample by sample."""
+    return (force_l > 0.0) | (force_r > 0.0)
+
+
+def flights(log: Log) -> list[tuple[int, int]]:
+    """The log's flights as (liftoff row, touchdown row): both feet off for MIN_FLIGHT_S or more."""
+    on = contact(log.signals["foot_L_force"], log.signals["foot_R_force"])
+    edges = np.flatnonzero(np.diff(on.astype(np.int8))) + 1  # rows where contact changes
+    bounds = np.concatenate([[0], edges, [len(on)]])
+    spans = []
+    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        if not on[a] and a > 0 and b < len(on) and (log.time[b] - log.time[a]) >= MIN_FLIGHT_S:
+            spans.append((int(a), int(b)))
+    return spans
+
+
+def hops(log: Log) -> list[tuple[int, int]]:
+    """Each hop of the log as rows (liftoff, next liftoff); the last one ends at the log's end."""
+    lifts = [a for a, _ in flights(log)]
+    if not lifts:
+        return []
+    return [(a, b) for a, b in zip(lifts, [*lifts[1:], len(log.time)], strict=True)]
+
+
+@dataclasses.dataclass(frozen=True)
+class Errors:
+    """Simulated minus logged over one replay (or several, concatenated)."""
+
+    time: np.ndarray  # s, (n,)
+    pitch: np.ndarray  # rad, (n,)
+    wheel_speed: np.ndarray  # rad/s, (n,)
+    touchdown: np.ndarray  # s, simulated minus logged, one per logged touchdown the replay saw (NaN: none)
+    liftoff: np.ndarray  # s, likewise for liftoffs
+
+    def rms(self, name: str) -> float:
+        """RMS of `pitch` or `wheel_speed`; a diverged (NaN) replay counts as its own failure: inf."""
+        e = getattr(self, name)
+        return float(np.sqrt(np.mean(e * e))) if e.size and np.isfinite(e).all() else math.inf
+
+    @staticmethod
+    def concat(parts: list[Errors]) -> Errors:
+        return Errors(*(np.concatenate([getattr(p, f.name) for p in parts]) for f in dataclasses.fields(Errors)))
+
+
+def _switches(on: np.ndarray, time: np.ndarray, rising: bool) -> np.ndarray:
+    d = np.diff(on.astype(np.int8))
+    return time[1:][d == (1 if rising else -1)]
+
+
+def errors(log: Log, sim: Trajectory) -> Errors:
+    """Compare a replay with its log: pitch and wheel speed sample by sample; each logged touchdown
+    and liftoff (contact changes of the feet) against the simulated one nearest in time."""
+    k = slice(sim.first, sim.first + len(sim.time))
+    s = log.signals
+    timing = []
+    logged_on = contact(s["foot_L_force"][k], s["foot_R_force"][k])
+    sim_on = contact(sim.signals["foot_L_force"], sim.signals["foot_R_force"])
+    for rising in (True, False):
+        logged, simulated = _switches(logged_on, sim.time, rising), _switches(sim_on, sim.time, rising)
+        if simulated.size:
+            timing.append(np.array([simulated[np.argmin(abs(simulated - t))] - t for t in logged]))
+        else:
+            timing.append(np.full(logged.size, np.nan))
+    return Errors(
+        sim.time,
+        sim.signals["pitch"] - s["pitch"][k],
+        sim.signals["wheel_speed"] - s["wheel_speed"][k],
+        timing[0],
+        timing[1],
+    )
+
+
+def replay_spans(
+    model: mujoco.MjModel,
+    log: Log,
+    spans: list[tuple[int, int]],
+    *,
+    delay_ticks: int = DELAY_TICKS,
+    window=None,  # noqa: ANN001 (a terrain.Window)
+) -> list[tuple[Trajectory, Errors]]:
+    """Replay each (start, stop) span of rows from the log's state at its start."""
+    if not spans:
+        raise ReplayError(f"{log.source}: nothing to replay (no hop: no flight of {MIN_FLIGHT_S:g} s or more)")
+    data = mujoco.MjData(model)
+    out = []
+    for a, b in spans:
+        traj = simulate(model, log, a, b, delay_ticks=delay_ticks, data=data, window=window)
+        out.append((traj, errors(log, traj)))
+    return out
+
+
+def replay_hops(
+    model: mujoco.MjModel,
+    log: Log,
+    count: int | None = None,
+    *,
+    first: int = 0,
+    delay_ticks: int = DELAY_TICKS,
+    window=None,  # noqa: ANN001 (a terrain.Window)
+) -> list[tuple[Trajectory, Errors]]:
+    """Replay hops first..first+count-1 of the log (all from `first` by default), each from its liftoff
+    to the next (an open-loop stance is an inverted pendulum without feedback: it falls within its
+    two seconds unless the model is very near the robot)."""
+    spans = hops(log)[first:]
+    return replay_spans(model, log, spans if count is None else spans[:count], delay_ticks=delay_ticks, window=window)

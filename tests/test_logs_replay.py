@@ -1,0 +1,76 @@
+"""hopper.logs.replay: a log's commands flown open loop from its state reproduce it on the robot that made it."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from hopper.config import SensingParams, SimConfig
+from hopper.logs.capture import capture
+from hopper.logs.replay import ReplayError, World, errors, flights, hops, replay_hops, simulate, world_model
+from hopper.logs.schema import Log
+from hopper.mismatch import Nominal
+
+MISMATCH = (("torso_mass", 1.2), ("wheel_inertia", 0.85), ("motor_torque", 0.9))
+
+
+@pytest.fixture(scope="module")
+def log() -> Log:
+    config = SimConfig(
+        terrain="flat", sensing="realistic", seed=5, mismatch=MISMATCH, sensor=SensingParams(gyro_bias_fixed=0.3)
+    )
+    return capture(config, 3).log
+
+
+def robot(mismatch: tuple = ()):  # noqa: ANN201
+    model, window = world_model(World())
+    Nominal.of(model).apply(model, mismatch)
+    return model, window
+
+
+def test_hops_are_found_from_the_feet(log: Log) -> None:
+    found = flights(log)
+    assert len(found) == 3
+    for a, b in found:
+        assert 0.5 < log.time[b] - log.time[a] < 2.0  # a lunar flight of a 0.25 m apex: about 1.1 s
+        assert log.signals["foot_L_force"][a:b].max() == 0.0 and log.signals["foot_R_force"][a:b].max() == 0.0
+    assert [a for a, _ in hops(log)] == [a for a, _ in found]
+
+
+def test_the_robot_that_made_the_log_replays_it(log: Log) -> None:
+    """From the log's state, the log's commands on the log's robot fly the same hops (bit-near): the
+    drive's delay and voltage inversion, the state's reconstruction and the row timing are right."""
+    model, window = robot(MISMATCH)
+    for _, e in replay_hops(model, log, window=window):
+        assert e.rms("pitch") < 1e-6 and e.rms("wheel_speed") < 1e-5
+        assert np.abs(e.touchdown).max() == 0.0
+
+
+def test_the_nominal_robot_does_not(log: Log) -> None:
+    model, window = robot()
+    a, b = flights(log)[0]
+    e = errors(log, simulate(model, log, a, b, window=window))  # the flight alone: the wheel's mismatch
+    assert e.rms("pitch") > math.radians(1.0) and e.rms("wheel_speed") > 0.5
+    early = errors(log, simulate(model, log, a, a + 50, window=window))
+    assert 0.0 < early.rms("pitch") < e.rms("pitch")  # open loop, the error grows
+
+
+def test_a_replay_of_the_same_span_is_deterministic(log: Log) -> None:
+    model, _ = robot()
+    a, b = hops(log)[1]
+    one, two = simulate(model, log, a, b), simulate(model, log, a, b)
+    assert all(np.array_equal(one.signals[k], two.signals[k], equal_nan=True) for k in one.signals)
+
+
+def test_what_cannot_be_replayed_is_refused(log: Log) -> None:
+    model, _ = robot()
+    with pytest.raises(ReplayError, match="outside its"):
+        simulate(model, log, 10, len(log.time) + 5)
+    stateless = Log(log.time, {k: v for k, v in log.signals.items() if k not in ("x", "vz")}, "no_state.csv")
+    with pytest.raises(ReplayError, match="no_state.csv: .*has no x, vz column"):
+        simulate(model, stateless, 0, 100)
+    standing = log.between(0.0, 0.5)
+    with pytest.raises(ReplayError, match="no hop"):
+        replay_hops(model, standing)
