@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from hopper.app import log_cli, report_cli, stand_cli, sweep_cli
+from hopper.app import log_cli, report_cli, stand_cli, sweep_cli, sysid_cli
 from hopper.app.cli_common import (
     EXIT_CONTROLLER,
     EXIT_FELL,
@@ -162,6 +162,7 @@ def parser() -> Parser:
     add_model_flag(envelope)
 
     sweep_cli.add_commands(commands)  # sweep and tune
+    sysid_cli.add_commands(commands)  # capture, replay, identify
     export = commands.add_parser(
         "terrain", help="export a crater field as a grayscale PNG (as the paper does)", epilog=EXIT_STATUSES
     )
@@ -539,6 +540,8 @@ def main(argv: list[str] | None = None) -> int:
             return command_terrain(args)
         if args.command in ("sweep", "tune"):
             return sweep_cli.run(args)
+        if args.command in sysid_cli.COMMANDS:
+            return sysid_cli.run(args)
         if args.command == "report":
             return report_cli.command_report(args)
         if args.command == "stand":

@@ -1,0 +1,269 @@
+"""`hopper-sim capture`, `replay` and `identify`: from a log to the model (issue 21).
+
+capture logs a simulated robot of known truth (any mismatch, realistic sensing); replay flies a
+log's commands open loop from its state and reports the errors; identify fits the model to a log
+and writes the identified robot as MJCF.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import math
+from pathlib import Path
+
+import mujoco
+import numpy as np
+from hopper.app.cli_common import EXIT_FELL, EXIT_OK, fail, finite, gravity, seed, writable_file
+
+from hopper.config import GRAVITY_PRESETS, MISMATCH_FACTORS, MISMATCH_OFFSETS, SensingParams, SimConfig, check_mismatch
+from hopper.errors import HopperError
+from hopper.logs.io import read_log, write_log
+from hopper.logs.replay import DELAY_TICKS, Errors, World, hops, replay_hops, simulate, world_model
+from hopper.logs.sysid import STAGES
+from hopper.mismatch import Nominal
+from hopper.model import MODEL_XML
+
+COMMANDS = ("capture", "replay", "identify")
+
+
+def mismatch_pair(text: str) -> tuple[str, float]:
+    """NAME=VALUE, a hopper.mismatch factor or offset (checked by SimConfig)."""
+    name, sep, value = text.partition("=")
+    if not sep:
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}")
+    try:
+        return check_mismatch(((name.strip(), finite(value)),))[0]
+    except (ValueError, argparse.ArgumentTypeError) as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def add_world_flags(p: argparse.ArgumentParser, help_suffix: str) -> None:
+    p.add_argument("--terrain", choices=("flat", "crater"), default="flat", help=f"(default flat) {help_suffix}")
+    p.add_argument("--seed", type=seed, default=0, help="terrain seed (default 0); capture: also the IMU's")
+    p.add_argument("--gravity", type=gravity, default=GRAVITY_PRESETS["moon"], help="m/s^2 or moon|mars|ceres|earth")
+
+
+def add_commands(commands: argparse._SubParsersAction) -> None:  # noqa: SLF001 (argparse's own type)
+    cap = commands.add_parser("capture", help="log a simulated robot of known truth (.npz), for replay and identify")
+    cap.add_argument("out", type=writable_file, metavar="OUT", help="the log to write: .npz or .csv")
+    cap.add_argument("--hops", type=int, default=14, help="hops to log (default 14)")
+    cap.add_argument(
+        "--mismatch", type=mismatch_pair, action="append", default=[], metavar="NAME=VALUE",
+        help=f"the robot differs from the model: factors {', '.join(MISMATCH_FACTORS)}; offsets (m) "
+        f"{', '.join(MISMATCH_OFFSETS)}",
+    )  # fmt: skip
+    cap.add_argument("--gyro-bias", type=finite, metavar="DEG_S", help="the IMU gyro's bias (default: a random draw)")
+    cap.add_argument("--sensing", choices=("ideal", "realistic"), default="realistic", help="(default realistic)")
+    add_world_flags(cap, "the ground it hops on")
+
+    rep = commands.add_parser("replay", help="fly a log's commands open loop from its state: errors and a figure")
+    rep.add_argument("log", type=Path, help="the log: .npz or .csv")
+    add_model_flags(rep)
+    rep.add_argument("--from", dest="start", type=finite, metavar="T", help="one replay from the log's state at T s")
+    rep.add_argument("--to", dest="stop", type=finite, metavar="T", help="...until T s (default: the log's end)")
+    rep.add_argument("--hops", type=int, metavar="N", help="replay hops 1..N, each from its liftoff (default all)")
+    rep.add_argument("--out", type=Path, metavar="DIR", help="write replay.png and .pdf (errors over time) here")
+
+    ide = commands.add_parser("identify", help="fit the model to a log; print estimates, write the MJCF")
+    ide.add_argument("log", type=Path, help="the log: .npz or .csv")
+    add_model_flags(ide)
+    ide.add_argument("--out", type=writable_file, required=True, metavar="PATH.xml", help="the identified MJCF")
+    ide.add_argument("--hops", type=int, default=7, help="fit on hops 1..N (default 7)")
+    ide.add_argument("--params", metavar="A,B,...", help="the parameters to fit (default: all of them)")
+    ide.add_argument(
+        "--windows", type=windows, default=STAGES, metavar="S,S,...",
+        help=f"the fit's stages: replay windows, s (default {','.join(f'{w:g}' for w in STAGES)})",
+    )  # fmt: skip
+    ide.add_argument("--max-evaluations", type=int, default=60, help="the optimiser's budget (default 60)")
+    ide.add_argument(
+        "--truth", type=truth_pair, action="append", default=[], metavar="NAME=VALUE",
+        help="the known truth, for the table: a mismatch (as capture's --mismatch) or gyro_bias=DEG_S",
+    )  # fmt: skip
+
+
+def add_model_flags(p: argparse.ArgumentParser) -> None:
+    add_world_flags(p, "the ground the log was recorded on")
+    p.add_argument("--delay-ticks", type=int, default=DELAY_TICKS, help=f"wheel command delay (default {DELAY_TICKS})")
+
+
+def windows(text: str) -> tuple[float, ...]:
+    """Comma-separated window lengths, s, each positive."""
+    try:
+        values = tuple(finite(w) for w in text.split(","))
+    except (ValueError, argparse.ArgumentTypeError):
+        raise argparse.ArgumentTypeError(f"expected seconds separated by commas, got {text!r}") from None
+    if not values or min(values) <= 0.0:
+        raise argparse.ArgumentTypeError(f"window lengths must be positive, got {text!r}")
+    return values
+
+
+def truth_pair(text: str) -> tuple[str, float]:
+    if text.partition("=")[0].strip() == "gyro_bias":
+        return "gyro_bias", finite(text.partition("=")[2])
+    return mismatch_pair(text)
+
+
+def robot_model(args: argparse.Namespace):  # noqa: ANN201
+    """(the robot compiled in the log's world, its terrain window)."""
+    return world_model(World(terrain=args.terrain, seed=args.seed, gravity=args.gravity))
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        if args.command == "capture":
+            return command_capture(args)
+        if args.command == "replay":
+            return command_replay(args)
+        return command_identify(args)
+    except HopperError as exc:
+        fail(str(exc))
+
+
+def command_capture(args: argparse.Namespace) -> int:
+    from hopper.logs.capture import capture
+
+    if args.hops < 1:
+        fail(f"--hops must be at least 1, got {args.hops}")
+    sensor = SensingParams()
+    if args.gyro_bias is not None:
+        sensor = SensingParams(gyro_turn_on_bias=0.0, gyro_bias_fixed=args.gyro_bias)
+    config = SimConfig(
+        terrain=args.terrain, seed=args.seed, gravity=args.gravity, sensing=args.sensing, sensor=sensor,
+        mismatch=tuple(args.mismatch),
+    )  # fmt: skip
+    got = capture(config, args.hops, source=str(args.out))
+    write_log(got.log, args.out)
+    print(f"wrote {args.out}: {len(got.log.time)} samples, {got.log.time[-1]:.3f} s, {got.hops} hop(s)")
+    if got.hops < args.hops:
+        why = "the robot fell" if got.fell else "the run reached its time limit"
+        print(f"hopper-sim: capture stopped short: {why} after {got.hops} of {args.hops} hops (the log holds them)")
+        return EXIT_FELL
+    return EXIT_OK
+
+
+def error_line(label: str, e: Errors) -> str:
+    td = e.touchdown[np.isfinite(e.touchdown)]
+    timing = f"{1e3 * np.abs(td).mean():.0f} ms mean |touchdown error| over {td.size}" if td.size else "no touchdown"
+    return (
+        f"{label}: pitch RMS {math.degrees(e.rms('pitch')):.3f} deg, wheel speed RMS {e.rms('wheel_speed'):.3f} rad/s, "
+        f"{timing}"
+    )
+
+
+def command_replay(args: argparse.Namespace) -> int:
+    log = read_log(args.log)
+    model, window = robot_model(args)
+    if args.start is not None:
+        t = log.time
+        if not t[0] <= args.start < t[-1]:
+            fail(f"--from {args.start:g} s is outside the log's {t[0]:g}..{t[-1]:g} s")
+        half = 0.5 * log.period  # the sample nearest to the time asked (a CSV's times are rounded)
+        a = int(np.searchsorted(t, args.start - half))
+        b = len(t) if args.stop is None else int(np.searchsorted(t, args.stop - half))
+        if b <= a + 1:
+            fail(f"--to {args.stop:g} s leaves nothing to replay after --from {args.start:g} s")
+        from hopper.logs.replay import errors
+
+        traj = simulate(model, log, a, b, delay_ticks=args.delay_ticks, window=window)
+        parts = [(f"from {t[a]:.3f} s", errors(log, traj))]
+    else:
+        if args.hops is not None and args.hops < 1:
+            fail(f"--hops must be at least 1, got {args.hops}")
+        found = len(hops(log))
+        if args.hops is not None and args.hops > found:
+            fail(f"--hops {args.hops}: the log has {found} hop(s)")
+        done = replay_hops(model, log, args.hops, delay_ticks=args.delay_ticks, window=window)
+        parts = [(f"hop {i + 1} from {tr.time[0]:.3f} s", e) for i, (tr, e) in enumerate(done)]
+    for label, e in parts:
+        print(error_line(label, e))
+    total = Errors.concat([e for _, e in parts])
+    print(error_line(f"all ({len(parts)} replay(s), {total.time.size} samples)", total))
+    if args.out is not None:
+        from hopper.app.replay_figure import error_figure
+
+        from hopper.report.style import save
+
+        args.out.mkdir(parents=True, exist_ok=True)
+        paths = save(error_figure(parts, args.log.name), args.out, "replay")
+        print(f"wrote {', '.join(str(p) for p in paths)}")
+    return EXIT_OK
+
+
+def truth_values(model: mujoco.MjModel, truth: list[tuple[str, float]]) -> dict[str, float]:
+    """Every parameter's true value when the log's robot is `model` with the mismatch `truth` (and
+    its gyro_bias, deg/s); {} when no truth is given."""
+    if not truth:
+        return {}
+    from hopper.logs.sysid import nominal
+
+    robot = copy.copy(model)
+    base = Nominal.of(robot)
+    base.apply(robot, tuple((n, v) for n, v in truth if n != "gyro_bias"))
+    out = nominal(robot)
+    motor = robot.actuator("wheel").id
+    k = float(robot.actuator_gainprm[motor, 0] / base.actuator_gainprm[motor, 0])
+    out["motor_torque"] = k
+    out["motor_damping"] = float(robot.actuator_biasprm[motor, 2] / base.actuator_biasprm[motor, 2]) / k**2
+    out["gyro_bias"] = dict(truth).get("gyro_bias", 0.0)
+    return out
+
+
+def command_identify(args: argparse.Namespace) -> int:
+    from hopper.logs import sysid
+
+    names = sysid.DEFAULT_FIT if args.params is None else tuple(p.strip() for p in args.params.split(",") if p.strip())
+    unknown = [n for n in names if n not in sysid.PARAMS] or ([] if names else ["(none)"])
+    if unknown:
+        fail(f"--params: unknown parameter(s) {', '.join(unknown)}; choose from {', '.join(sysid.PARAMS)}")
+    if args.hops < 1:
+        fail(f"--hops must be at least 1, got {args.hops}")
+    log = read_log(args.log)
+    model, _ = robot_model(args)
+    span = sysid.hop_span(log, 0, args.hops)
+    fresh, _ = robot_model(args)
+    before = sysid.replay_error(fresh, log, 0, args.hops, args.delay_ticks)
+    fit = sysid.identify(
+        model, log, span, names, stages=args.windows, delay_ticks=args.delay_ticks,
+        max_evaluations=args.max_evaluations,
+    )  # fmt: skip
+    after = sysid.replay_error(model, log, 0, args.hops, args.delay_ticks)
+    truth = truth_values(fresh, args.truth)
+    print(table(fit, truth))
+    print(error_line(f"replay of hops 1..{args.hops} before", before))
+    print(error_line(f"replay of hops 1..{args.hops} after ", after))
+    print(
+        f"fit: {fit.windows} windows of {args.windows[-1]:g} s at the last stage, {fit.evaluations} simulations, "
+        f"{fit.seconds:.0f} s; "
+        f"residual RMS before -> after: "
+        + ", ".join(f"{c} {fit.residual_before[c]:.3g} -> {fit.residual_after[c]:.3g}" for c in fit.residual_after)
+    )
+    spec = mujoco.MjSpec.from_file(str(MODEL_XML))
+    sysid.to_spec(spec, fresh, fit.values)
+    args.out.write_text(spec.to_xml())
+    print(f'wrote {args.out} (the identified robot; the gyro bias in <numeric name="gyro_bias">, rad/s)')
+    return EXIT_OK
+
+
+def table(fit, truth: dict[str, float]) -> str:  # noqa: ANN001 (a sysid.Fit)
+    """The estimates, one a line: name, unit, nominal, truth if known, estimate +- sigma; then what is not separable."""
+    row = "{:16s} {:10s} {:>10s} {:>10s} {:>10s} {:>9s} {:>7s}{}"
+    lines = [row.format("parameter", "unit", "nominal", "truth", "estimate", "sigma", "error", "")]
+    tangled = {n for a, b, _ in fit.not_separable() for n in (a, b)}
+    for e in fit.estimates:
+        t = truth.get(e.name)
+        error = "" if t is None else f"{100 * (e.value - t) / abs(t):+.2f}%" if t else f"{e.value - t:+.3g}"
+        flag = "  not separable" if e.name in tangled else ""
+        known = "" if t is None else f"{t:.5g}"
+        lines.append(
+            row.format(e.name, e.unit, f"{e.nominal:.5g}", known, f"{e.value:.5g}", f"{e.sigma:.2g}", error, flag)
+        )
+    for a, b, c in fit.not_separable():
+        lines.append(f"not separable: {a} and {b} (correlation {c:+.4f}): only a combination of them is identified")
+    names = {e.name for e in fit.estimates}
+    if {"wheel_inertia", "wheel_armature"} <= names:
+        spin, sigma = fit.combined(("wheel_inertia", "wheel_armature"))
+        t = truth.get("wheel_inertia", 0.0) + truth.get("wheel_armature", 0.0) if "wheel_inertia" in truth else None
+        error = "" if t is None else f" ({100 * (spin - t) / t:+.2f}% of the truth, {t:.5g})"
+        lines.append(f"wheel spin inertia (wheel_inertia + wheel_armature): {spin:.5g} +- {sigma:.2g} kg m^2{error}")
+    return "\n".join(lines)

@@ -1,0 +1,68 @@
+"""hopper-sim capture, replay and identify, in process: outputs, figures, the MJCF, and refusals (exit 2)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import mujoco
+import pytest
+from hopper.app.sim_cli import main
+
+from hopper.logs.io import read_log
+
+
+@pytest.fixture(scope="module")
+def logged(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("logs") / "robot.csv"
+    assert main(["capture", str(out), "--hops", "2", "--mismatch", "motor_torque=0.9", "--gyro-bias", "0.5"]) == 0
+    return out
+
+
+def test_capture_writes_a_log_that_reads_back(logged: Path, capsys: pytest.CaptureFixture) -> None:
+    log = read_log(logged)
+    assert log.has_state() and log.time[-1] > 4.0
+
+
+def test_replay_prints_each_hop_and_writes_its_figure(logged: Path, tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    assert main(["replay", str(logged), "--hops", "1", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "hop 1 from" in out and "pitch RMS" in out and "all (1 replay(s)" in out
+    assert (tmp_path / "replay.png").stat().st_size > 10_000 and (tmp_path / "replay.pdf").exists()
+    assert main(["replay", str(logged), "--from", "2.0", "--to", "2.5"]) == 0
+    assert "from 2.000 s" in capsys.readouterr().out
+
+
+def test_identify_prints_the_table_and_writes_the_mjcf(logged: Path, tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    out = tmp_path / "identified.xml"
+    argv = ["identify", str(logged), "--out", str(out), "--hops", "1", "--params", "motor_torque,gyro_bias"]
+    argv += ["--windows", "0.1", "--truth", "motor_torque=0.9", "--truth", "gyro_bias=0.5", "--max-evaluations", "15"]
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    row = next(line for line in text.splitlines() if line.startswith("motor_torque"))
+    estimate = float(row.split()[4])
+    assert estimate == pytest.approx(0.9, rel=0.01)
+    assert "replay of hops 1..1 before" in text and "after" in text
+    model = mujoco.MjModel.from_xml_path(str(out))
+    assert model.actuator_gainprm[model.actuator("wheel").id, 0] == pytest.approx(0.9833 * estimate, rel=1e-5)
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["replay", "missing.csv"], "missing.csv: no such file"),
+        (["replay", "LOG", "--from", "999"], "--from 999 s is outside the log"),
+        (["replay", "LOG", "--hops", "9"], "--hops 9: the log has 2 hop"),
+        (["identify", "LOG", "--out", "OUT", "--params", "leg_length"], "unknown parameter(s) leg_length"),
+        (["identify", "LOG", "--out", "OUT", "--hops", "5"], "has 2 hop(s), the fit asks for hops 1..5"),
+        (["identify", "LOG", "--out", "OUT", "--windows", "0.1,-1"], "window lengths must be positive"),
+        (["capture", "OUT", "--mismatch", "torso_mass=9"], "outside [0.2, 5]"),
+        (["capture", "OUT", "--mismatch", "wheel_size=2"], "unknown mismatch 'wheel_size'"),
+    ],
+)
+def test_bad_input_is_refused_in_one_line(argv, message, logged: Path, tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    argv = [str(logged) if a == "LOG" else str(tmp_path / "out.xml") if a == "OUT" else a for a in argv]
+    with pytest.raises(SystemExit) as stop:
+        main(argv)
+    assert stop.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1
