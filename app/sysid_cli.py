@@ -14,7 +14,7 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
-from hopper.app.cli_common import EXIT_FELL, EXIT_OK, fail, finite, gravity, seed, writable_file
+from hopper.app.cli_common import EXIT_FELL, EXIT_OK, add_model_flag, fail, finite, gravity, seed, writable_file
 
 from hopper.config import GRAVITY_PRESETS, MISMATCH_FACTORS, MISMATCH_OFFSETS, SensingParams, SimConfig, check_mismatch
 from hopper.errors import HopperError
@@ -56,6 +56,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:  # noqa: SLF001 
     cap.add_argument("--gyro-bias", type=finite, metavar="DEG_S", help="the IMU gyro's bias (default: a random draw)")
     cap.add_argument("--sensing", choices=("ideal", "realistic"), default="realistic", help="(default realistic)")
     add_world_flags(cap, "the ground it hops on")
+    add_model_flag(cap)
 
     rep = commands.add_parser("replay", help="fly a log's commands open loop from its state: errors and a figure")
     rep.add_argument("log", type=Path, help="the log: .npz or .csv")
@@ -85,6 +86,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:  # noqa: SLF001 
 def add_model_flags(p: argparse.ArgumentParser) -> None:
     add_world_flags(p, "the ground the log was recorded on")
     p.add_argument("--delay-ticks", type=int, default=DELAY_TICKS, help=f"wheel command delay (default {DELAY_TICKS})")
+    add_model_flag(p)
 
 
 def windows(text: str) -> tuple[float, ...]:
@@ -106,7 +108,7 @@ def truth_pair(text: str) -> tuple[str, float]:
 
 def robot_model(args: argparse.Namespace):  # noqa: ANN201
     """(the robot compiled in the log's world, its terrain window)."""
-    return world_model(World(terrain=args.terrain, seed=args.seed, gravity=args.gravity))
+    return world_model(World(terrain=args.terrain, seed=args.seed, gravity=args.gravity, model=args.model))
 
 
 def run(args: argparse.Namespace) -> int:
@@ -130,7 +132,7 @@ def command_capture(args: argparse.Namespace) -> int:
         sensor = SensingParams(gyro_turn_on_bias=0.0, gyro_bias_fixed=args.gyro_bias)
     config = SimConfig(
         terrain=args.terrain, seed=args.seed, gravity=args.gravity, sensing=args.sensing, sensor=sensor,
-        mismatch=tuple(args.mismatch),
+        mismatch=tuple(args.mismatch), model=args.model,
     )  # fmt: skip
     got = capture(config, args.hops, source=str(args.out))
     write_log(got.log, args.out)
@@ -238,7 +240,7 @@ def command_identify(args: argparse.Namespace) -> int:
         f"residual RMS before -> after: "
         + ", ".join(f"{c} {fit.residual_before[c]:.3g} -> {fit.residual_after[c]:.3g}" for c in fit.residual_after)
     )
-    spec = mujoco.MjSpec.from_file(str(MODEL_XML))
+    spec = mujoco.MjSpec.from_file(args.model or str(MODEL_XML))  # the robot the fit started from
     sysid.to_spec(spec, fresh, fit.values)
     args.out.write_text(spec.to_xml())
     print(f'wrote {args.out} (the identified robot; the gyro bias in <numeric name="gyro_bias">, rad/s)')

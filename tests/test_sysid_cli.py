@@ -44,6 +44,13 @@ def test_identify_prints_the_table_and_writes_the_mjcf(logged: Path, tmp_path: P
     assert "replay of hops 1..1 before" in text and "after" in text
     model = mujoco.MjModel.from_xml_path(str(out))
     assert model.actuator_gainprm[model.actuator("wheel").id, 0] == pytest.approx(0.9833 * estimate, rel=1e-5)
+    # usable with --model: the identified robot replays the first flight's half second far closer
+    flight = ["replay", str(logged), "--from", "1.6", "--to", "2.1"]
+    rms = []
+    for extra in ([], ["--model", str(out)]):
+        assert main(flight + extra) == 0
+        rms.append(float(capsys.readouterr().out.split("pitch RMS ")[1].split()[0]))
+    assert rms[1] < 0.05 * rms[0]
 
 
 @pytest.mark.parametrize(

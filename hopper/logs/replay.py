@@ -3,8 +3,9 @@
 `simulate` is pure: a model, a log and a span of its rows in, the simulated signals out (the
 model's own data, never a Simulation). The wheel's commands go through what the robot's drive
 does (the delay line, then the voltage that gives the torque at the wheel speed it measures, as
-hopper.control.wheel.wheel_ctrl inverts the nominal motor): a motor that is not the nominal one
-then turns the same commands into other torques, as a real one does. `replay_hops` flies each hop
+hopper.control.wheel.wheel_ctrl inverts the motor its controller knows: by default the packaged
+robot's, hopper.robot.PACKAGED): a motor that is not that one then turns the same commands into
+other torques, as a real one does. `replay_hops` flies each hop
 of the log from its liftoff; `errors` compares the two (pitch, wheel speed, contact timing).
 """
 
@@ -17,11 +18,11 @@ import mujoco
 import numpy as np
 
 from hopper.config import MOON_GRAVITY, SensingParams, SimConfig
-from hopper.control.wheel import WHEEL_DAMPING, WHEEL_TORQUE_LIMIT
 from hopper.errors import HopperError
 from hopper.layout import LEG_JOINTS, ModelLayout
 from hopper.logs.schema import STATE, Log
 from hopper.model import build_model, set_terrain, terrain_window
+from hopper.robot import PACKAGED, Robot
 
 MIN_FLIGHT_S = 0.1  # s: both feet off the ground this long is a flight (a stance's flicker is shorter)
 DELAY_TICKS = SensingParams().motor_delay_ticks  # the realistic sensing's wheel command delay (capture's)
@@ -40,13 +41,14 @@ class World:
     terrain: str = "flat"  # "flat" or "crater"
     seed: int = 0  # the crater field's
     gravity: float = MOON_GRAVITY  # m/s^2
+    model: str | None = None  # the robot's MJCF (SimConfig.model), None: the packaged one
 
     def config(self) -> SimConfig:
-        return SimConfig(terrain=self.terrain, seed=self.seed, gravity=self.gravity)  # type: ignore[arg-type]
+        return SimConfig(terrain=self.terrain, seed=self.seed, gravity=self.gravity, model=self.model)  # type: ignore[arg-type]
 
 
 def world_model(world: World):  # noqa: ANN201
-    """(the packaged robot compiled in `world`, the terrain window it holds: simulate moves it)."""
+    """(the world's robot compiled in it, the terrain window it holds: simulate moves it)."""
     config = world.config()
     window = terrain_window(config)
     return build_model(config, window), window
@@ -106,6 +108,7 @@ def simulate(
     delay_ticks: int = DELAY_TICKS,
     data: mujoco.MjData | None = None,
     window=None,  # noqa: ANN001 (a terrain.Window: moved under the start if given)
+    drive: Robot = PACKAGED,
 ) -> Trajectory:
     """Fly rows start..stop-1 of `log` open loop on `model` from the log's state at row `start`.
 
@@ -135,10 +138,10 @@ def simulate(
     a_wheel, a_legs, torso = lay.a_wheel, list(lay.a_legs), lay.torso
     q_legs = list(lay.q_legs)
     xipos = data.xipos
-    limit, damping = WHEEL_TORQUE_LIMIT, WHEEL_DAMPING
+    limit, damping = drive.wheel_torque_limit, drive.wheel_damping
     for i in range(m):
         w = v[lay.v_wheel]
-        u = (delayed[i] + damping * w) / limit  # hopper.control.wheel.wheel_ctrl, the nominal drive
+        u = (delayed[i] + damping * w) / limit  # hopper.control.wheel.wheel_ctrl
         ctrl[a_wheel] = 1.0 if u > 1.0 else -1.0 if u < -1.0 else u
         ctrl[a_legs] = legs[i]
         row = out[i]
