@@ -27,6 +27,7 @@ from hopper.control.phases import FALL_PITCH
 from hopper.errors import HopperError
 
 COHERENCE_TRUSTED = 0.8  # below this an estimate is not to be trusted (PHYSICS.md)
+COHERENCE_USABLE = 0.5  # below this a bin is mostly noise: margins() does not look for crossings there
 REFERENCE_LIMIT = FALL_PITCH / 4.0  # rad: a reference swing that leaves the fall limit far away
 TAPER_S = 0.02  # s of cosine ramp at each end of a chirp: no step at its start or end
 SWEEP_BEYOND = 1.5  # x: a chirp starts this far below f_min and ends this far above f_max
@@ -281,6 +282,12 @@ class Margins:
 def margins(f: np.ndarray, loop: np.ndarray, coherence: np.ndarray | None = None) -> Margins:
     """Margins at the highest frequency where |L| falls through 1 (as hopper.analysis.loop does:
     with an integral the loop is conditionally stable, so the low-frequency crossing is not it)."""
+    if coherence is not None:  # bins that are mostly noise (sensor noise through the law) cannot place a crossing
+        usable = coherence >= COHERENCE_USABLE
+        if usable.sum() < 2:
+            return Margins(math.nan, math.nan, math.nan, math.nan, f"coherence under {COHERENCE_USABLE} everywhere")
+        f, loop, coherence = f[usable], loop[usable], coherence[usable]
+    dropped = "" if coherence is None or usable.all() else f" (coherence under {COHERENCE_USABLE} elsewhere)"
     mag = np.abs(loop)
     phase = np.degrees(np.unwrap(np.angle(loop)))
     coh = np.ones_like(mag) if coherence is None else coherence
@@ -288,7 +295,8 @@ def margins(f: np.ndarray, loop: np.ndarray, coherence: np.ndarray | None = None
     falls = np.flatnonzero(above[:-1] & ~above[1:])
     if not len(falls):
         where = "above" if above.all() else "below" if not above.any() else "not falling through"
-        return Margins(math.nan, math.nan, math.nan, math.nan, f"|L| stays {where} 1 over {f[0]:.3g}-{f[-1]:.3g} Hz")
+        band = f"{f[0]:.3g}-{f[-1]:.3g} Hz{dropped}"
+        return Margins(math.nan, math.nan, math.nan, math.nan, f"|L| stays {where} 1 over {band}")
     i = int(falls[-1])
     lf, lm = np.log(f[i : i + 2]), np.log(mag[i : i + 2])
     fc = float(np.exp(np.interp(0.0, -lm, lf)))
