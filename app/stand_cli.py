@@ -21,6 +21,7 @@ from hopper.app.cli_common import (
     fail,
     finite,
     gravity,
+    rrd_file,
     with_controller_flags,
     writable_file,
 )
@@ -70,6 +71,7 @@ def add_parser(commands: argparse._SubParsersAction, epilog: str) -> None:
     p.add_argument(
         "--json", type=writable_file, metavar="PATH", help="write the measurements (hopper-sim report reads it)"
     )
+    p.add_argument("--rrd", type=rrd_file, metavar="PATH", help="record the run, the injected signal too (.rrd)")
 
 
 def _config(args: argparse.Namespace) -> SimConfig:
@@ -122,8 +124,23 @@ def command_stand(args: argparse.Namespace) -> int:
 
     document: dict[str, Any] = {"kind": "frequency", "version": version(), "settings": _settings(args, config)}
     document["measurements"] = []
+    recordings: list = []
+
+    def attach(sim) -> None:  # noqa: ANN001 (hopper.sim.Simulation): record it if asked
+        if args.rrd is not None:
+            from hopper.app.recordings import open_recording
+
+            try:
+                recordings.append(open_recording(sim, args.rrd)[0])
+            except (OSError, ValueError) as exc:
+                fail(f"cannot record to {args.rrd}: {exc}")
+
     try:
-        sim = None if args.flight else bench.stand(config, args.legs, args.settle)
+        sim = None
+        if not args.flight:
+            sim = bench.stand(config, args.legs, 0.0)
+            attach(sim)
+            sim.settle(args.settle)
         if args.kick is not None:
             _kick(sim, args.kick)
         if args.step is not None:
@@ -134,7 +151,7 @@ def command_stand(args: argparse.Namespace) -> int:
             document["step"] = result.to_json()
         if spec is not None:
             if args.flight:
-                measurement = bench.measure_flight(config, spec, args.flights)
+                measurement = bench.measure_flight(config, spec, args.flights, attach)
             else:
                 measurement = bench.measure_stand(sim, spec)
             print("\n".join(measurement.lines()))
@@ -142,6 +159,10 @@ def command_stand(args: argparse.Namespace) -> int:
     except NotMeasured as exc:
         print(f"hopper-sim: not measured: {exc}")
         return 1
+    finally:
+        for telemetry in recordings:
+            telemetry.close()
+            print(f"wrote {args.rrd}")
     if args.json:
         args.json.write_text(json.dumps(document))
         print(f"wrote {args.json}")

@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pyarrow as pa
 import pytest
 
 from hopper.analysis.frequency import ChirpSpec, NotMeasured, excitation, measure, measured_margins
@@ -128,3 +129,22 @@ def test_a_step_that_never_settles_is_said_so():
         metrics(t, 0.1 * (1 - np.exp(-t)) * (1 + 0.3 * np.sin(40 * t)), 0.1)
     with pytest.raises(NotMeasured, match="never moved"):
         metrics(t, -0.01 * t, 0.1)
+
+
+def test_a_recording_holds_the_injected_signal(tmp_path):
+    from hopper.report.rrd import _tables
+    from hopper.telemetry import Telemetry
+
+    sim = stand("locked")
+    path = tmp_path / "stand.rrd"
+    telemetry = Telemetry(sim, path=path)
+    spec = ChirpSpec(f_min=5.0, f_max=100.0, amplitude=0.5, length=0.5)
+    d = excitation(spec)
+    record(sim, d, "input")
+    telemetry.close()
+    signals = _tables(path)["/signals"].sort_by("sim_time")
+    struct = pa.chunked_array([c.flatten() for c in signals.column("signals").chunks]).combine_chunks()
+    injected = struct.field("inject_torque_nm").to_numpy(zero_copy_only=False).astype(float)
+    assert len(injected) == len(d)
+    assert np.allclose(injected, d, atol=1e-6)  # float32 in the file
+    assert not struct.field("inject_ref_deg").to_numpy(zero_copy_only=False).any()

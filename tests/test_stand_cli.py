@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from rrd import verify
 
 pytestmark = pytest.mark.integration  # processes (conftest: the suite in parts)
 
@@ -21,7 +22,21 @@ def hopper_sim(*args: str) -> subprocess.CompletedProcess[str]:
 
 def test_stand_measures_steps_and_writes_what_the_report_draws(tmp_path: Path):
     out, bode = tmp_path / "stand.json", tmp_path / "bode.png"
-    done = hopper_sim("stand", "--measure", "--length", "10", "--step", "2", "--json", str(out), "--bode", str(bode))
+    rrd = tmp_path / "stand.rrd"
+    done = hopper_sim(
+        "stand",
+        "--measure",
+        "--length",
+        "10",
+        "--step",
+        "2",
+        "--json",
+        str(out),
+        "--bode",
+        str(bode),
+        "--rrd",
+        str(rrd),
+    )
     assert done.returncode == 0, done.stderr
     assert "crossover Hz" in done.stdout and "rise ms" in done.stdout
     document = json.loads(out.read_text())
@@ -30,6 +45,7 @@ def test_stand_measures_steps_and_writes_what_the_report_draws(tmp_path: Path):
     measured, predicted = m["measured_margins"], m["predicted_margins"]
     assert measured["crossover_hz"] == pytest.approx(predicted["crossover_hz"], rel=0.05)
     assert bode.stat().st_size > 10_000
+    assert verify(rrd) and rrd.stat().st_size > 100_000  # the run, its injected signal too (test_stand)
     report = hopper_sim("report", str(out), "--out", str(tmp_path / "report"))
     assert report.returncode == 0, report.stderr
     assert {p.name for p in (tmp_path / "report").iterdir()} >= {"bode_1.png", "step.png", "report.html"}

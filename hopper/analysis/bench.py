@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -148,12 +149,17 @@ def stand(config: SimConfig, legs: str, settle_s: float = SETTLE_S) -> StandSimu
     return sim
 
 
-def measure_flight(config: SimConfig, spec: ChirpSpec, flights: int) -> Measurement:
+def measure_flight(
+    config: SimConfig, spec: ChirpSpec, flights: int, attach: Callable[[Simulation], None] | None = None
+) -> Measurement:
     """A short chirp in each of `flights` flights, from FLIGHT_SETTLE_S after the apex; a flight
-    that lands before its chirp ends is not used (the count says how many were)."""
+    that lands before its chirp ends is not used (the count says how many were). `attach` is given
+    the simulation before it starts (a recording listens to it)."""
     if spec.at != "input":
         raise NotMeasured("in flight the loop is measured at the plant input")
     sim = Simulation(config)
+    if attach is not None:
+        attach(sim)
     settle = round(FLIGHT_SETTLE_S / config.timestep)
     records: list[dict[str, np.ndarray]] = []
     first: Simulation | None = None

@@ -20,6 +20,8 @@ SIGNALS_F32 = (
     "pitch_est_deg",
     "pitch_rate_est_deg_s",
     "wheel_capacity_pct",
+    "inject_torque_nm",  # the excitation added to the wheel torque (0 unless a measurement runs)
+    "inject_ref_deg",  # the excitation added to the pitch reference
 )
 SIGNALS_F16 = (*(f"{j}_deg" for j in LEG_JOINTS), *(f"{j}_torque_nm" for j in LEG_JOINTS), "foot_L_n", "foot_R_n")
 SIGNALS = SIGNALS_F32 + SIGNALS_F16
