@@ -35,7 +35,7 @@ def flight_plant(sim: Simulation, lagged_gyro: bool = False) -> Plant:
     n = 2 * nv + model.na
     a, b = np.zeros((n, n)), np.zeros((n, model.nu))
     mujoco.mjd_transitionFD(model, data, EPS, True, a, b, None, None)
-    legs, gyro = _kernel_jacobian(sim, lagged_gyro)
+    legs, gyro, estimate = _kernel_jacobian(sim, lagged_gyro)
     # Close everything the kernel does but the wheel's PID: the leg servos, and the wheel driver's
     # back-EMF feedforward (wheel_ctrl adds damping * speed so that the torque is what was asked).
     legs[lay.a_wheel, :] = 0.0
@@ -54,13 +54,18 @@ def flight_plant(sim: Simulation, lagged_gyro: bool = False) -> Plant:
         dt=model.opt.timestep,
         inertia=pitch_inertia(model, data),
         gyro=None if gyro is None else b @ gyro,
+        estimate=None if estimate is None else b @ estimate,
         robot=robot,
     )
 
 
-def _kernel_jacobian(sim: Simulation, lagged_gyro: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
+def _kernel_jacobian(
+    sim: Simulation, lagged_gyro: bool = False
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
     """d ctrl / d x of one controller tick, x in MuJoCo's tangent space [dq, dv], by central
-    differences, and (`lagged_gyro`) d ctrl / d gyro, with the gyro's reading held in the first.
+    differences; with `lagged_gyro` also d ctrl / d gyro (the gyro's reading held in the first)
+    and, in realistic sensing, d ctrl / d the attitude estimate the tick starts from (the leg
+    servos read the estimate then, not the state: perturbing the state alone leaves it out).
 
     The kernel runs on scratch copies (MjData and its memory record), so the run is untouched.
     """
@@ -73,7 +78,7 @@ def _kernel_jacobian(sim: Simulation, lagged_gyro: bool = False) -> tuple[np.nda
     gyro = sim.layout.s_gyro_pitch
     held = float(data.sensordata[gyro])
 
-    def ctrl_at(dq: np.ndarray, dv: np.ndarray, dgyro: float = 0.0) -> np.ndarray:
+    def ctrl_at(dq: np.ndarray, dv: np.ndarray, dgyro: float = 0.0, destimate: float = 0.0) -> np.ndarray:
         mujoco.mj_setState(model, scratch, state, PHYSICS)
         mujoco.mj_integratePos(model, scratch.qpos, dq, 1.0)
         scratch.qvel[:] += dv
@@ -81,7 +86,9 @@ def _kernel_jacobian(sim: Simulation, lagged_gyro: bool = False) -> tuple[np.nda
         if lagged_gyro:  # the reading is last tick's, not the perturbed state's
             scratch.sensordata[gyro] = held + dgyro
         ctrl = np.zeros(model.nu)
-        control_tick(scratch.qpos, scratch.qvel, scratch.sensordata, ctrl, sim.controller.mem.copy())
+        mem = sim.controller.mem.copy()
+        mem["pitch_est"] += destimate
+        control_tick(scratch.qpos, scratch.qvel, scratch.sensordata, ctrl, mem)
         return ctrl
 
     jacobian = np.zeros((model.nu, 2 * nv + model.na))
@@ -90,11 +97,15 @@ def _kernel_jacobian(sim: Simulation, lagged_gyro: bool = False) -> tuple[np.nda
         step[i] = EPS
         jacobian[:, i] = (ctrl_at(step[:nv], step[nv:]) - ctrl_at(-step[:nv], -step[nv:])) / (2.0 * EPS)
     if not lagged_gyro:
-        return jacobian, None
+        return jacobian, None, None
     zero = np.zeros(nv)
     by_gyro = (ctrl_at(zero, zero, EPS) - ctrl_at(zero, zero, -EPS)) / (2.0 * EPS)
     by_gyro[sim.layout.a_wheel] = 0.0  # the wheel's law is closed by the loop, with its own lag
-    return jacobian, by_gyro
+    by_estimate = None
+    if sim.controller.mem["realistic"][0]:
+        by_estimate = (ctrl_at(zero, zero, 0.0, EPS) - ctrl_at(zero, zero, 0.0, -EPS)) / (2.0 * EPS)
+        by_estimate[sim.layout.a_wheel] = 0.0
+    return jacobian, by_gyro, by_estimate
 
 
 class Cancelled(Exception):

@@ -76,6 +76,9 @@ class Plant:
     # (n,): the state change per rad/s of the gyro's reading when it is modelled as a tick late
     # (hopper.analysis.predict); None: whatever reads the gyro reads this tick's rate, in `a`.
     gyro: np.ndarray | None = None
+    # (n,): the state change per rad of the attitude estimate a tick starts from (realistic sensing:
+    # the leg servos read it; hopper.analysis.predict carries the estimate as a state).
+    estimate: np.ndarray | None = None
     robot: Robot = PACKAGED  # whose wheel: its torque limit and momentum capacity
 
 

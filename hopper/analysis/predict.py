@@ -97,6 +97,8 @@ def close_law(plant: Plant, law: LinearLaw, wheel: int, delay: int = 0, estimate
     else:  # the estimate integrates the (late) gyro: e = E + dt r_lag, and E' = e
         a[est, est], a[est, lag] = 1.0, dt
         pitch_row[est], pitch_row[lag] = 1.0, dt
+        if plant.estimate is not None:  # the leg servos read it too
+            a[:n, est] += plant.estimate
     k[0] = law.kp * pitch_row
     k[0, lag] += law.kd
     k[0, wheel] += law.kw
