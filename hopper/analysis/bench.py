@@ -119,7 +119,7 @@ def _compare(
         if sim.config.sensing == "realistic" and where != "stand (legs locked)":
             # Measured here: crossovers 12 to 18 % above the model's with the leg servos in the loop
             # (PID 450/50/30, 900/100/45; the estimate they read is modelled); not explained yet.
-            note = "realistic sensing with the leg servos in the loop: an approximate model (crossover 12-18 % low here)"
+            note = "realistic sensing with the leg servos in the loop: the model is approximate (12-18 % low here)"
     measured = None
     if spec.at == "input":
         try:
