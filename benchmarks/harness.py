@@ -1,4 +1,5 @@
-"""Shared parts of the load and soak runs: headless clients in child processes, error capture, RTF windows.
+"""Shared parts of the benchmarks: interleaved ratios; for the load and soak runs, headless clients in
+child processes, error capture, RTF windows.
 
 Clients run in child processes (browsers are separate processes too), a thread per client slot,
 each speaking viser's real protocol through hopper.app.dashboard.probe.ProbeClient. A slot that stays keeps
@@ -8,13 +9,16 @@ again. Each child prints one JSON line: every session with its scene updates per
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import random
+import statistics
 import subprocess
 import sys
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TextIO
 
@@ -22,6 +26,54 @@ ROOT = Path(__file__).resolve().parent.parent
 CHURN_STAY_S = (2.0, 20.0)  # s a leaving client stays connected, drawn uniformly
 CHURN_GAP_S = (0.5, 5.0)  # s before it connects again
 MEASURE_AFTER_S = 1.0  # s after a session's first pose before its rate is measured (the initial scene)
+
+
+# -- ratios on a noisy machine (STYLE.md item 30) --------------------------------------------------
+MIN_ROUNDS = 5
+
+
+@dataclasses.dataclass(frozen=True)
+class Ratio:
+    """A ratio measured once per round, each round's two sides taken one right after the other."""
+
+    rounds: tuple[float, ...]
+
+    @property
+    def median(self) -> float:
+        return statistics.median(self.rounds)
+
+    @property
+    def low(self) -> float:
+        return min(self.rounds)
+
+    @property
+    def high(self) -> float:
+        return max(self.rounds)
+
+    def __str__(self) -> str:
+        return f"{self.median:.3f} median ({self.low:.3f}-{self.high:.3f} over {len(self.rounds)} rounds)"
+
+
+def interleaved(sides: dict[str, Callable[[], float]], rounds: int) -> dict[str, list[float]]:
+    """Each side's figure (a rate, say) once per round, the sides in turn: ABAB... `rounds` (>= MIN_ROUNDS)
+    times. The machine's load moves over seconds: sides measured apart in time are not comparable."""
+    if rounds < MIN_ROUNDS:
+        raise SystemExit(f"--rounds must be at least {MIN_ROUNDS}: a median of fewer says little, got {rounds}")
+    figures: dict[str, list[float]] = {name: [] for name in sides}
+    for _ in range(rounds):
+        for name, measure in sides.items():
+            figures[name].append(measure())
+    return figures
+
+
+def ratio(top: list[float], bottom: list[float]) -> Ratio:
+    """Round by round top / bottom (lists from interleaved())."""
+    return Ratio(tuple(a / b for a, b in zip(top, bottom, strict=True)))
+
+
+def spread(values: list[float]) -> str:
+    """A figure's median and range: '41,200 (35,100-44,900)'."""
+    return f"{statistics.median(values):,.0f} ({min(values):,.0f}-{max(values):,.0f})"
 
 
 # -- the child: client slots ---------------------------------------------------------------------

@@ -85,6 +85,12 @@ class History:
         self._hop: HopMetrics | None = None
 
     # -- Listener --------------------------------------------------------------------------
+    def idle_until(self, sim: Simulation) -> float:
+        """On the ground, tick() does nothing before the next ring snapshot (hopper.sim.Listener)."""
+        if self._start is None and not self._liftoff_due and self._rewound is None:
+            return self._next - 5e-4
+        return -math.inf
+
     def tick(self, sim: Simulation) -> None:
         now = sim.data.time
         if self._start is None and now < self._next - 5e-4 and not self._liftoff_due and self._rewound is None:

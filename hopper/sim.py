@@ -62,11 +62,13 @@ from hopper.layout import ModelLayout
 from hopper.metrics import HopMetrics, MetricsTracker
 from hopper.mismatch import Nominal
 from hopper.model import Derive, build_model, model_source, set_terrain, set_wheel_enabled, terrain_window
+from hopper.mujoco_compat import address
 from hopper.perturb import Pull
 from hopper.robot import Robot
 from hopper.schedule import KickSchedule
 from hopper.snapshot import STATE_SPEC, Pending, Snapshot, SnapshotMismatch
 from hopper.state import RobotState, angular_momentum, read_state
+from hopper.stepping import burst
 
 log = logging.getLogger(__name__)
 
@@ -87,7 +89,12 @@ class Command(Protocol):
 
 
 class Listener(Protocol):
-    """Sees every tick (after mj_step) and every event; telemetry and the dashboard implement it."""
+    """Sees every tick (after mj_step) and every event; telemetry and the dashboard implement it.
+
+    A listener whose tick() does nothing until some moment may also have `idle_until(sim) -> float`:
+    the simulated time (s, data.time after a tick's step) before which its tick() does nothing. While
+    every listener is idle, the ticks run compiled without calling them (Simulation.advance).
+    """
 
     def tick(self, sim: Simulation) -> None: ...
 
@@ -125,6 +132,8 @@ class Simulation:
         d = self.data
         self._qpos, self._qvel, self._sensors, self._ctrl = d.qpos, d.qvel, d.sensordata, d.ctrl
         self._mem, self._dt = self.controller.mem, self.model.opt.timestep
+        self._raw = (address(self.model), address(d))  # the C structs, for compiled ticks (hopper.stepping)
+        self._arrays = (self._qpos, self._qvel, self._sensors, self._ctrl, self._mem)
         # Views the observation reads each flight tick of an API controller (hopper.controllers).
         self._law_pitch, self._rate_est = self._mem["law_pitch"], self._mem["rate_est"]
         self._v_wheel = self.layout.v_wheel
@@ -292,7 +301,10 @@ class Simulation:
         """
         if self._commands:
             self._drain()
-        events = control_tick(self._qpos, self._qvel, self._sensors, self._ctrl, self._mem)
+        return self._finish_tick(control_tick(self._qpos, self._qvel, self._sensors, self._ctrl, self._mem))
+
+    def _finish_tick(self, events: int) -> int:
+        """The tick after its kernel run (`events`, its bits): the events, pending actions, mj_step, listeners."""
         if events:
             if events & EV_WHEEL:  # a Python controller flies the wheel this tick
                 events ^= EV_WHEEL
@@ -313,6 +325,46 @@ class Simulation:
         for listener in self.listeners:
             listener.tick(self)
         return events
+
+    def advance(self, count: int) -> tuple[int, int]:
+        """Up to `count` ticks, exactly as many step() calls: (ticks taken, the last one's events). It
+        stops after the first tick with events, and before a tick with queued commands (they apply at
+        the next call). Ticks in which no Python is due (no event, no pending action, every listener
+        idle: Listener.idle_until) run compiled, back to back (hopper.stepping); commands queued
+        meanwhile wait for the end of the burst (at most HEALTH_CHECK_TICKS)."""
+        taken = 0
+        while taken < count:
+            if self._commands:
+                if taken:  # the caller sees what they did (a pause) before more ticks
+                    return taken, 0
+                self._drain()
+            n = min(count - taken, HEALTH_CHECK_TICKS - self.ticks % HEALTH_CHECK_TICKS)
+            stepped, events = self._burst(n)
+            taken += stepped
+            if stepped:
+                self.ticks += stepped
+                if self.ticks % HEALTH_CHECK_TICKS == 0:
+                    self._check_health()  # the listeners were idle: nothing else of the tick is due
+            if events:  # the next tick's kernel has run: Python finishes it
+                return taken + 1, self._finish_tick(events)
+            if stepped < n:  # Python is due in the next tick
+                taken += 1
+                events = self.step()
+                if events:
+                    return taken, events
+        return taken, 0
+
+    def _burst(self, count: int) -> tuple[int, int]:
+        """hopper.stepping.burst up to the next moment Python is due; (0, 0) if a listener wants every tick."""
+        after = math.inf
+        for listener in self.listeners:
+            idle_until = getattr(listener, "idle_until", None)
+            if idle_until is None:
+                return 0, 0
+            after = min(after, idle_until(self))
+        pending = self.pending
+        before = min(pending.pulse_at, pending.kick_at)
+        return burst(count, before, after, self._arrays, *self._raw)
 
     # -- the controller (hopper.controllers) -----------------------------------------------------
     def observation(self) -> Observation:
@@ -412,7 +464,7 @@ class Simulation:
         if max_time is None:
             max_time = self.time_limit(hops)
         ticks_left = round((self.time + max_time - self.time) / self._dt)  # as the runs before this measured
-        step, done = self.step, EV_TOUCHDOWN | EV_FALL
+        advance, done = self.advance, EV_TOUCHDOWN | EV_FALL
         poll = STOP_POLL_TICKS if stop is not None else ticks_left
         while len(self.hops) < hops and not self.fallen and ticks_left > 0:
             if stop is not None and stop():
@@ -420,8 +472,9 @@ class Simulation:
             burst = min(ticks_left, poll)
             ticks_left -= burst
             while burst > 0:  # the stop conditions only change on a touchdown or a fall
-                burst -= 1
-                if step() & done:
+                taken, events = advance(burst)
+                burst -= taken
+                if events & done:
                     break
             ticks_left += burst  # what a touchdown left of the burst
         return self.hops

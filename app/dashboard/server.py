@@ -260,6 +260,9 @@ class Dashboard:
             self.layout.hops.show(list(snapshot.hops))
 
     # -- Listener (called on the loop thread by sim.step) -------------------------------------
+    def idle_until(self, sim: Simulation) -> float:
+        return self._next_sample
+
     def tick(self, sim: Simulation) -> None:
         # Cheap on most ticks: read the state only when a plot sample is due.
         if sim.data.time < self._next_sample:
@@ -314,9 +317,8 @@ class Dashboard:
         sim, pacer, paused = self.sim, self.pacer, self.pacer.paused
         taken = 0
         try:
-            for _ in range(count):
-                sim.step()
-                taken += 1
+            while taken < count:  # compiled bursts between the ticks Python takes part in (Simulation.advance)
+                taken += sim.advance(count - taken)[0]
                 if self._pending_restore is not None or (pacer.paused and not paused):
                     break
         except Exception as exc:  # a bug below must not stop the dashboard: report, reset, go on
