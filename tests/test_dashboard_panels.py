@@ -179,22 +179,21 @@ def test_typed_numbers_are_clamped_with_the_range_and_units() -> None:
 def test_the_torque_and_speed_charts_draw_the_wheel_limits() -> None:
     server = viser.ViserServer(port=free_port(), verbose=False)
     try:
-        plots = LivePlots(server.gui)
-        for i in range(10):
-            plots.sample(i * 0.025, 0.01, 10.0, 5.0, 6.0)
-        plots.publish(now=1.0)
+        plots = LivePlots(server)
         rpm_limit = WHEEL_NO_LOAD_SPEED * RAD_S_TO_RPM
+        specs = {spec.uuid: spec for spec in plots.feed.charts}
         for chart, limit in ((plots.torque, WHEEL_TORQUE_LIMIT), (plots.rpm, rpm_limit)):
+            spec = specs[chart._impl.uuid]
+            # The feed sends a limit line as its one value (chart_feed: a constant column).
             lines = [
                 (s, column)
-                for s, column in zip(chart.series, chart.data, strict=True)
+                for s, column in zip(chart.series, spec.columns, strict=True)
                 if "limit" in str(s.get("label", ""))
             ]
             assert len(lines) == 2, chart.series
-            levels = sorted(float(column[0]) for _, column in lines)
-            assert levels == pytest.approx([-limit, limit], abs=1e-3)
-            for series, column in lines:
-                assert np.all(column == column[0]) and len(column) == len(chart.data[0]) == 10
+            assert sorted(column for _, column in lines) == pytest.approx([-limit, limit], abs=1e-3)
+            assert all(isinstance(column, float) for _, column in lines)
+            for series, _ in lines:
                 assert series.get("dash") and series["stroke"] == "#e5484d"
         assert math.isclose(rpm_limit, 400.0)
     finally:

@@ -21,7 +21,7 @@ REPO = Path(__file__).resolve().parent.parent
 PACKAGE_DIRS = {"hopper": "hopper", "terrain": "hopper/terrain", "app": "hopper/app", "models": "hopper/models"}
 PACKAGE_DIRS["static"] = "hopper/static"
 ASSETS = ["hopper/models/hopper.xml", *(f"hopper/static/{name}" for name in ("help.md", "dashboard.css", "logo.svg"))]
-ASSETS += ["hopper/static/theme.json", "hopper/laws/policy_weights.json"]
+ASSETS += ["hopper/static/theme.json", "hopper/static/charts.js", "hopper/laws/policy_weights.json"]
 # The project's own modules, never from a registry: the package, the benchmarks, and the test
 # helpers and test modules that tests import from each other.
 # Modules of the package that need an optional extra (and say so when it is missing) -> the extra.

@@ -15,7 +15,6 @@ import threading
 from collections.abc import Callable, Iterator
 from typing import Any
 
-import numpy as np
 import pytest
 import viser
 import websockets.exceptions
@@ -273,21 +272,21 @@ def test_an_update_for_one_client_reaches_that_client_only(
     assert slider.disabled is False  # the server's state is untouched
 
 
-# -- set_chart_lists --------------------------------------------------------------------------------
-def test_chart_lists_reach_a_client_as_plain_numbers_and_the_handle_reports_them(
+# -- run_javascript --------------------------------------------------------------------------------
+# That a page runs the source, and that CHART_INSTANCE_JS finds a chart there, takes a browser:
+# tests/test_charts_e2e.py.
+def test_a_script_for_one_client_reaches_that_client_only_and_no_later_one(
     server: viser.ViserServer, clients: Clients, probes: list[ProbeClient]
 ) -> None:
-    empty = (np.zeros(1, dtype=np.float32), np.zeros(1, dtype=np.float32))
-    chart = server.gui.add_uplot(empty, ({"label": "t"}, {"label": "y"}))
-    uuid = compat.element_id(chart)
-    probe, _ = connect(server, clients, probes)
-    assert probe.wait_for(lambda p: uuid in p.uplots)
-    data = (np.array([0.0, 0.5, 1.0], dtype=np.float32), np.array([1.5, -2.25, 0.1], dtype=np.float32))
-    compat.set_chart_lists(chart, data)
-    assert probe.wait_for(lambda p: uuid in p.chart_data), "the chart's data never arrived"
-    # Lists of numbers in the msgpack, not binary buffers (the probe would give (dtype, bytes) for those).
-    assert probe.chart_data[uuid] == [column.tolist() for column in data]
-    assert chart.data is data
+    a, client_a = connect(server, clients, probes)
+    b, _ = connect(server, clients, probes)
+    compat.run_javascript(client_a, "window.__marker = 1;")
+    slider = server.gui.add_slider("After", 0.0, 1.0, 0.1, 0.5)  # broadcast after it
+    uuid = compat.element_id(slider)
+    assert a.wait_for(lambda p: p.scripts == ["window.__marker = 1;"]), a.scripts
+    assert b.wait_for(lambda p: uuid in p.gui) and b.scripts == []
+    c, _ = connect(server, clients, probes)  # a later client replays the shared scene only
+    assert c.wait_for(lambda p: uuid in p.gui) and c.scripts == []
 
 
 # -- broadcast_mark, broadcast_sent ---------------------------------------------------------------

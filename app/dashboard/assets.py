@@ -49,3 +49,9 @@ def logo_data_uri() -> str:
 def theme() -> Theme:
     raw = json.loads(_read("theme.json"))
     return Theme(**{**raw, "brand_color": tuple(raw.get("brand_color", Theme.brand_color))})
+
+
+@functools.cache
+def chart_runtime() -> str:
+    """static/charts.js: the page's side of the live charts' feed (hopper.app.dashboard.chart_feed)."""
+    return _read("charts.js")

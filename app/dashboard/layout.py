@@ -121,7 +121,7 @@ def build_layout(
 
     live = gui.add_panel()
     with live.add_tab("Live", viser.Icon.CHART_LINE):
-        plots = LivePlots(gui, flown)
+        plots = LivePlots(server, flown)
         with gui.add_folder("Hops"):
             hops = build_hop_table(gui)
         with gui.add_folder("Events"):

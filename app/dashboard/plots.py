@@ -7,18 +7,15 @@ import math
 import numpy as np
 import viser
 import viser.uplot as uplot
-from hopper.app.dashboard import viser_compat as compat
+from hopper.app.dashboard.chart_feed import ChartFeed, ChartSpec
+from hopper.app.dashboard.viser_compat import element_id
 
 from hopper.metrics import RAD_S_TO_RPM
 from hopper.robot import PACKAGED, Robot
 
 PLOT_WINDOW_S = 10.0  # s of simulation shown
 PLOT_SAMPLE_S = 0.025  # s of simulation between samples: 8 a period of the wn = 30 rad/s pitch loop
-PLOT_PUBLISH_S = 0.2  # s of wall time between chart refreshes (5 a second); each re-sends the whole window
-# Above this many samples a chart gets only the samples its line needs to stay within TOLERANCE_PX of
-# every sample (see simplify): about a third of the window. Fewer cost little to send whole.
-SIMPLIFY_ABOVE = 100
-TOLERANCE_PX = 0.5  # px of the plot's height; the line is 1.5 px wide
+PLOT_PUBLISH_S = 0.2  # s of wall time between chart refreshes (5 a second); each sends what is new (chart_feed)
 PLOT_HEIGHT_PX = 105  # px: CHART_HEIGHT less the time axis (26) and the top padding (4)
 CHART_HEIGHT = 135  # px
 Y_SOFT = 2.0  # deg, the pitch chart shows at least +-Y_SOFT
@@ -102,54 +99,17 @@ def _limit_series() -> tuple[uplot.Series, uplot.Series]:
     return _series("+limit", LIMIT_COLOR, 1.0, (6, 4)), _series("-limit", LIMIT_COLOR, 1.0, (6, 4))
 
 
-def simplify(t: np.ndarray, y: np.ndarray, units_per_px: float, tolerance_px: float = TOLERANCE_PX) -> np.ndarray:
-    """Which samples (t, y), shape (n,) each, t increasing, a line through them needs: a mask (n,).
-
-    Douglas-Peucker on the vertical distance: a sample is dropped only if the line through the kept
-    ones passes within `tolerance_px` of it, measured at its own time (so the chart's width does not
-    matter and a steep edge keeps its samples). The ends and every local extreme that stands out by
-    more than the tolerance are kept, so peaks keep their height; the highest and lowest are always
-    kept, so auto-ranged axes do not move. Runs one pass per level of the recursion, over all segments
-    at once.
-    """
-    n = len(y)
-    if n < 3:
-        return np.ones(n, dtype=bool)
-    keep = np.zeros(n, dtype=bool)
-    keep[[0, -1, int(np.argmin(y)), int(np.argmax(y))]] = True  # the ends and the extremes: same axes' ranges
-    pos, index = t.astype(np.float64), np.arange(n)
-    tolerance = tolerance_px * units_per_px
-    while True:
-        kept = np.flatnonzero(keep)
-        segment = np.minimum(np.searchsorted(kept, index, side="right") - 1, len(kept) - 2)
-        left, right = kept[segment], kept[segment + 1]
-        line = y[left] + (y[right] - y[left]) * (pos - pos[left]) / np.maximum(pos[right] - pos[left], 1e-12)
-        distance = np.where(keep, 0.0, np.abs(y - line))
-        farthest = np.maximum.reduceat(distance, kept[:-1])[segment]  # of each sample's segment
-        far = (distance == farthest) & (distance > tolerance)
-        if not far.any():
-            return keep
-        keep[far] = True
-
-
-def _send(chart: viser.GuiUplotHandle, data: tuple[np.ndarray, ...]) -> None:
-    """Set a chart's data (float32 columns), sent as plain number lists rather than float64 arrays.
-
-    viser's setter casts uPlot data to float64 and ships it as raw, uncompressed binary (8 bytes a
-    value). Lists of the same float32 values (exact in float64) go inside the zstd-compressed msgpack
-    instead: about 4 bytes a value, and the constant limit lines next to nothing. The browser hands
-    either form to uPlot unchanged (tests/test_dashboard_wire.py reads the wire).
-    """
-    compat.set_chart_lists(chart, data)
+# Decimals sent per column, a quarter pixel at most of its chart (chart_feed): time, pitch, rpm, torque.
+T_DECIMALS, PITCH_DECIMALS, RPM_DECIMALS, TORQUE_DECIMALS = 3, 2, 0, 1
 
 
 class LivePlots:
     """Pitch, wheel RPM and wheel torque (applied and asked) over the last PLOT_WINDOW_S, with the wheel's limits."""
 
-    def __init__(self, gui: viser.GuiApi, robot: Robot = PACKAGED) -> None:
+    def __init__(self, server: viser.ViserServer, robot: Robot = PACKAGED) -> None:
+        gui = server.gui
         self.window = RollingWindow(_N, 5)
         self._next_publish = -math.inf
-        self._dirty = False
         self.rpm_limit = robot.wheel_no_load_speed * RAD_S_TO_RPM  # 400 rpm on the packaged robot
         self.torque_limit = robot.wheel_torque_limit  # N m
         time = _series("t (s)", "")
@@ -164,56 +124,47 @@ class LivePlots:
         self.torque_range = 2 * limit  # N m, fixed
         torque = (_series("torque (N m)", "#f25f5c"), _series("asked", "#cfd6dd", 1.0, (4, 3)))
         self.torque = _chart(gui, (time, *torque, *_limit_series()), (-limit, limit))
+        rpm, nm, t = float(self.rpm_limit), float(self.torque_limit), T_DECIMALS
+        self.feed = ChartFeed(
+            server,
+            (
+                ChartSpec(element_id(self.pitch), (_T, _PITCH), (t, PITCH_DECIMALS)),
+                ChartSpec(element_id(self.rpm), (_T, _RPM, rpm, -rpm), (t, RPM_DECIMALS, 0, 0)),
+                ChartSpec(
+                    element_id(self.torque),
+                    (_T, _TORQUE, _COMMAND, nm, -nm),
+                    (t, TORQUE_DECIMALS, TORQUE_DECIMALS, 1, 1),
+                ),
+            ),
+        )
 
     def sample(self, time: float, pitch: float, wheel_speed: float, torque: float, command: float) -> None:
         """Add one sample (SI units); the caller keeps one every PLOT_SAMPLE_S of simulation time."""
         self.window.append((time, math.degrees(pitch), wheel_speed * RAD_S_TO_RPM, torque, command))
-        self._dirty = True
 
     def clear(self) -> None:
         self.window.clear()
-        self._dirty = True
+        self.feed.replaced()
 
     def drop_after(self, time: float) -> None:
         self.window.drop_after(time)
-        self._dirty = True
+        self.feed.replaced()
 
     def publish(self, now: float) -> None:
-        """Send the window to the charts if it changed, every PLOT_PUBLISH_S of wall time `now` at most.
+        """Send each page what it lacks of the window, every PLOT_PUBLISH_S of wall time `now` at most.
 
         Refreshes keep to a fixed grid of PLOT_PUBLISH_S (a refresh due between two frames goes out at
         the next one), so they average one per PLOT_PUBLISH_S rather than one per whole number of frames.
+        A page that connects while the simulation is paused gets the window at the next refresh.
         """
-        if not self._dirty or len(self.window) < 2 or now < self._next_publish:
+        if len(self.window) < 2 or now < self._next_publish:
+            return
+        c = self.window.columns()
+        if not self.feed.behind(float(c[_T][-1])):
             return
         late = now - self._next_publish
         self._next_publish = now + PLOT_PUBLISH_S if late >= PLOT_PUBLISH_S else self._next_publish + PLOT_PUBLISH_S
-        self._dirty = False
-        c = self.window.columns()
-        t = c[_T]
-        p = self._needed(t, c[_PITCH], self._pitch_range(c[_PITCH]))
-        r = self._needed(t, c[_RPM], self.rpm_range)
-        q = self._needed(t, c[_TORQUE], self.torque_range) | self._needed(t, c[_COMMAND], self.torque_range)
-        _send(self.pitch, (c[_T][p], c[_PITCH][p]))
-        _send(self.rpm, (c[_T][r], c[_RPM][r], *_constant(c[_T][r], self.rpm_limit)))
-        _send(self.torque, (c[_T][q], c[_TORQUE][q], c[_COMMAND][q], *_constant(c[_T][q], self.torque_limit)))
-
-    @staticmethod
-    def _needed(t: np.ndarray, y: np.ndarray, y_range: float) -> np.ndarray:
-        """Mask of the samples (t, y) to send, for a chart showing y_range (units) over PLOT_HEIGHT_PX."""
-        if len(y) <= SIMPLIFY_ABOVE:
-            return np.ones(len(y), dtype=bool)
-        return simplify(t, y, y_range / PLOT_HEIGHT_PX)
-
-    @staticmethod
-    def _pitch_range(pitch: np.ndarray) -> float:
-        """The least range (deg) the auto-ranged pitch chart shows these samples over: uPlot only widens it."""
-        return max(float(pitch.max()), Y_SOFT) - min(float(pitch.min()), -Y_SOFT)
-
-
-def _constant(t: np.ndarray, value: float) -> tuple[np.ndarray, np.ndarray]:
-    """+-value at every sample time (uPlot needs one y per x); compresses to nearly nothing as lists."""
-    return np.full_like(t, value), np.full_like(t, -value)
+        self.feed.publish(c)
 
 
 REFLY_EVERY = 5  # ticks between the re-fly charts' points (200 Hz: smooth at the wn = 30 rad/s loop)

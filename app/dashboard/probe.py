@@ -21,6 +21,7 @@ from typing import Any
 import msgspec
 import websockets.sync.client as ws_client
 import zstandard
+from hopper.app.dashboard.chart_feed import apply_push, decode_push
 
 ROBOT = "/world/robot"  # scene nodes under this prefix are the robot: a frame that moves one is a scene update
 TRAIL = "/world/trail"  # the torso's trail: line segments, counted as "other" with their creation messages
@@ -67,7 +68,7 @@ class Traffic:
     bytes: dict[str, float] = dataclasses.field(default_factory=lambda: dict.fromkeys(CATEGORIES, 0.0))
     messages: dict[str, int] = dataclasses.field(default_factory=lambda: dict.fromkeys(CATEGORIES, 0))
     scene_updates: int = 0  # frames that moved the robot
-    chart_refreshes: dict[str, int] = dataclasses.field(default_factory=dict)  # uPlot uuid -> data updates
+    chart_refreshes: dict[str, int] = dataclasses.field(default_factory=dict)  # uPlot uuid -> data updates or pushes
 
     def copy(self) -> Traffic:
         return Traffic(dict(self.bytes), dict(self.messages), self.scene_updates, dict(self.chart_refreshes))
@@ -105,6 +106,10 @@ class ProbeClient:
         self.uplots: set[str] = set()  # uuids of the uPlot charts
         self.last_pose_frame: list[dict[str, Any]] = []  # the pose messages of the latest frame that moved the robot
         self.chart_data: dict[str, list[Any]] = {}  # uPlot uuid -> its latest data, decoded (binary as raw bytes)
+        # uPlot uuid -> the window the page keeps from the live charts' pushes (chart_feed): one list per
+        # column, or a constant's value
+        self.chart_windows: dict[str, list[Any]] = {}
+        self.scripts: list[str] = []  # the sources of the RunJavascriptMessages received, in order
         self.notifications: list[dict[str, Any]] = []
         self.gui: dict[str, dict[str, Any]] = {}  # uuid -> creation message
         self.gui_updates: dict[str, dict[str, Any]] = {}  # uuid -> latest value of each property updated (not charts)
@@ -223,6 +228,8 @@ class ProbeClient:
                     uuid, refreshes = message["uuid"], self.traffic.chart_refreshes
                     refreshes[uuid] = refreshes.get(uuid, 0) + 1
                     self.chart_data[uuid] = self._resolve(message["updates"]["data"], raw, compressed, lengths)
+                elif kind == "RunJavascriptMessage":
+                    self._script(message["source"])
                 elif kind == "GuiUpdateMessage":
                     self.gui_updates.setdefault(message["uuid"], {}).update(message["updates"])
                 if "uuid" in message and "props" in message and kind.startswith("Gui"):
@@ -233,8 +240,19 @@ class ProbeClient:
                 self.traffic.scene_updates += 1
             self._account(raw, compressed, messages, lengths)
 
+    def _script(self, source: str) -> None:
+        """A script the page would run: a live charts' push is applied to the probe's copy of its windows."""
+        self.scripts.append(source)
+        update = decode_push(source)
+        if update is not None:
+            apply_push(self.chart_windows, update)
+            for uuid in update:
+                self.traffic.chart_refreshes[uuid] = self.traffic.chart_refreshes.get(uuid, 0) + 1
+
     def _category(self, message: dict[str, Any]) -> str:
         if message.get("type") == "GuiUpdateMessage" and message.get("uuid") in self.uplots:
+            return "charts"
+        if message.get("type") == "RunJavascriptMessage" and decode_push(message["source"]) is not None:
             return "charts"
         return "poses" if is_pose(message) else "other"
 

@@ -90,16 +90,23 @@ def update_for_client(client: viser.ClientHandle, uuid: str, updates: dict[str, 
     client._websock_connection.queue_message(GuiUpdateMessage(uuid, updates))
 
 
-def set_chart_lists(chart: viser.GuiUplotHandle, data: tuple[Any, ...]) -> None:
-    """Set a uPlot chart's data, sent as plain number lists inside the compressed msgpack.
+# -- code for one page ---------------------------------------------------------------------------
+# The page's uPlot instance of a chart, by the chart's element id (a JavaScript function expression).
+# Private: viser 1.1's client registers every inline chart it creates under
+# `window.__viserTestpoints.uplots[uuid].chart` (components/UplotComponent.tsx, for its own end-to-end
+# tests) and offers no other way to reach one; a chart in the expand dialog is not registered.
+CHART_INSTANCE_JS = "((uuid) => window.__viserTestpoints?.uplots?.[uuid]?.chart)"
 
-    The public `chart.data = ...` casts to float64 and ships raw, uncompressed binary (8 bytes a
-    value); lists of the same float32 values take about 4 and the constant limit lines next to
-    nothing. Private: the handle's state (`_impl.props.data`, what `chart.data` reads back) and
-    its update queue (`_queue_update`), which the public setter would reach only after its cast.
+
+def run_javascript(client: viser.ClientHandle, source: str) -> None:
+    """Run `source` in this one client's page, in order with the client's other messages.
+
+    Private: viser's client runs a RunJavascriptMessage's source as it arrives (MessageHandler.tsx,
+    `new Function(source)()`), but only viser itself sends one (to load plotly.js, into the shared
+    scene that every new client replays); here it goes on the client's own queue, which keeps nothing
+    for later clients.
     """
-    chart._impl.props.data = data
-    chart._queue_update("data", tuple(column.tolist() for column in data))
+    client._websock_connection.queue_message(_messages.RunJavascriptMessage(source=source))
 
 
 # -- incoming messages ----------------------------------------------------------------------------
