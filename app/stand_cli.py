@@ -28,7 +28,6 @@ from hopper.app.cli_common import (
 
 from hopper.config import GRAVITY_PRESETS, Gains, InvalidConfig, SimConfig
 
-FLIGHT_CHIRP_S = 0.4  # s: a chirp that fits after the apex of a lunar flight (~1.2 s)
 KICK_WATCH_S = 1.0  # s of the response to a kick that is shown
 
 
@@ -61,7 +60,13 @@ def add_parser(commands: argparse._SubParsersAction, epilog: str) -> None:
     p.add_argument(
         "--amplitude", type=finite, default=None, help="N m at the input (default 0.5; flight 1), rad at the reference"
     )
-    p.add_argument("--length", type=finite, default=None, metavar="S", help=f"s (default 20; flight {FLIGHT_CHIRP_S})")
+    p.add_argument(
+        "--length",
+        type=finite,
+        default=None,
+        metavar="S",
+        help="s (default 20; flight: what fits after the apex, ~0.4 s on the Moon)",
+    )
     p.add_argument("--steps", type=int, default=24, help="stepped sines: how many frequencies (default 24)")
     p.add_argument("--at", choices=("input", "reference"), default="input", help="where the chirp is injected")
     p.add_argument(
@@ -88,16 +93,29 @@ def _config(args: argparse.Namespace) -> SimConfig:
     return with_controller_flags(config, args)
 
 
-def _spec(args: argparse.Namespace):  # noqa: ANN202 (hopper.analysis.frequency.ChirpSpec)
-    from hopper.analysis.frequency import ChirpSpec, InvalidChirp
+def _spec(args: argparse.Namespace, config: SimConfig):  # noqa: ANN202 (hopper.analysis.frequency.ChirpSpec)
+    from hopper.analysis.bench import flight_window
+    from hopper.analysis.frequency import ChirpSpec, InvalidChirp, NotMeasured
 
     flight = args.flight
+    flight_length = 0.0
+    if flight and args.length is None:
+        try:
+            flight_length = flight_window(config)  # what fits after the apex of this robot's flight
+        except NotMeasured as exc:
+            fail(str(exc))
+    length = args.length if args.length is not None else flight_length if flight else 20.0
     try:
         return ChirpSpec(
-            f_min=args.f_min if args.f_min is not None else 5.0 if flight else 1.0,
+            # In flight at least 2 cycles of f_min in the chirp (what a shorter flight allows).
+            f_min=args.f_min
+            if args.f_min is not None
+            else max(5.0, math.ceil(20.0 / max(length, 1e-3)) / 10.0)
+            if flight
+            else 1.0,
             f_max=args.f_max if args.f_max is not None else 200.0 if flight else 400.0,
             amplitude=args.amplitude if args.amplitude is not None else 1.0 if flight else 0.5,
-            length=args.length if args.length is not None else FLIGHT_CHIRP_S if flight else 20.0,
+            length=length,
             kind=args.chirp or ("linear" if flight else "log"),
             at=args.at,
             steps=args.steps,
@@ -115,8 +133,8 @@ def command_stand(args: argparse.Namespace) -> int:
         fail(f"--flights must be at least 1, got {args.flights}")
     if not 0.0 <= args.settle <= 60.0:
         fail(f"--settle must be in [0, 60] s, got {args.settle:g}")
-    spec = _spec(args) if args.measure else None
     config = _config(args)
+    spec = _spec(args, config) if args.measure else None
     from hopper.app.episode import version
 
     from hopper.analysis import bench

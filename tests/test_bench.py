@@ -8,7 +8,7 @@ import re
 
 import pytest
 
-from hopper.analysis.bench import measure_flight, measure_stand, stand, step_response
+from hopper.analysis.bench import flight_window, measure_flight, measure_stand, stand, step_response
 from hopper.analysis.frequency import ChirpSpec
 from hopper.config import Gains, SimConfig
 from hopper.controllers import with_controller
@@ -51,3 +51,9 @@ def test_the_step_response_is_printed_measured_against_predicted():
     assert result.measured_metrics.rise_s == pytest.approx(result.predicted_metrics.rise_s, abs=1e-3)
     assert sim.reference == pytest.approx(math.radians(2.0))  # the step stays
     assert "rise ms" in "\n".join(result.lines())
+
+
+def test_a_flight_chirp_fits_what_is_left_of_the_flight_after_the_apex():
+    moon, mars = flight_window(SimConfig()), flight_window(SimConfig(gravity=3.72))
+    assert 0.3 < moon < 0.5  # ~1 s lunar flights: half of it after the apex, less the settling
+    assert 0.1 < mars < 0.7 * moon

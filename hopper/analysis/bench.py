@@ -150,6 +150,20 @@ def stand(config: SimConfig, legs: str, settle_s: float = SETTLE_S) -> StandSimu
     return sim
 
 
+def flight_window(config: SimConfig, share: float = 0.85) -> float:
+    """The chirp length (s) that fits a flight of `config`: `share` of the time from FLIGHT_SETTLE_S
+    after its first apex to its touchdown (about 0.4 s on the Moon, 0.2 s on Mars)."""
+    sim = Simulation(config)
+    apex = None
+    while sim.time < FLIGHT_LIMIT_S and not sim.fallen:
+        events = sim.step()
+        if events & EV_APEX and apex is None:
+            apex = sim.time
+        elif apex is not None and sim.phase is not Phase.FLIGHT:
+            return round(share * max(sim.time - apex - FLIGHT_SETTLE_S, 0.0), 3)
+    raise NotMeasured(f"no flight within {FLIGHT_LIMIT_S:g} s of simulation")
+
+
 def measure_flight(
     config: SimConfig, spec: ChirpSpec, flights: int, attach: Callable[[Simulation], None] | None = None
 ) -> Measurement:
