@@ -42,8 +42,8 @@ BLOCK_SAMPLES = 1000
 CDR_LE = b"\x00\x01\x00\x00"  # CDR encapsulation header: plain CDR, little-endian
 
 
-class _Bad(Exception):
-    """A message that is not a SignalBlock (caught and turned into a LogError with its place)."""
+class _Bad(LogError):
+    """A message that is not a SignalBlock (caught and re-raised as a LogError that says where)."""
 
 
 def encode(names: list[str], units: list[str], values: np.ndarray) -> bytes:
