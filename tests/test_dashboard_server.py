@@ -12,11 +12,12 @@ import socket
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 from calls import Call
 from hopper.app.dashboard.config import DashboardConfig
 from hopper.app.dashboard.feedback import notify_all
-from hopper.app.dashboard.pacing import MAX_LAG_S, Pacer
+from hopper.app.dashboard.pacing import MAX, MAX_LAG_S, MAX_ROUND_STEPS, Pacer, chart_scale
 from hopper.app.dashboard.panels.events import describe
 from hopper.app.dashboard.panels.hops import hop_table_html
 from hopper.app.dashboard.probe import ProbeClient
@@ -357,6 +358,26 @@ def test_pacer_turns_wall_time_into_steps_and_caps_the_debt() -> None:
         pacer.set_speed(math.nan)
 
 
+def test_at_max_the_pacer_hands_out_rounds_of_steps_and_is_never_behind() -> None:
+    pacer = Pacer(0.001, speed=1.0)
+    pacer.set_speed(MAX)
+    assert pacer.flat_out and pacer.pace == 1.0  # nothing delivered yet
+    now = 0.0
+    for _ in range(50):
+        now += 0.001
+        assert pacer.due(now) == MAX_ROUND_STEPS  # whatever the wall clock says
+        pacer.done(MAX_ROUND_STEPS, now)
+    assert pacer.real_time_factor() == pytest.approx(100.0) and pacer.pace == pytest.approx(100.0)
+    assert not pacer.behind
+    pacer.set_speed(2.0)
+    assert not pacer.flat_out and pacer.pace == 2.0
+
+
+def test_the_chart_window_stretches_by_powers_of_two_with_the_pace() -> None:
+    """A 10 s window spans at least 2 s of wall time: whole up to 5x, then 2, 4, 8... times longer."""
+    assert [chart_scale(p, 2.0, 10.0) for p in (0.25, 1.0, 5.0, 5.1, 16.0, 64.0, 100.0)] == [1, 1, 1, 2, 4, 16, 32]
+
+
 def test_pacer_real_time_factor() -> None:
     pacer = Pacer(0.001)
     now = 0.0
@@ -470,4 +491,28 @@ def test_loop_controls_are_commands_the_loop_applies_in_order(dashboard: Dashboa
         held.set()
     assert wait_until(lambda: seen == [(8.0, True)] and dashboard.pacer.paused)
     with pytest.raises(ValueError, match="speed must be"):
-        dashboard.set_speed(math.inf)  # refused in the caller's thread, nothing queued
+        dashboard.set_speed(1000.0)  # refused in the caller's thread, nothing queued
+
+
+def test_max_runs_flat_out_with_frames_stretched_charts_and_says_so(dashboard: Dashboard) -> None:
+    """The Max preset: the loop steps without a budget, frames still go out, the charts' samples
+    (and so their window) are spaced by the scale of the pace delivered, and the status says Max.
+    How fast it runs is the benchmark's to measure (benchmarks/bench_dashboard.py --speeds max)."""
+    panel = dashboard.layout.simulation
+    panel.choose("Max")
+    assert wait_until(lambda: dashboard.pacer.flat_out)
+    assert wait_until(lambda: dashboard.chart_scale > 1, timeout=30), "the charts' window never stretched"
+    assert wait_until(lambda: "(Max)" in dashboard.layout.status.html.content, timeout=10)
+    frames = dashboard.frames
+    assert wait_until(lambda: dashboard.frames >= frames + 3, timeout=10), "no frames at Max"
+    scale = dashboard.chart_scale
+    t = dashboard.layout.plots.window.columns()[0]
+    spacing = np.diff(t[-5:])  # the newest samples: spaced at this scale (or a later one)
+    assert (spacing >= 0.025 * min(scale, 2) - 0.0015).all(), (scale, spacing)
+    panel.choose("1×")
+    assert wait_until(lambda: dashboard.pacer.speed == 1.0 and dashboard.chart_scale == 1)
+    assert wait_until(lambda: "(Max)" not in dashboard.layout.status.html.content, timeout=10)
+    panel.choose("Max")
+    assert wait_until(lambda: dashboard.pacer.flat_out)
+    panel.reset()  # the slider still shows 1: the defaults bring the loop back to 1x all the same
+    assert wait_until(lambda: dashboard.pacer.speed == 1.0)

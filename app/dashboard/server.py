@@ -20,11 +20,11 @@ from hopper.app.dashboard.config import DashboardConfig
 from hopper.app.dashboard.feedback import notify_all
 from hopper.app.dashboard.layout import Layout, build_layout
 from hopper.app.dashboard.loop_commands import Pause, Restore, SetSpeed, StayFallen, Steps
-from hopper.app.dashboard.pacing import Pacer
+from hopper.app.dashboard.pacing import Pacer, chart_scale
 from hopper.app.dashboard.panels import PanelContext
 from hopper.app.dashboard.panels.status import Status
 from hopper.app.dashboard.physics import PhysicsView, bind_drag
-from hopper.app.dashboard.plots import PLOT_SAMPLE_S
+from hopper.app.dashboard.plots import PLOT_SAMPLE_S, PLOT_WINDOW_S
 from hopper.app.dashboard.recording import Recorder
 from hopper.app.dashboard.roles import Roles
 from hopper.app.dashboard.scene import (
@@ -51,6 +51,8 @@ log = logging.getLogger(__name__)
 PLANT_CHANGES = (EventKind.GRAVITY, EventKind.TERRAIN, EventKind.SENSING)
 
 FRAME_S = 1 / 30  # s of wall time between pose updates
+MAX_FRAME_S = 1 / 10  # s between them at Max: the scene keeps up at a third of the rate, the rest steps
+CHART_WALL_S = 2.0  # s of wall time the charts' window spans at least when fast-forwarding (readable)
 MAX_SLEEP_S = 0.005  # s; the loop wakes at least this often to step (5 steps a wake at 1x)
 STATUS_S = 0.2  # s between status-strip updates
 OFF_WORLD_Z_M = -3.0  # m; a torso below this has left the terrain (pushed off its side)
@@ -90,6 +92,7 @@ class Dashboard:
         self._fallen_since: float | None = None
         self._off_notified = -math.inf  # wall s of the last "off the terrain" notice
         self._next_sample = 0.0
+        self.chart_scale = chart_scale(config.speed, CHART_WALL_S, PLOT_WINDOW_S)  # the charts' window / 10 s
         self._pending_restore: Snapshot | None = None  # a Restore drained, applied at the next round's top
         self.frames = 0  # pose frames published, for tests and the benchmark
 
@@ -231,6 +234,12 @@ class Dashboard:
     def apply_speed(self, speed: float) -> None:
         self.pacer.set_speed(speed)
         self.pacer.restart_window()
+        self._rescale_charts()
+
+    def _rescale_charts(self) -> None:
+        """Stretch the charts' window with the pace (at Max, the delivered one) so that it stays readable:
+        the samples are spaced chart_scale times PLOT_SAMPLE_S apart, the window holds as many."""
+        self.chart_scale = chart_scale(self.pacer.pace, CHART_WALL_S, PLOT_WINDOW_S)
 
     def apply_steps(self, count: int) -> None:
         self._single_steps += count
@@ -267,7 +276,7 @@ class Dashboard:
         # Cheap on most ticks: read the state only when a plot sample is due.
         if sim.data.time < self._next_sample:
             return
-        self._next_sample = sim.data.time + PLOT_SAMPLE_S
+        self._next_sample = sim.data.time + PLOT_SAMPLE_S * self.chart_scale
         s = sim.state()
         self.layout.plots.sample(s.time, s.pitch, s.wheel_speed, s.wheel_torque, sim.controller.wheel_command)
         self.trail.sample(s.time, s.x, s.z)
@@ -287,7 +296,9 @@ class Dashboard:
             restored = self._pending_restore is not None
             if restored:
                 self._restore_now()
-            budgeted = self.pacer.due(now, most=math.ceil(2 * FRAME_S * self.pacer.speed / self.pacer.timestep))
+            pacer = self.pacer
+            most = None if pacer.flat_out else math.ceil(2 * FRAME_S * pacer.speed / pacer.timestep)
+            budgeted = pacer.due(now, most)
             if restored:
                 budgeted = 0  # the restored moment must be the one shown
             extra, self._single_steps = self._single_steps, 0
@@ -301,8 +312,13 @@ class Dashboard:
                     log.exception("publishing a frame failed")
                 if now - last_status >= STATUS_S:
                     last_status = now
+                    if pacer.flat_out:
+                        self._rescale_charts()  # the delivered pace moves with the machine's load
                 last_frame = now
-                next_frame = max(next_frame + FRAME_S, now - FRAME_S)  # catch up one frame at most
+                frame_s = MAX_FRAME_S if pacer.flat_out else FRAME_S
+                next_frame = max(next_frame + frame_s, now - frame_s)  # catch up one frame at most
+            if pacer.flat_out and not pacer.paused:
+                continue  # no sleep at Max: the next round steps at once
             self._stopping.wait(max(0.0, min(next_frame - time.perf_counter(), MAX_SLEEP_S)))
 
     def _apply_commands(self) -> None:
@@ -363,7 +379,7 @@ class Dashboard:
             if status is not None:
                 self.layout.status.show(status)
             # Smoothing in simulated time: at 64x the camera keeps up with a robot 64 times as fast.
-            self.camera.update(s.x, s.z, dt * max(self.pacer.speed, 1.0))
+            self.camera.update(s.x, s.z, dt * max(self.pacer.pace, 1.0))
             self.ghost.update(now)
             self.physics.update(sim, now)
         self.trail.publish(now)

@@ -6,13 +6,15 @@ import dataclasses
 
 import viser
 from hopper.app.dashboard.feedback import Refused, checked, guarded, notify
-from hopper.app.dashboard.pacing import MAX_SPEED, MIN_SPEED
+from hopper.app.dashboard.pacing import MAX, MAX_SPEED, MIN_SPEED
 from hopper.app.dashboard.panels import LoopControls, PanelContext
 
 from hopper.commands import Reset
 
 STEPS = {"+1 ms": 1, "+10 ms": 10, "+100 ms": 100}  # control ticks of 1 ms
-SPEEDS = {"¼×": 0.25, "1×": 1.0, "4×": 4.0, "16×": 16.0, "64×": 64.0}  # one click each; the slider takes any
+# One click each; the slider takes any speed in its range. Max runs as fast as the machine allows (the
+# scene at a lower frame rate, the charts' window stretched); the status shows what it delivers.
+SPEEDS = {"¼×": 0.25, "1×": 1.0, "4×": 4.0, "16×": 16.0, "64×": 64.0, "Max": MAX}
 
 
 @dataclasses.dataclass
@@ -33,9 +35,25 @@ class SimulationPanel:
         self.pause.visible, self.resume.visible = not paused, paused
         self.step.visible = paused  # viser button groups cannot be disabled after creation
 
+    def choose(self, preset: str) -> None:
+        """A preset: a speed on the slider (its update sets it), or Max, which the slider cannot show."""
+        speed = SPEEDS.get(preset, 1.0)
+        if speed == MAX:
+            self.applied_speed = MAX
+            self.loop.set_speed(MAX)
+        else:
+            self.set_speed(speed)
+
+    def set_speed(self, speed: float) -> None:
+        """Put the slider at `speed`; from Max, the loop is told even if the slider was there already."""
+        if self.applied_speed == MAX and self.speed.value == speed:
+            self.applied_speed = speed
+            self.loop.set_speed(speed)
+        self.speed.value = speed
+
     def reset(self) -> None:
         """Defaults: running at 1x, auto reset after a fall."""
-        self.speed.value = 1.0
+        self.set_speed(1.0)
         self.stay_fallen.value = False
         self.set_paused(False)
 
@@ -53,7 +71,7 @@ def build_simulation_panel(gui: viser.GuiApi, ctx: PanelContext, speed: float = 
         speed=gui.add_slider(
             "Speed ×", MIN_SPEED, MAX_SPEED, 0.1, speed, marks=((1.0, "1"), (16.0, "16"), (32.0, "32"), (64.0, "64"))
         ),
-        presets=gui.add_button_group("Speeds", tuple(SPEEDS), hint="Fast-forward; the status says if it keeps up"),
+        presets=gui.add_button_group("Speeds", tuple(SPEEDS), hint="Fast-forward; Max: as fast as the machine allows"),
         stay_fallen=gui.add_checkbox("Stay fallen", False, hint="After a fall, keep the robot down for inspection"),
         reset_button=gui.add_button("Defaults", icon=viser.Icon.RESTORE, color="dark", hint="1x speed, auto reset"),
         applied_speed=speed,
@@ -63,7 +81,7 @@ def build_simulation_panel(gui: viser.GuiApi, ctx: PanelContext, speed: float = 
     panel.step.on_click(guarded(lambda _: ctx.loop.request_steps(STEPS.get(panel.step.value, 0))))
     panel.reset_robot.on_click(guarded(lambda _: ctx.submit(Reset("user"))))
     panel.reset_button.on_click(guarded(lambda _: panel.reset()))
-    panel.presets.on_click(guarded(lambda _: setattr(panel.speed, "value", SPEEDS.get(panel.presets.value, 1.0))))
+    panel.presets.on_click(guarded(lambda _: panel.choose(panel.presets.value)))
 
     @guarded
     def on_speed(event: viser.GuiEvent) -> None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import html
+import math
 
 import viser
 
@@ -15,7 +16,7 @@ class Status:
     phase: str
     time: float  # s of simulation
     rtf: float  # simulated s per wall s
-    speed: float  # asked, x real time
+    speed: float  # asked, x real time (math.inf: Max)
     paused: bool
     behind: bool
     hops: int
@@ -52,6 +53,8 @@ def gauge_html(fraction: float, capacity_nms: float) -> str:
 def status_html(s: Status) -> str:
     if s.paused:
         rtf = "<b class='hd-paused'>paused</b>"
+    elif math.isinf(s.speed):
+        rtf = f"{s.rtf:.1f}× <span class='hd-dim' title='as fast as the machine allows'>(Max)</span>"
     elif s.behind:
         rtf = f"<b class='hd-behind' title='the machine cannot keep up'>{s.rtf:.2f}× of {s.speed:g}× — behind</b>"
     else:
