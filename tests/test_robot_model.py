@@ -163,3 +163,22 @@ def test_a_snapshot_of_another_model_is_refused_and_episodes_do_not_share_a_mode
         packaged.check_fits(other.snapshot())
     with pytest.raises(InvalidConfig, match="share the model"):
         packaged.start_over(SimConfig(model=path, terrain="flat"))
+
+
+def test_the_model_based_laws_design_on_the_flown_robots_wheel(tmp_path: Path) -> None:
+    from hopper.controllers import with_controller
+    from hopper.laws.plant import attitude_model
+
+    config = SimConfig(model=str(variants.stronger_motor(tmp_path, 1.2)), terrain="flat")
+    robot = robot_of(config)
+    assert robot.wheel_torque_limit == pytest.approx(1.2 * 29.499, rel=1e-9)
+    assert robot.wheel_no_load_speed == pytest.approx(1.2 * 0.9833 / (0.0007825 * 30), rel=1e-9)
+    assert attitude_model(config).full.robot == robot  # LQR's and MPC's plant: the flown model's
+    assert attitude_model(SimConfig(terrain="flat")).full.robot == PACKAGED
+    for law in ("lqr", "mpc"):
+        sim = Simulation(with_controller(config, law, ()))
+        hops = sim.run(2)
+        assert len(hops) == 2 and not sim.fallen and sim.controller_fault is None
+        assert sim.observation().torque_bounds[1] == pytest.approx(
+            robot.wheel_torque_limit
+        )  # at rest: the stall torque

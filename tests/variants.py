@@ -48,3 +48,14 @@ def renamed_actuator(folder: Path, old: str = "wheel", new: str = "wheel_motor")
     path = folder / "renamed.xml"
     path.write_text(spec.to_xml(), encoding="utf-8")
     return path
+
+
+def stronger_motor(folder: Path, factor: float = 1.2) -> Path:
+    """The packaged model with a wheel motor `factor` times as strong (stall torque and no-load speed)."""
+    spec = packaged()
+    motor = spec.actuator("wheel")
+    motor.gainprm = [motor.gainprm[0] * factor, *motor.gainprm[1:]]
+    motor.forcerange = [r * factor for r in motor.forcerange]
+    path = folder / "stronger.xml"
+    path.write_text(spec.to_xml(), encoding="utf-8")
+    return path

@@ -7,7 +7,7 @@ import math
 import control as ct
 import numpy as np
 
-from hopper.config import WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT
+from hopper.config import WHEEL_TORQUE_LIMIT
 from hopper.controllers.api import ControllerContext, ControllerError, Observation, Param
 from hopper.laws.plant import AttitudeModel, attitude_model, closed_loop_radius
 
@@ -45,7 +45,8 @@ class LQR:
         if self.model is None:
             raise ControllerError("LQR needs its plant: it is configured when attached to a simulation")
         m = self.model
-        scales = (math.radians(self.pitch_tol), math.radians(self.rate_tol), self.wheel_tol * WHEEL_NO_LOAD_SPEED)
+        top = m.full.robot.wheel_no_load_speed  # rad/s, the plant's wheel's
+        scales = (math.radians(self.pitch_tol), math.radians(self.rate_tol), self.wheel_tol * top)
         q = np.diag([1.0 / s**2 for s in scales])
         r = np.array([[1.0 / self.torque_scale**2]])
         k, _, _ = ct.dlqr(m.a, m.b.reshape(3, 1), q, r)

@@ -14,26 +14,37 @@ import numpy as np
 import osqp
 import scipy.sparse as sp
 
-from hopper.config import WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT, SimConfig
-from hopper.control.wheel import WHEEL_DAMPING
+from hopper.config import WHEEL_TORQUE_LIMIT, SimConfig
 from hopper.controllers.api import ControllerContext, ControllerError, Observation, Param
 from hopper.laws.plant import AttitudeModel, attitude_model
 from hopper.layout import ModelLayout
+from hopper.robot import PACKAGED, Robot
 
 INF = math.inf
 SLACK_PRICE = 100.0  # cost per rad/s of wheel speed over its limit (exact penalty: zero whenever feasible)
 SLACK_WEIGHT = 1.0  # quadratic on the same slack, so that P has no zero on it
-STATE_SCALE = (math.radians(1.0), math.radians(10.0), WHEEL_NO_LOAD_SPEED)  # rad, rad/s, rad/s
-# Off the plan by this much (pitch, rate, wheel speed), the state was kicked: the plan is dropped and
-# the gain flies alone for recover_ms, until the legs have caught up with the torso (the model's premise).
-JUMP = (math.radians(2.0), math.radians(30.0), 0.2 * WHEEL_NO_LOAD_SPEED)
+
+
+def state_scale(robot: Robot) -> tuple[float, float, float]:
+    """The states' natural sizes: 1 deg, 10 deg/s and the wheel's top speed (rad, rad/s, rad/s)."""
+    return (math.radians(1.0), math.radians(10.0), robot.wheel_no_load_speed)
+
+
+def jump(robot: Robot) -> tuple[float, float, float]:
+    """Off the plan by this much (pitch rad, rate rad/s, wheel speed rad/s), the state was kicked: the
+    plan is dropped and the gain flies alone for recover_ms, until the legs have caught up with the
+    torso (the model's premise)."""
+    return (math.radians(2.0), math.radians(30.0), 0.2 * robot.wheel_no_load_speed)
+
+
 NO_TIME_LIMIT = 1e10  # s: OSQP's own default, i.e. none
 MAX_BACKOFF = 8  # replan periods at most between failed solves
 STATS_KEPT = 2000  # solves whose time and iterations stats() sums up
 REG = 1e-6  # (scaled) on what the cost leaves free (rate, wheel speed): P stays positive definite
 # The fast loop's gain: the built-in LQR's (Bryson tolerances on hopper.laws.plant's 1 ms model, which
 # is right at the loop's frequencies: there the legs' servos do not follow and the torso is light).
-ANCILLARY_TOL = (math.radians(2.0), math.radians(40.0), WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT)
+# (The wheel speed's and the torque's tolerances are the plant's wheel's top speed and stall torque.)
+ANCILLARY_TOL = (math.radians(2.0), math.radians(40.0))
 RHO = 3e-3  # ADMM's step at the start of each solve (tuned on recorded flights: 15 iterations a replan)
 OSQP_SETTINGS = dict(  # noqa: C408 (the solver's names)
     verbose=False,
@@ -63,6 +74,7 @@ class PredictionModel:
     a: np.ndarray  # (3, 3)
     b: np.ndarray  # (3,)
     dt: float  # s
+    robot: Robot = PACKAGED  # whose wheel: its top speed, stall torque and back-EMF slope
 
     def held(self, ticks: int) -> tuple[np.ndarray, np.ndarray]:
         """The model over `ticks` steps with the input held: (a^m, sum_i a^i b)."""
@@ -84,7 +96,9 @@ def prediction_model(config: SimConfig, layout: ModelLayout) -> PredictionModel:
     torso then turns with the inertia it has in flight (about 0.55 kg m^2), as the full plant and the
     simulation do. The free states (x, z, their speeds, the wheel's angle) are held at zero.
     """
-    key = SimConfig(gravity=config.gravity, gait=config.gait, timestep=config.timestep, terrain="flat")
+    key = SimConfig(
+        gravity=config.gravity, gait=config.gait, timestep=config.timestep, terrain="flat", model=config.model
+    )
     return _prediction_model(key, layout.v_legs)
 
 
@@ -100,7 +114,7 @@ def _prediction_model(config: SimConfig, legs: tuple[int, ...]) -> PredictionMod
     steady = np.linalg.solve(np.eye(len(fast)) - a_ff, np.c_[a[np.ix_(fast, slow)], b[fast]])
     a_r = a[np.ix_(slow, slow)] + a[np.ix_(slow, fast)] @ steady[:, :3]
     b_r = b[slow] + a[np.ix_(slow, fast)] @ steady[:, 3]
-    return PredictionModel(a_r, b_r, model.dt)
+    return PredictionModel(a_r, b_r, model.dt, model.full.robot)
 
 
 def step_grid(step_ticks: int, growth: float, horizon_ticks: int) -> np.ndarray:
@@ -151,6 +165,13 @@ class QP:
     ) -> None:
         n = self.steps = int(ticks.size)
         self.ticks = ticks
+        robot = model.robot
+        top, stall, damping, scale = (
+            robot.wheel_no_load_speed,
+            robot.wheel_torque_limit,
+            robot.wheel_damping,
+            state_scale(robot),
+        )
         self.dt = model.dt
         self.remaining = np.cumsum(ticks[::-1])[::-1] * model.dt  # s from each step's start to touchdown
         held = {int(m): model.held(int(m)) for m in set(ticks.tolist())}
@@ -163,9 +184,7 @@ class QP:
         nz = self.nz = nx + n + (n + 1)
         # Each variable in units of its natural size (1 deg, 10 deg/s, top speed, stall torque): the
         # weights span ten decades in SI units, and ADMM converges slowly on a badly scaled problem.
-        self.scale = np.concatenate(
-            [np.tile(STATE_SCALE, n + 1), np.full(n, WHEEL_TORQUE_LIMIT), np.full(n + 1, WHEEL_NO_LOAD_SPEED)]
-        )
+        self.scale = np.concatenate([np.tile(scale, n + 1), np.full(n, stall), np.full(n + 1, top)])
         self.var_step = np.concatenate([np.repeat(np.arange(n + 1), 3), np.arange(n), np.arange(n + 1)])
         p = np.zeros(nz)
         p[0 : 3 * n : 3] = h * pitch_w  # the pitch integrated over each step, from its start
@@ -176,7 +195,7 @@ class QP:
         self.p = np.maximum(p * self.scale**2, REG)  # P's diagonal, scaled
         self.P = sp.diags(self.p, format="csc")
         self.q = np.zeros(nz)
-        self.q[nx + n :] = SLACK_PRICE * WHEEL_NO_LOAD_SPEED
+        self.q[nx + n :] = SLACK_PRICE * top
 
         blocks: list[sp.spmatrix] = []
         step_of: list[np.ndarray] = []  # the step whose rows they are: relaxed before the pin; -1 never
@@ -199,34 +218,32 @@ class QP:
             dyn[3 * k : 3 * k + 3, 3 * k : 3 * k + 3] = self.a[k]
             dyn[3 * k : 3 * k + 3, nx + k] = self.b[k].reshape(3, 1)
             dyn[3 * k : 3 * k + 3, 3 * k + 3 : 3 * k + 6] = -np.eye(3)
-        self.row_dyn = add(dyn, np.repeat(np.arange(n), 3), np.zeros(3 * n), np.zeros(3 * n), STATE_SCALE)
+        self.row_dyn = add(dyn, np.repeat(np.arange(n), 3), np.zeros(3 * n), np.zeros(3 * n), scale)
         # The states themselves: free, but the pinned step's are the measurement.
-        self.row_pin = add(sp.eye(nx, nz), np.full(nx, -1), np.full(nx, -INF), np.full(nx, INF), STATE_SCALE)
+        self.row_pin = add(sp.eye(nx, nz), np.full(nx, -1), np.full(nx, -INF), np.full(nx, INF), scale)
         # Wheel speed within its limit, softened: w_k - s_k <= w_max and w_k + s_k >= -w_max.
         spd = sp.lil_matrix((2 * (n + 1), nz))
         for k in range(n + 1):
             spd[2 * k, 3 * k + 2], spd[2 * k, nx + n + k] = 1.0, -1.0
             spd[2 * k + 1, 3 * k + 2], spd[2 * k + 1, nx + n + k] = 1.0, 1.0
-        limits = np.tile([-INF, -WHEEL_NO_LOAD_SPEED, WHEEL_NO_LOAD_SPEED, INF], n + 1).reshape(-1, 4)
-        self.row_speed = add(
-            spd, np.repeat(np.arange(n + 1), 2), limits[:, :2].ravel(), limits[:, 2:].ravel(), WHEEL_NO_LOAD_SPEED
-        )
+        limits = np.tile([-INF, -top, top, INF], n + 1).reshape(-1, 4)
+        self.row_speed = add(spd, np.repeat(np.arange(n + 1), 2), limits[:, :2].ravel(), limits[:, 2:].ravel(), top)
         # Slacks are never negative.
         self.row_slack = add(
             sp.hstack([sp.csr_matrix((n + 1, nx + n)), sp.eye(n + 1)]),
             np.full(n + 1, n + 1),  # always active
             np.zeros(n + 1),
             np.full(n + 1, INF),
-            WHEEL_NO_LOAD_SPEED,
+            top,
         )
         # The motor's envelope, -T <= u + D w <= T at both ends of each step (w moves within it), |u| <= T.
         env = sp.lil_matrix((3 * n, nz))
         for k in range(n):
-            env[3 * k, nx + k], env[3 * k, 3 * k + 2] = 1.0, WHEEL_DAMPING
-            env[3 * k + 1, nx + k], env[3 * k + 1, 3 * k + 5] = 1.0, WHEEL_DAMPING
+            env[3 * k, nx + k], env[3 * k, 3 * k + 2] = 1.0, damping
+            env[3 * k + 1, nx + k], env[3 * k + 1, 3 * k + 5] = 1.0, damping
             env[3 * k + 2, nx + k] = 1.0
-        limit = np.full(3 * n, WHEEL_TORQUE_LIMIT)
-        self.row_env = add(env, np.repeat(np.arange(n), 3), -limit, limit, WHEEL_TORQUE_LIMIT)
+        limit = np.full(3 * n, stall)
+        self.row_env = add(env, np.repeat(np.arange(n), 3), -limit, limit, stall)
 
         # Rows in natural units too: OSQP's tolerances then mean the same thing in every row.
         self.row_scale = 1.0 / np.concatenate(sizes)
@@ -381,7 +398,7 @@ class MPC:
         self.model: PredictionModel | None = None
         self.fallbacks = {"previous_plan": 0, "gain": 0}  # replans that failed, by what flew instead
         self.solves = 0
-        self.kicks = 0  # times the state left the plan by more than JUMP (the plan dropped, see recover_ms)
+        self.kicks = 0  # times the state left the plan by more than jump() (the plan dropped, see recover_ms)
         self.solve_times_us: deque[float] = deque(maxlen=STATS_KEPT)  # the last solves' wall times, us
         self.iterations: deque[int] = deque(maxlen=STATS_KEPT)  # and their ADMM iterations
         self.statuses: dict[str, int] = {}
@@ -397,6 +414,7 @@ class MPC:
         self._ticks = 0  # calls since reset
         self._next_replan = 0  # the call at which to replan
         self._nominal = [0.0, 0.0, 0.0]  # the plan's state now
+        self._jump = jump(PACKAGED)  # the configured plant's wheel's (configure)
         self._a: list[float] = []  # the 1 ms model as floats, row-major: the tick's arithmetic in plain Python
         self._b: list[float] = []
         self._step = 0  # the plan's step now
@@ -408,6 +426,7 @@ class MPC:
         self.model = prediction_model(config, ModelLayout.of(context.model))
         self._fast = attitude_model(config)
         self._a, self._b = self.model.a.ravel().tolist(), self.model.b.tolist()
+        self._jump = jump(self.model.robot)
         self._flight_s = 2.0 * math.sqrt(2.0 * config.gravity * config.gait.apex_height) / config.gravity
         self._built = None
 
@@ -429,8 +448,9 @@ class MPC:
         ControllerError if it was never configured."""
         if self.model is None or self._fast is None:
             raise ControllerError("MPC needs its plant: it is configured when attached to a simulation")
-        q = np.diag([1.0 / s**2 for s in ANCILLARY_TOL[:3]])
-        r = np.array([[1.0 / ANCILLARY_TOL[3] ** 2]])
+        robot = self.model.robot
+        q = np.diag([1.0 / s**2 for s in (*ANCILLARY_TOL, robot.wheel_no_load_speed)])
+        r = np.array([[1.0 / robot.wheel_torque_limit**2]])
         k, _, _ = ct.dlqr(self._fast.a, self._fast.b.reshape(3, 1), q, r)
         self._gain = tuple(float(v) for v in -np.asarray(k).ravel())
         self._qp = self._make_qp()
@@ -489,7 +509,7 @@ class MPC:
         u = plan.torques[self._step]
         nominal = self._nominal  # updated in place: no allocation on a tick (a GC pass inside a call costs 0.1 s)
         n0, n1, n2 = nominal
-        j0, j1, j2 = JUMP
+        j0, j1, j2 = self._jump
         if abs(x0 - n0) > j0 or abs(x1 - n1) > j1 or abs(x2 - n2) > j2:  # kicked: see the class's docstring
             self.kicks += 1
             self._plan = None

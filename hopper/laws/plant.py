@@ -29,8 +29,11 @@ class AttitudeModel:
 
 
 def attitude_model(config: SimConfig) -> AttitudeModel:
-    """The attitude plant at config's gravity, gait and timestep (cached: a linearization takes ~0.3 s)."""
-    key = SimConfig(gravity=config.gravity, gait=config.gait, timestep=config.timestep, terrain="flat")
+    """The attitude plant of config's model at its gravity, gait and timestep (cached: a linearization
+    takes ~0.3 s). The full plant's `robot` is that model's."""
+    key = SimConfig(
+        gravity=config.gravity, gait=config.gait, timestep=config.timestep, terrain="flat", model=config.model
+    )
     return _model(key)
 
 
