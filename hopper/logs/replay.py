@@ -181,6 +181,14 @@ def hops(log: Log) -> list[tuple[int, int]]:
     return [(a, b) for a, b in zip(lifts, [*lifts[1:], len(log.time)], strict=True)]
 
 
+def phases(log: Log) -> list[tuple[int, int]]:
+    """Each flight (liftoff to touchdown) and each stance after one (touchdown to the next liftoff, or
+    the log's end), in time order: a replay from the log's state at every contact change."""
+    spans = flights(log)
+    stances = [(b, a) for (_, b), (a, _) in zip(spans, [*spans[1:], (len(log.time), 0)], strict=True)]
+    return sorted(spans + [(a, b) for a, b in stances if b - a >= 2])
+
+
 @dataclasses.dataclass(frozen=True)
 class Errors:
     """Simulated minus logged over one replay (or several, concatenated)."""
