@@ -20,7 +20,7 @@ from hopper.config import GRAVITY_PRESETS, MISMATCH_FACTORS, MISMATCH_OFFSETS, S
 from hopper.errors import HopperError
 from hopper.logs.io import read_log, write_log
 from hopper.logs.replay import DELAY_TICKS, Errors, World, hops, replay_hops, simulate, world_model
-from hopper.logs.sysid import STAGES
+from hopper.logs.sysid import PROFILE_SIGMAS, STAGES
 from hopper.mismatch import Nominal
 from hopper.model import MODEL_XML
 
@@ -259,6 +259,11 @@ def table(fit, truth: dict[str, float]) -> str:  # noqa: ANN001 (a sysid.Fit)
         known = "" if t is None else f"{t:.5g}"
         lines.append(
             row.format(e.name, e.unit, f"{e.nominal:.5g}", known, f"{e.value:.5g}", f"{e.sigma:.2g}", error, flag)
+        )
+    for name, (low, high) in fit.profile.items():
+        lines.append(
+            f"{name}: its cost is within {PROFILE_SIGMAS:g} sigma of its least from {low:.4g} to {high:.4g} "
+            "(its line search's profile; wide where the feet never slip)"
         )
     for a, b, c in fit.not_separable():
         lines.append(f"not separable: {a} and {b} (correlation {c:+.4f}): only a combination of them is identified")

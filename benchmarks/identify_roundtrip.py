@@ -117,6 +117,11 @@ def run_case(name: str, formats: list[str], hops: int, refit_each: bool, folder:
                 err, passed = f"{100 * share:+.2f}%", abs(share) <= TOLERANCE.get(e.name, DEFAULT_TOLERANCE)
             ok &= passed
             print(f"   {e.name:16s} {t:10.5g} {e.value:10.5g} {e.sigma:9.2g} {err:>8s}  {'yes' if passed else 'NO'}")
+        for pname, (low, high) in fit.profile.items():
+            print(
+                f"   {pname}: profile range (cost within {sysid.PROFILE_SIGMAS:g} sigma of its least) "
+                f"{low:.4g}..{high:.4g}"
+            )
         for a, b, c in fit.not_separable():
             print(f"   not separable: {a}, {b} ({c:+.5f})")
         for label, first in (("fit", 0), ("validation", hops)):

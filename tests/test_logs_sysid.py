@@ -107,3 +107,5 @@ def test_friction_is_found_by_its_line_search() -> None:
     model, _ = world_model(World())
     fit = sysid.identify(model, log, sysid.hop_span(log, 0, 1), ("friction",), stages=(0.05,), max_evaluations=6)
     assert fit.values["friction"] == pytest.approx(0.6, rel=0.10)  # the tolerance for friction
+    low, high = fit.profile["friction"]
+    assert low <= fit.values["friction"] <= high

@@ -199,6 +199,9 @@ class Fit:
     seconds: float
     windows: int
     message: str  # the optimiser's
+    # A line-searched parameter's profile range (hopper.logs.sysid.line_search), its own units: the
+    # measure of its uncertainty where the Jacobian's sigma is blind (friction).
+    profile: dict[str, tuple[float, float]] = dataclasses.field(default_factory=dict)
 
     @property
     def values(self) -> dict[str, float]:
@@ -330,13 +333,17 @@ REFINE = 16  # golden-section steps after the scan: the bracket shrinks to 0.05 
 # The line search's windows, s: so short that a foot's slip or stick changes little within one, the
 # friction's cost is unimodal there (on the issue's round trip: it is at 0.03 s, it is not at 0.1 s).
 SCAN_WINDOW_S = 0.03
+PROFILE_SIGMAS = 2.0  # the line search's profile range: a cost within 2^2 residual variances of its least
 
 
-def line_search(problem: Problem, z: np.ndarray, i: int) -> np.ndarray:
-    """z with its i-th parameter moved to the least cost along its axis: a scan over factors 0.35 to 2
-    of its value, then golden-section steps between the best point's neighbours. For a parameter
-    whose effect is piecewise (friction: a foot slips or sticks), where least squares' local model
-    is blind between a window's slip and its stick."""
+def line_search(problem: Problem, z: np.ndarray, i: int) -> tuple[np.ndarray, tuple[float, float]]:
+    """(z with its i-th parameter moved to the least cost along its axis, the profile range): a scan
+    over factors 0.35 to 2 of its value, then golden-section steps between the best point's
+    neighbours. For a parameter whose effect is piecewise (friction: a foot slips or sticks), where
+    least squares' local model is blind between a window's slip and its stick, and its Jacobian's
+    sigma says nothing. The profile range spans the values tried whose cost is within PROFILE_SIGMAS^2
+    residual variances of the least (the others held): where the feet never slip it is wide."""
+    tried: list[tuple[float, float]] = []
 
     def at(value: float) -> np.ndarray:
         moved = z.copy()
@@ -345,7 +352,8 @@ def line_search(problem: Problem, z: np.ndarray, i: int) -> np.ndarray:
 
     def cost(value: float) -> float:
         r = problem.residuals(at(value))
-        return float(r @ r)
+        tried.append((float(r @ r), value))
+        return tried[-1][0]
 
     value = float(problem.nominal[i] + z[i] * problem.scale[i])
     grid = value * SCAN
@@ -363,8 +371,10 @@ def line_search(problem: Problem, z: np.ndarray, i: int) -> np.ndarray:
             a, c, fc = c, d, fd
             d = a + GOLDEN * (b - a)
             fd = cost(d)
-    best = min([(costs[k], grid[k]), (fc, c), (fd, d)])[1]
-    return at(best)
+    least, best = min(tried)
+    variance = least / max(problem.residuals(at(best)).size - len(z), 1)
+    inside = [v for f, v in tried if f <= least + PROFILE_SIGMAS**2 * variance]
+    return at(best), (min(inside), max(inside))
 
 
 def identify(
@@ -387,6 +397,7 @@ def identify(
     if not stages or any(w <= 0 for w in stages):
         raise IdentifyError(f"window lengths must be positive seconds, got {list(stages)}")
     robot = Robot(model)
+    profile: dict[str, tuple[float, float]] = {}
     z = None
     evaluations = 0  # of the stages before the last
     for i, window_s in enumerate(stages):
@@ -400,7 +411,7 @@ def identify(
         result = _least_squares(problem, z, max_evaluations)
         if "friction" in problem.names:  # its cost is rugged (slip or stick): a line search, then LM again
             short = Problem(robot, log, windows(log, span, SCAN_WINDOW_S), names, delay_ticks)
-            z = line_search(short, result.x, problem.names.index("friction"))
+            z, profile["friction"] = line_search(short, result.x, problem.names.index("friction"))
             evaluations += short.evaluations
             result = _least_squares(problem, z, max_evaluations)
         z = result.x
@@ -430,6 +441,7 @@ def identify(
         clock.perf_counter() - started,
         len(spans),
         str(result.message),
+        profile,
     )
 
 
