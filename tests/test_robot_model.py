@@ -182,3 +182,21 @@ def test_the_model_based_laws_design_on_the_flown_robots_wheel(tmp_path: Path) -
         assert sim.observation().torque_bounds[1] == pytest.approx(
             robot.wheel_torque_limit
         )  # at rest: the stall torque
+
+
+def test_the_reports_torque_figure_draws_the_flown_motors_limit(tmp_path: Path) -> None:
+    import numpy as np
+
+    from hopper.report.run_figures import wheel_torque
+    from hopper.report.runs import Run
+
+    def limit_lines(model: str | None) -> set[float]:
+        trace = {"t_s": np.array([0.0, 1.0]), "wheel_torque_nm": np.array([0.0, 5.0])}
+        run = Run(label="x", wheel=True, fell=False, settings={"model": model}, hops=[], trace=trace, source="test")
+        ax = wheel_torque(run).axes[0]
+        return {round(float(line.get_ydata()[0]), 6) for line in ax.get_lines()[1:]}
+
+    stronger = limit_lines(str(variants.stronger_motor(tmp_path, 1.2)))
+    assert max(stronger) == pytest.approx(1.2 * 29.499, abs=1e-6)
+    assert max(limit_lines(None)) == 29.5
+    assert limit_lines(str(tmp_path / "gone.xml")) == set()  # a model no longer there: no limit drawn

@@ -7,7 +7,7 @@ from collections.abc import Sequence
 import numpy as np
 from matplotlib.figure import Figure
 
-from hopper.config import SATURATION_FRACTION, WHEEL_TORQUE_LIMIT
+from hopper.config import SATURATION_FRACTION
 from hopper.report import style
 from hopper.report.runs import Run
 
@@ -77,16 +77,20 @@ def pitch_and_wheel(on: Run, off: Run | None = None) -> Figure:
 
 
 def wheel_torque(run: Run) -> Figure:
-    """Wheel torque with its +-29.5 N m limit and the saturation threshold (paper Fig. 4b)."""
-    fig, (ax,) = style.new_figure(1, height=2.8, title=f"Reaction-wheel torque ({run.label})")
+    """Wheel torque with the flown robot's limit (+-29.5 N m on the packaged one) and the saturation
+    threshold (paper Fig. 4b); without the limit lines if the run's model cannot be read now."""
+    limit = run.wheel_torque_limit()
+    unknown = "" if limit is not None else f", limit unknown: cannot read {run.settings.get('model')}"
+    fig, (ax,) = style.new_figure(1, height=2.8, title=f"Reaction-wheel torque ({run.label}{unknown})")
     _shade_flights(ax, run)
     ax.plot(run.trace["t_s"], run.trace["wheel_torque_nm"], color=style.WHEEL_ON, lw=0.9, label="wheel torque")
-    for sign in (1, -1):
-        ax.axhline(sign * WHEEL_TORQUE_LIMIT, color=style.LIMIT, ls="--", lw=1,
-                   label=f"limit ±{WHEEL_TORQUE_LIMIT:g} N m" if sign > 0 else None)  # fmt: skip
-        ax.axhline(sign * SATURATION_FRACTION * WHEEL_TORQUE_LIMIT, color=style.LIMIT, ls=":", lw=0.8,
-                   label=f"saturated ≥ {SATURATION_FRACTION:.0%}" if sign > 0 else None)  # fmt: skip
-    ax.set_ylim(-1.15 * WHEEL_TORQUE_LIMIT, 1.15 * WHEEL_TORQUE_LIMIT)
+    if limit is not None:
+        for sign in (1, -1):
+            ax.axhline(sign * limit, color=style.LIMIT, ls="--", lw=1,
+                       label=f"limit ±{limit:.4g} N m" if sign > 0 else None)  # fmt: skip
+            ax.axhline(sign * SATURATION_FRACTION * limit, color=style.LIMIT, ls=":", lw=0.8,
+                       label=f"saturated ≥ {SATURATION_FRACTION:.0%}" if sign > 0 else None)  # fmt: skip
+        ax.set_ylim(-1.15 * limit, 1.15 * limit)
     ax.set_ylabel("torque at the wheel (N m)")
     ax.set_xlabel("simulation time (s)")
     style.legend_above(ax)

@@ -7,6 +7,9 @@ from typing import Any
 
 import numpy as np
 
+from hopper.config import SimConfig
+from hopper.errors import ModelError
+from hopper.robot import PACKAGED
 from hopper.trace import TRACE_COLUMNS
 
 FLOAT_COLUMNS = tuple(c for c in TRACE_COLUMNS if c != "phase")
@@ -28,6 +31,19 @@ class Run:
     @property
     def seed(self) -> int | None:
         return self.settings.get("seed")
+
+    def wheel_torque_limit(self) -> float | None:
+        """N m, the flown robot's wheel torque limit: its `--model`'s (hopper.robot), the packaged
+        one's without; None if that model cannot be read now."""
+        model = self.settings.get("model")
+        if model is None:
+            return PACKAGED.wheel_torque_limit
+        from hopper.model import robot_of  # MuJoCo's import, paid only for a user's model
+
+        try:
+            return robot_of(SimConfig(model=model, terrain="flat")).wheel_torque_limit
+        except ModelError:
+            return None
 
     def flights(self) -> list[tuple[float, float]]:
         """(liftoff, touchdown) times of each hop, s."""
