@@ -15,6 +15,7 @@ from calls import Call
 from hopper.app.dashboard.config import DashboardConfig
 from hopper.app.dashboard.server import Dashboard
 from net import free_port, wait_until
+from pages import close_notices
 from PIL import Image
 
 from hopper.events import Disturbance, Event, EventKind
@@ -117,9 +118,7 @@ def test_dashboard_in_a_real_browser(browser, tmp_path: Path) -> None:
 
         # The 3D canvas is not blank. Software WebGL needs a few seconds for the first frame, so poll;
         # viser's notice about software rendering is closed first so that it is not counted.
-        close_notice = page.locator(".mantine-Notification-root").get_by_role("button")
-        if close_notice.count():
-            close_notice.first.click()
+        close_notices(page)  # viser's software-WebGL notice
         scene = page.locator("canvas").nth(page.evaluate(LARGEST_CANVAS_JS))
         shot, colours = tmp_path / "canvas.png", 0
 

@@ -14,6 +14,7 @@ from hopper.app.dashboard.config import DashboardConfig
 from hopper.app.dashboard.plots import LIMIT_COLOR
 from hopper.app.dashboard.server import Dashboard
 from net import free_port, wait_until
+from pages import close_notices
 from PIL import Image
 from test_dashboard_e2e import LARGEST_CANVAS_JS, PAGE_LOAD_MS, browser  # noqa: F401  (browser: the Chromium fixture)
 
@@ -41,9 +42,7 @@ def open_page(browser, dashboard: Dashboard, *, scene: bool = True):  # noqa: F8
     page.goto(dashboard.url)
     page.get_by_text("Kp", exact=True).first.wait_for(timeout=PAGE_LOAD_MS)
     assert wait_until(lambda: len(dashboard.server.get_clients()) == 1, timeout=30)
-    close_notice = page.locator(".mantine-Notification-root").get_by_role("button")  # viser's software-GL notice
-    if close_notice.count():
-        close_notice.first.click()
+    close_notices(page)  # viser's software-WebGL notice
     if not scene:
         page.evaluate(
             "css => { const s = document.createElement('style'); s.id = 'hide-scene'; s.textContent = css;"

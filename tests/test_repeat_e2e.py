@@ -8,6 +8,7 @@ import time
 
 from hopper.app.dashboard.server import Dashboard
 from net import wait_until
+from pages import close_notices
 from test_dashboard_e2e import PAGE_LOAD_MS, browser  # noqa: F401  (the Chromium fixture)
 from test_workbench_e2e import _type
 
@@ -73,9 +74,7 @@ def test_a_schedule_set_in_the_page_kicks_every_second_flight_and_fills_the_resp
         assert cells[3] == (f"{hop.settling_time_s:.2f}" if hop.settled else f">{hop.settling_time_s:.2f}")
         assert cells[4] == f"{hop.peak_wheel_torque_nm:.1f}" and cells[5] == f"{hop.peak_momentum_pct:.0f}"
         assert cells[6] == f"{hop.landing_error_deg:+.2f}"
-        notice = page.locator(".mantine-Notification-root").get_by_role("button")
-        if notice.count():  # viser's software-WebGL notice would cover the scene in the screenshot
-            notice.first.click()
+        close_notices(page)  # viser's software-WebGL notice
         # A script, not the locator's scroll: that waits for the table to be still, and it is live.
         page.evaluate("() => document.querySelector('table.hd-response').scrollIntoView({block: 'end'})")
         page.screenshot(path=str(tmp_path / "repeat-hop-table.png"))  # 1440x900, to look at

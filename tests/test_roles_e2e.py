@@ -11,6 +11,7 @@ from pathlib import Path
 from hopper.app.dashboard.access import page_url
 from hopper.app.dashboard.server import Dashboard
 from net import wait_until
+from pages import close_notices
 from test_dashboard_e2e import MIN_CANVAS_COLOURS, PAGE_LOAD_MS, browser, distinct_colours  # noqa: F401  (browser: a fixture)
 from test_dashboard_inputs_e2e import HIDE_SCENE, box, notice, start, type_into
 
@@ -35,9 +36,7 @@ def open_page(browser, d: Dashboard, clients: int):  # noqa: F811
     page.get_by_text("Kp", exact=True).first.wait_for(timeout=PAGE_LOAD_MS)
     assert wait_until(lambda: len(d.roles.seated) == clients, timeout=60), "the page was never seated"
     page.locator(".hd-role").wait_for(timeout=60_000)
-    close_notice = page.locator(".mantine-Notification-root").get_by_role("button")  # viser's software-GL notice
-    if close_notice.count():
-        close_notice.first.click()
+    close_notices(page)  # viser's software-WebGL notice
     return page
 
 
