@@ -26,13 +26,21 @@ from __future__ import annotations
 import argparse
 import json
 import socket
+import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))  # run from a checkout without installing
+
+from benchmarks.bench_sim import ControlRecorder, closed_loop, raw_replay  # noqa: E402
+from benchmarks.harness import MIN_ROUNDS, interleaved, ratio, spread  # noqa: E402
+from hopper.config import TIMESTEP  # noqa: E402
 
 
 def free_port() -> int:
@@ -89,14 +97,20 @@ def measure(dashboard, clients: int, settle: float, seconds: float) -> dict:
             raise SystemExit(f"probe failed to start: {line!r}")
     else:
         time.sleep(settle)
-    pacer = dashboard.pacer
-    steps0, frames0, t0 = pacer._steps, dashboard.frames, time.perf_counter()
+    pacer, recorder = dashboard.pacer, dashboard.recorder
+    steps0, frames0, t0, cpu0 = pacer._steps, dashboard.frames, time.perf_counter(), time.process_time()
+    written0 = recorder.progress()[1]
     time.sleep(seconds)
-    steps1, frames1, t1 = pacer._steps, dashboard.frames, time.perf_counter()
+    steps1, frames1, t1, cpu1 = pacer._steps, dashboard.frames, time.perf_counter(), time.process_time()
+    written1 = recorder.progress()[1]
+    delivered = (steps1 - steps0) * pacer.timestep / (t1 - t0)  # simulated s per wall s
     result = {
         "clients": clients,
-        "rtf": (steps1 - steps0) * pacer.timestep / (t1 - t0) / pacer.speed,
+        "delivered": delivered,
+        "rtf": delivered / pacer.speed,  # 0 at Max: there the delivered speed is the figure
         "server_frames_per_s": (frames1 - frames0) / (t1 - t0),
+        "cpu": (cpu1 - cpu0) / (t1 - t0),  # cores of this process (loop, viser, rerun, the file's writer)
+        "recorded_kb_per_s": (written1 - written0) / (t1 - t0) / 1e3,
         "per_client": [],
     }
     if child is not None:
@@ -107,44 +121,105 @@ def measure(dashboard, clients: int, settle: float, seconds: float) -> dict:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seconds", type=float, default=10.0, help="measuring window per case (s)")
-    parser.add_argument("--settle", type=float, default=3.0, help="wait after connecting, before measuring (s)")
+    parser.add_argument("--seconds", type=float, default=5.0, help="measuring window per case and round (s)")
+    parser.add_argument("--settle", type=float, default=2.0, help="wait after connecting, before measuring (s)")
+    parser.add_argument("--rounds", type=int, default=MIN_ROUNDS, help="interleaved rounds: every case in each")
     parser.add_argument("--speed", type=float, default=1.0, help="simulation speed (x real time)")
     parser.add_argument("--clients", default="0,1,4,16", help="comma-separated client counts, one case each")
     parser.add_argument("--workbench", action="store_true", help="a kick schedule on every hop, overlays on")
-    parser.add_argument("--speeds", default="", help="comma-separated speeds to measure the delivered speed at")
+    parser.add_argument(
+        "--speeds", default="", help="comma-separated speeds (or max) to measure the delivered speed at"
+    )
     parser.add_argument("--speed-clients", type=int, default=1, help="clients connected while --speeds runs")
+    parser.add_argument("--record", action="store_true", help="--speeds also with a recording on (data rate, CPU)")
     parser.add_argument("--controller", default="pid", help="the flight's controller (hopper-dashboard --controller)")
     parser.add_argument("--probe", help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.rounds < MIN_ROUNDS:
+        parser.error(f"--rounds must be at least {MIN_ROUNDS}: a median of fewer rounds says little")
     if args.probe:
         probe_main(args.probe, int(args.clients), args.settle, args.seconds)
         return
-    cases = [int(c) for c in args.clients.split(",")]
+    cases = [int(c) for c in args.clients.split(",") if c]
 
     from hopper.app.dashboard.config import DashboardConfig
+    from hopper.app.dashboard.pacing import MAX
     from hopper.app.dashboard.server import Dashboard
 
-    config = DashboardConfig(port=free_port(), speed=args.speed, controller=args.controller)
-    dashboard = Dashboard(config, verbose=False).start()
-    speeds = [float(v) for v in args.speeds.split(",") if v]
-    try:
-        if args.workbench:
-            enable_workbench(dashboard)
-        results = [measure(dashboard, n, args.settle, args.seconds) for n in cases]
-        fast = []
-        for speed in speeds:
-            dashboard.set_speed(speed)
-            fast.append(measure(dashboard, args.speed_clients, args.settle, args.seconds))
-        kicked = sum(h.kicked for h in dashboard.sim.hops) if args.workbench else 0
-    finally:
-        dashboard.stop()
+    speeds = [MAX if v.strip().lower() == "max" else float(v) for v in args.speeds.split(",") if v]
+    with tempfile.TemporaryDirectory() as sessions:
+        config = DashboardConfig(port=free_port(), speed=args.speed, controller=args.controller,
+                                 sessions_dir=Path(sessions))  # fmt: skip
+        controls = bare_controls(config.sim_config()) if speeds else None
+        dashboard = Dashboard(config, verbose=False).start()
+        try:
+            if args.workbench:
+                enable_workbench(dashboard)
+            sides: dict[str, object] = {}
+            for n in cases:
+                sides[f"clients {n}"] = lambda n=n: measure(dashboard, n, args.settle, args.seconds)
+            for speed in speeds:
+                sides[f"speed {speed}"] = lambda v=speed: at_speed(dashboard, v, args, record=False)
+                if args.record:
+                    sides[f"speed {speed} rec"] = lambda v=speed: at_speed(dashboard, v, args, record=True)
+            if speeds:
+                sides["bare"] = lambda: bare_round(dashboard, config.sim_config(), controls)
+            rounds = interleaved(sides, args.rounds)
+            kicked = sum(h.kicked for h in dashboard.sim.hops) if args.workbench else 0
+        finally:
+            dashboard.stop()
 
-    report(results, args.seconds, args.speed)
+    print(f"{args.rounds} rounds, each case in turn in every round (medians; range in brackets); machine shared")
+    if cases:
+        report([merged(rounds[f"clients {n}"]) for n in cases], args.seconds, args.speed)
+        base = [r["rtf"] for r in rounds[f"clients {cases[0]}"]]
+        for n in cases[1:]:
+            print(f"RTF {n} clients / {cases[0]} clients: {ratio([r['rtf'] for r in rounds[f'clients {n}']], base)}")
     if args.workbench:
         print(f"workbench on: {kicked} hops kicked by the schedule since the last reset, overlays and history on")
-    if fast:
-        report_speeds(fast, speeds, args.speed_clients)
+    if speeds:
+        report_speeds(rounds, speeds, args.speed_clients, args.record)
+
+
+def bare_controls(config) -> np.ndarray:
+    """The controls of a 3-hop closed loop of the dashboard's configuration, to replay with bare mj_step."""
+    recorder = ControlRecorder()
+    closed_loop(config, 3, (recorder,))
+    return np.array(recorder.ctrl)
+
+
+def bare_round(dashboard, config, controls: np.ndarray) -> dict:
+    """Bare mj_step's rate (steps/s) on the same model in this process, the dashboard paused meanwhile."""
+    dashboard.set_paused(True)
+    while not dashboard.pacer.paused:
+        time.sleep(0.01)
+    try:
+        rate, _ = raw_replay(config, controls)
+    finally:
+        dashboard.set_paused(False)
+    return {"rate": rate}
+
+
+def at_speed(dashboard, speed: float, args: argparse.Namespace, record: bool) -> dict:
+    """The delivered speed at `speed` (MAX: as fast as it goes), with a recording on if `record`."""
+    dashboard.set_speed(speed)
+    if record:
+        dashboard.recorder.start()
+        while not dashboard.recorder.progress()[1]:  # its first bytes on disk
+            time.sleep(0.05)
+    try:
+        return measure(dashboard, args.speed_clients, args.settle, args.seconds)
+    finally:
+        if record:
+            dashboard.recorder.stop()
+            while dashboard.recorder.active:
+                time.sleep(0.05)
+
+
+def merged(results: list[dict]) -> dict:
+    """One case's rounds as one: median figures, every round's clients."""
+    out = {k: statistics.median(r[k] for r in results) for k in ("rtf", "server_frames_per_s", "delivered", "cpu")}
+    return {**out, "clients": results[0]["clients"], "per_client": [c for r in results for c in r["per_client"]]}
 
 
 def enable_workbench(dashboard) -> None:
@@ -156,19 +231,31 @@ def enable_workbench(dashboard) -> None:
     assert dashboard.physics.visible
 
 
-def report_speeds(results: list[dict], speeds: list[float], clients: int) -> None:
-    print(f"\nfast-forward with {clients} client(s): delivered speed = RTF x asked (sustained: >= 0.95 of asked)")
-    print(f"{'asked':>6}  {'delivered':>9}  {'RTF':>6}  {'server frames/s':>15}  {'updates/s':>9}  {'kB/s':>6}")
-    sustained = 0.0
-    for speed, r in zip(speeds, results, strict=True):
-        per = r["per_client"]
-        updates = _mean(per, "pose_updates_per_s") if per else float("nan")
-        kb = _mean(per, "bytes_per_s") / 1e3 if per else float("nan")
-        print(f"{speed:6g}  {r['rtf'] * speed:9.1f}  {r['rtf']:6.3f}  {r['server_frames_per_s']:15.1f}  "
-              f"{updates:9.1f}  {kb:6.1f}")  # fmt: skip
-        if r["rtf"] >= 0.95:
-            sustained = max(sustained, speed)
-    print(f"highest sustained speed among those asked: {sustained:g}x")
+def report_speeds(rounds: dict[str, list], speeds: list[float], clients: int, record: bool) -> None:
+    """Per speed: delivered (x real time), its ratio to the asked one or, at Max, in steps/s against bare
+    mj_step's rate of the same round; with a recording, its data rate and what it costs in CPU."""
+    bare = [r["rate"] for r in rounds["bare"]]
+    print(f"\nfast-forward with {clients} client(s); bare mj_step in this process: {spread(bare)} steps/s")
+    print(f"{'asked':>6}  {'delivered':>24}  {'of asked / of bare':>30}  {'frames/s':>8}  {'CPU cores':>9}  "
+          f"{'kB/s':>6}")  # fmt: skip
+    for speed in speeds:
+        for rec in (False, True) if record else (False,):
+            runs = rounds[f"speed {speed}" + (" rec" if rec else "")]
+            delivered = [r["delivered"] for r in runs]
+            if speed == float("inf"):
+                of = ratio([d / TIMESTEP for d in delivered], bare)  # steps/s over bare steps/s, round by round
+                name, against = "max", f"{of} of bare"
+            else:
+                name, against = f"{speed:g}", f"{statistics.median(d / speed for d in delivered):.3f} of asked"
+            per = [c for r in runs for c in r["per_client"]]
+            kb = _mean(per, "bytes_per_s") / 1e3 if per else float("nan")
+            print(f"{name + (' rec' if rec else ''):>6}  {spread(delivered, 1)}x  {against:>30}  "
+                  f"{statistics.median(r['server_frames_per_s'] for r in runs):8.1f}  "
+                  f"{statistics.median(r['cpu'] for r in runs):9.2f}  {kb:6.1f}")  # fmt: skip
+            if rec:
+                cpu = ratio([r["cpu"] for r in runs], [r["cpu"] for r in rounds[f"speed {speed}"]])
+                on_disk = spread([r["recorded_kb_per_s"] for r in runs], 1)
+                print(f"{'':>6}  recording: {on_disk} kB/s on disk; CPU with / without: {cpu}")
 
 
 def _mean(per: list[dict], key: str, sub: str | None = None) -> float:
@@ -177,7 +264,7 @@ def _mean(per: list[dict], key: str, sub: str | None = None) -> float:
 
 def report(results: list[dict], seconds: float, speed: float) -> None:
     print(f"\nhopper-dashboard load, {seconds:g} s windows at {speed:g}x real time (target RTF >= 0.98)")
-    print("RTF = simulated s per wall s, divided by the asked speed; per-client figures are means over the clients")
+    print("RTF = simulated s per wall s over the asked speed (medians of the rounds); per client: means over clients and rounds")
     print(f"{'clients':>7}  {'RTF':>6}  {'server frames/s':>15}  {'updates/s':>9}  {'charts/s':>8}  {'kB/s':>6}  "
           f"{'charts':>6}  {'poses':>6}  {'other':>6}  {'initial kB':>10}")  # fmt: skip
     for r in results:

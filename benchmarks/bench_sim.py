@@ -76,6 +76,8 @@ def main() -> None:
     parser.add_argument("--sensing", choices=("ideal", "realistic"), default="ideal", help="SimConfig.sensing")
     parser.add_argument("--no-telemetry", action="store_true", help="skip the rerun recording's part")
     args = parser.parse_args()
+    if args.rounds < MIN_ROUNDS:
+        parser.error(f"--rounds must be at least {MIN_ROUNDS}: a median of fewer rounds says little")
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})  # one core, as the target says
     config = SimConfig(seed=args.seed, sensing=args.sensing)

@@ -11,7 +11,8 @@ Run: python -m benchmarks.bench_sweep [--seeds 50] [--workers 2] [--out DIR] [--
    (= episodes/s against bare rate x cores / steps per episode). Ray's start-up is reported apart.
 With --line: Ray's and the local pool's start-up, and the work per core where Ray's extra start-up
 falls under a tenth of the run (hopper.experiments.executor.RAY_MIN_WORK_PER_CORE_S).
-These machines are noisy: only ratios measured in the same run mean anything.
+These machines are noisy: only ratios measured side by side mean anything; each is the median of the
+segments' ratios, with their range (benchmarks/harness.py).
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ import psutil
 import pyarrow.dataset as ds
 
 from benchmarks.bench_sim import ControlRecorder, closed_loop, raw_replay
+from benchmarks.harness import MIN_ROUNDS, Ratio, ratio
 from hopper.config import TIMESTEP
 from hopper.experiments.executor import LocalPool, RayExecutor, chunks
 from hopper.experiments.runner import pending
@@ -161,10 +163,13 @@ def main() -> None:
     parser.add_argument("--hops", type=int, default=2)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--sample", type=int, default=8, help="episodes replayed per segment for the bare rate")
-    parser.add_argument("--segments", type=int, default=5, help="the resumed half in this many measured segments")
+    parser.add_argument("--segments", type=int, default=MIN_ROUNDS, help=f"the resumed half in this many measured "
+                        f"segments, each a round: sweep, then bare (>= {MIN_ROUNDS})")  # fmt: skip
     parser.add_argument("--out", type=Path, help="sweep folder (default: a temporary one)")
     parser.add_argument("--line", action="store_true", help="also measure the local-vs-Ray start-up line")
     args = parser.parse_args()
+    if args.segments < MIN_ROUNDS:
+        parser.error(f"--segments must be at least {MIN_ROUNDS}: a median of fewer rounds says little")
     out = args.out or Path(tempfile.mkdtemp(prefix="bench-sweep-")) / "out"
     spec = bench_spec(args.seeds, args.hops)
     flags = ["--seeds", str(args.seeds), "--hops", str(args.hops), "--kp", "300,400,500,600,700", "--kd",
@@ -180,13 +185,15 @@ def main() -> None:
     for i, (n, wall, sweep, bare, closed, cpu) in enumerate(segments, 1):
         print(f"{i:>8} {n:>9} {wall:>7.1f} {sweep:>14,.0f} {bare:>13,.0f} {closed:>8,.0f} {sweep / bare:>11.3f} "
               f"{closed / bare:>12.3f} {cpu:>10.3f}")  # fmt: skip
-    ratios = sorted(sweep / bare for _, _, sweep, bare, _, _ in segments)
-    cpu_ratios = sorted(cpu for *_, cpu in segments)
-    best = max(sweep for _, _, sweep, *_ in segments) / max(bare for _, _, _, bare, *_ in segments)
-    print(f"ratio sweep / limit (limit = bare mj_step of the same episodes x {args.workers} processes): median "
-          f"{ratios[len(ratios) // 2]:.3f}, best sweep / best bare {best:.3f}   (target >= 0.85)")  # fmt: skip
+    # The segments are the rounds: each sweep segment is followed at once by its own bare replay (ABAB...).
+    sweep_bare = ratio([sweep for _, _, sweep, *_ in segments], [bare for _, _, _, bare, *_ in segments])
+    closed_bare = ratio([closed for *_, closed, _ in segments], [bare for _, _, _, bare, *_ in segments])
+    cpu_ratios = Ratio(tuple(cpu for *_, cpu in segments))
+    print(f"ratio sweep / limit (limit = bare mj_step of the same episodes x {args.workers} processes): "
+          f"{sweep_bare}   (target >= 0.85)")  # fmt: skip
+    print(f"ratio closed loop / bare mj_step of the same sampled episodes: {closed_bare}")
     print(f"CPU ratio (steps per CPU second, the sweep's every process / bare mj_step; blind to the machine's "
-          f"other load): median {cpu_ratios[len(cpu_ratios) // 2]:.3f}")  # fmt: skip
+          f"other load): {cpu_ratios}")  # fmt: skip
     if args.line:
         startup_line(spec, args.workers)
 

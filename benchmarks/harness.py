@@ -71,9 +71,10 @@ def ratio(top: list[float], bottom: list[float]) -> Ratio:
     return Ratio(tuple(a / b for a, b in zip(top, bottom, strict=True)))
 
 
-def spread(values: list[float]) -> str:
+def spread(values: list[float], digits: int = 0) -> str:
     """A figure's median and range: '41,200 (35,100-44,900)'."""
-    return f"{statistics.median(values):,.0f} ({min(values):,.0f}-{max(values):,.0f})"
+    f = f",.{digits}f"
+    return f"{statistics.median(values):{f}} ({min(values):{f}}-{max(values):{f}})"
 
 
 # -- the child: client slots ---------------------------------------------------------------------
