@@ -264,7 +264,8 @@ def _mean(per: list[dict], key: str, sub: str | None = None) -> float:
 
 def report(results: list[dict], seconds: float, speed: float) -> None:
     print(f"\nhopper-dashboard load, {seconds:g} s windows at {speed:g}x real time (target RTF >= 0.98)")
-    print("RTF = simulated s per wall s over the asked speed (medians of the rounds); per client: means over clients and rounds")
+    print("RTF = simulated s per wall s over the asked speed (medians of the rounds); per client: means over")
+    print("the clients and rounds")
     print(f"{'clients':>7}  {'RTF':>6}  {'server frames/s':>15}  {'updates/s':>9}  {'charts/s':>8}  {'kB/s':>6}  "
           f"{'charts':>6}  {'poses':>6}  {'other':>6}  {'initial kB':>10}")  # fmt: skip
     for r in results:
