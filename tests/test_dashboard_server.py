@@ -19,7 +19,7 @@ from hopper.app.dashboard.config import DashboardConfig
 from hopper.app.dashboard.feedback import notify_all
 from hopper.app.dashboard.pacing import MAX, MAX_LAG_S, MAX_ROUND_STEPS, Pacer, chart_scale
 from hopper.app.dashboard.panels.events import describe
-from hopper.app.dashboard.panels.hops import hop_table_html
+from hopper.app.dashboard.panels.hops import hop_mean_html, hop_row_html
 from hopper.app.dashboard.probe import ProbeClient
 from hopper.app.dashboard.server import FALL_RESET_S, FRAME_S, STATUS_S, Dashboard, PortInUse
 from net import free_port, port_is_free, wait_until
@@ -135,7 +135,7 @@ def test_a_pitch_kick_is_applied_and_logged(dashboard: Dashboard, client: ProbeC
     assert wait_until(lambda: any(e.kind is EventKind.DISTURBANCE for e in seen))
     kick = next(e for e in seen if e.kind is EventKind.DISTURBANCE)
     assert kick.payload == Disturbance("pitch_kick", 1.0, "N m s")
-    assert wait_until(lambda: "pitch kick +1 N m s" in dashboard.layout.events.html.content)
+    assert wait_until(lambda: "pitch kick +1 N m s" in dashboard.layout.events.content)
 
 
 class _Recorder:
@@ -173,7 +173,7 @@ def test_regenerating_the_terrain_re_sends_its_mesh_only(dashboard: Dashboard, c
     mesh_count = client.counts["MeshMessage"]
     _rounds(dashboard, 30)  # the robot restarted on the new terrain: poses only, no new meshes
     assert client.counts["GlbMessage"] == meshes + tiles and client.counts["MeshMessage"] == mesh_count
-    assert "terrain crater, seed 7" in dashboard.layout.events.html.content
+    assert "terrain crater, seed 7" in dashboard.layout.events.content
 
 
 def test_every_published_frame_reaches_the_client_as_one_pose_update(dashboard: Dashboard, client: ProbeClient) -> None:
@@ -329,7 +329,7 @@ def test_record_and_stop_write_a_session_file(dashboard: Dashboard, client: Prob
     assert client.wait_for(lambda p: "Recording saved" in titles(p), timeout=30)
     assert path.stat().st_size > 10_000
     assert not dashboard.recorder.active
-    log = dashboard.layout.events.html.content
+    log = dashboard.layout.events.content
     assert f"recording started: {path}" in log and f"recording saved: {path}" in log
 
 
@@ -400,11 +400,11 @@ def test_hop_table_and_event_log_text() -> None:
         rms_pitch_rate_deg_s=40.0, landing_pitch_deg=2.0, saturation_time_s=0.3, peak_wheel_rpm=250.0,
         liftoff_momentum=0.1, touchdown_time_s=3.0, wheel_energy_j=26.4, leg_energy_j=34.2, cost_of_transport=5.67,
     )  # fmt: skip
-    table = hop_table_html([hop])
-    assert "0.80" in table and "12.0" in table and "250" in table and "hd-mean" in table
-    assert "<td>26</td><td>34</td><td>5.7</td>" in table  # the energies (J) and the cost of transport
-    assert "<td>–</td></tr>" in hop_table_html([dataclasses.replace(hop, cost_of_transport=math.nan)])
-    assert "no hops yet" in hop_table_html([])
+    row, mean = hop_row_html(hop), hop_mean_html([hop])
+    assert "0.80" in row and "12.0" in row and "250" in row and "hd-mean" in mean and "0.80" in mean
+    assert "<td>26</td><td>34</td><td>5.7</td>" in row  # the energies (J) and the cost of transport
+    assert "<td>–</td></tr>" in hop_row_html(dataclasses.replace(hop, cost_of_transport=math.nan))
+    assert "no hops yet" in hop_mean_html([])
     assert describe(Event(1.0, 2, Disturbance("push_forward", 4.0, "N s"))) == "push ▶ +4 N s"
     assert describe(Event(1.0, 2, Liftoff(0.1))) is None
 
@@ -413,13 +413,13 @@ def test_hop_table_and_event_log_text() -> None:
 def test_the_event_log_says_which_run_a_time_belongs_to(dashboard: Dashboard, client: ProbeClient) -> None:
     """Simulation time restarts at every reset; the run number keeps the log readable."""
     client.set_gui_value("Apply", "Pitch kick")
-    assert wait_until(lambda: "pitch kick" in dashboard.layout.events.html.content)
-    assert "run 0</span>" in dashboard.layout.events.html.content
+    assert wait_until(lambda: "pitch kick" in dashboard.layout.events.content)
+    assert "run 0</span>" in dashboard.layout.events.content
     client.set_gui_value("Reset robot", True)
-    assert wait_until(lambda: "reset (user)" in dashboard.layout.events.html.content)
+    assert wait_until(lambda: "reset (user)" in dashboard.layout.events.content)
     client.set_gui_value("Apply", "Pitch kick")
-    assert wait_until(lambda: dashboard.layout.events.html.content.count("pitch kick") == 2)
-    newest = dashboard.layout.events.html.content.split("</tr>")[0]
+    assert wait_until(lambda: dashboard.layout.events.content.count("pitch kick") == 2)
+    newest = dashboard.layout.events.content.split("</tr>")[0]
     assert "run 1</span>" in newest and "pitch kick" in newest
 
 
@@ -439,7 +439,7 @@ def test_a_fall_says_what_tripped(dashboard: Dashboard, client: ProbeClient) -> 
 def test_realistic_sensing_is_switched_from_the_gains_tab(dashboard: Dashboard, client: ProbeClient) -> None:
     client.set_gui_value("Realistic sensing", True)
     assert wait_until(lambda: dashboard.sim.config.sensing == "realistic")
-    assert wait_until(lambda: "sensing realistic" in dashboard.layout.events.html.content)
+    assert wait_until(lambda: "sensing realistic" in dashboard.layout.events.content)
     t = dashboard.sim.time
     assert wait_until(lambda: dashboard.sim.time > t + 0.5) and not dashboard.sim.fallen
     client.set_gui_value("Realistic sensing", False)

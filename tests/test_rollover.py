@@ -90,8 +90,8 @@ def test_dashboard_rolls_over_and_shows_the_current_part(tmp_path: Path) -> None
         assert wait_until(lambda: "(part" in dashboard.layout.record.info.content)
         text = dashboard.layout.record.info.content
         assert "d-00" in text and " MB" in text, text
-        assert wait_until(lambda: "recording saved: " in dashboard.layout.events.html.content)
-        assert "d-001.rrd" in dashboard.layout.events.html.content
+        assert wait_until(lambda: "recording saved: " in dashboard.layout.events.content)
+        assert "d-001.rrd" in dashboard.layout.events.content
     parts = sorted(tmp_path.glob("d-*.rrd"))
     assert len(parts) >= 3 and not list(tmp_path.glob(".*reserve"))
     verify(*parts)

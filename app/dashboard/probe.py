@@ -97,7 +97,7 @@ class ProbeClient:
         )
         self._decompressor = zstandard.ZstdDecompressor()
         self._compressor = zstandard.ZstdCompressor(level=1)
-        self._lock = threading.Lock()
+        self._lock = threading.RLock()  # re-entered: wait_for predicates may call the locking readers
         self.bytes = 0
         self.frames = 0  # websocket messages (windows of viser messages)
         self.counts: collections.Counter[str] = collections.Counter()
@@ -109,6 +109,7 @@ class ProbeClient:
         # uPlot uuid -> the window the page keeps from the live charts' pushes (chart_feed): one list per
         # column, or a constant's value
         self.chart_windows: dict[str, list[Any]] = {}
+        self.gui_log: list[tuple[str, dict[str, Any]]] = []  # every GUI update (not charts): (uuid, updates)
         self.scripts: list[str] = []  # the sources of the RunJavascriptMessages received, in order
         self.notifications: list[dict[str, Any]] = []
         self.gui: dict[str, dict[str, Any]] = {}  # uuid -> creation message
@@ -232,6 +233,7 @@ class ProbeClient:
                     self._script(message["source"])
                 elif kind == "GuiUpdateMessage":
                     self.gui_updates.setdefault(message["uuid"], {}).update(message["updates"])
+                    self.gui_log.append((message["uuid"], message["updates"]))
                 if "uuid" in message and "props" in message and kind.startswith("Gui"):
                     self.gui[message["uuid"]] = message
             self.pose_frames += moved
@@ -239,6 +241,18 @@ class ProbeClient:
                 self.last_pose_frame = poses
                 self.traffic.scene_updates += 1
             self._account(raw, compressed, messages, lengths)
+
+    def shown_html(self, container: str) -> str:
+        """The HTML elements of a container as the page shows them: the visible ones, by order, their content."""
+        with self._lock:
+            parts = []
+            for uuid, message in self.gui.items():
+                if message.get("type") != "GuiHtmlMessage" or message.get("container_uuid") != container:
+                    continue
+                props = {**message["props"], **self.gui_updates.get(uuid, {})}
+                if props.get("visible", True):
+                    parts.append((props["order"], props["content"]))
+        return "".join(content for _, content in sorted(parts))
 
     def _script(self, source: str) -> None:
         """A script the page would run: a live charts' push is applied to the probe's copy of its windows."""

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import collections
 import dataclasses
 import html
 
 import viser
+from hopper.app.dashboard.panels.rows import BAND, Rows
 
 from hopper.events import Event, EventKind, Reset
 
@@ -42,25 +42,41 @@ def describe(event: Event) -> str | None:
     return event.describe()
 
 
+def line_html(event: Event, text: str) -> str:
+    """One line of the log, a table of its own (panels/rows.py)."""
+    # Simulation time restarts at every reset: the run number says which run a time belongs to.
+    when = f"<span class='hd-dim'>run {event.run}</span> {event.time:.2f} s"
+    return f"<table class='hd-log'><tr><td>{when}</td><td>{html.escape(text)}</td></tr></table>"
+
+
+EMPTY = "<table class='hd-log'><tr><td></td><td class='hd-dim'>no events yet</td></tr></table>"
+
+
 @dataclasses.dataclass
 class EventLog:
-    html: viser.GuiHtmlHandle
-    lines: collections.deque[str] = dataclasses.field(default_factory=lambda: collections.deque(maxlen=LINES))
+    """The newest LINES lines, newest first: a new event sends its own line, nothing else."""
+
+    rows: Rows
+    empty: viser.GuiHtmlHandle  # "no events yet", until the first
 
     def add(self, event: Event) -> None:
         text = describe(event)
         if text is None:
             return
-        # Simulation time restarts at every reset: the run number says which run a time belongs to.
-        when = f"<span class='hd-dim'>run {event.run}</span> {event.time:.2f} s"
-        self.lines.appendleft(f"<tr><td>{when}</td><td>{html.escape(text)}</td></tr>")
-        self.html.content = _html(self.lines)
+        self.rows.add(line_html(event, text))
+        self.empty.visible = False
 
+    @property
+    def lines(self) -> list[str]:
+        """The lines shown, newest first."""
+        return list(reversed(self.rows.shown))
 
-def _html(lines: collections.deque[str]) -> str:
-    body = "".join(lines) or "<tr><td></td><td class='hd-dim'>no events yet</td></tr>"
-    return f"<table class='hd-log'>{body}</table>"
+    @property
+    def content(self) -> str:
+        """The log as a page shows it, for tests."""
+        return "".join(self.lines) or EMPTY
 
 
 def build_event_log(gui: viser.GuiApi) -> EventLog:
-    return EventLog(html=gui.add_html(_html(collections.deque())))
+    rows = Rows(gui, LINES, 0.0, newest_first=True)
+    return EventLog(rows, gui.add_html(EMPTY, order=2 * BAND))

@@ -8,6 +8,7 @@ import dataclasses
 import math
 
 import viser
+from hopper.app.dashboard.panels.rows import BAND, Rows
 
 from hopper.metrics import HopMetrics
 
@@ -36,11 +37,98 @@ RESPONSE_COLUMNS = (
     ("landing_error_deg", "land", "°", "{:+.2f}"),
 )
 ROWS = 8  # newest hops shown; the mean covers every hop since the last reset
+# Order bands in the Hops folder (panels/rows.py): each table's header, rows, then its mean row.
+HOPS_AT, RESPONSE_AT = 0.0, 10 * BAND
+
+
+def _table(inner: str, cls: str = "", stale: bool = False) -> str:
+    """One part of a table (its header, a row, its mean) as a table of its own: fixed, equal columns line up."""
+    classes = " ".join(c for c in ("hd-hops", cls, "hd-stale" if stale else "") if c)
+    return f"<table class='{classes}'>{inner}</table>"
+
+
+def _cell(value: float, fmt: str) -> str:
+    return fmt.format(value) if math.isfinite(value) else "–"
+
+
+def _mark(hop: HopMetrics) -> str:
+    return "" if hop.completed else " class='hd-fell' title='ended in a fall'"
+
+
+def hop_header_html() -> str:
+    head = "".join(f"<th>{h}<br><span>{u}</span></th>" for _, h, u, _ in COLUMNS)
+    return _table(f"<tr><th>#</th>{head}</tr>")
+
+
+def hop_row_html(hop: HopMetrics, stale: bool = False) -> str:
+    cells = "".join(f"<td>{_cell(getattr(hop, f), fmt)}</td>" for f, _, _, fmt in COLUMNS)
+    return _table(f"<tr{_mark(hop)}><td>{hop.index}</td>{cells}</tr>", stale=stale)
+
+
+def hop_mean_html(hops: list[HopMetrics], stale: bool = False) -> str:
+    """The mean of the completed hops (or "no hops yet"); under it, when stale, that they are the last run's."""
+    done = [h for h in hops if h.completed]
+    if done:
+        means = "".join(
+            f"<td>{_cell(sum(getattr(h, f) for h in done) / len(done), fmt)}</td>" for f, _, _, fmt in COLUMNS
+        )
+        row = f"<tr class='hd-mean'><td>x̄</td>{means}</tr>"
+    else:
+        row = f"<tr><td colspan={len(COLUMNS) + 1} class='hd-empty'>{'no hops yet' if not hops else ''}</td></tr>"
+    caption = "<caption>previous run</caption>" if stale else ""
+    return _table(f"{caption}{row}", "hd-end", stale)
+
+
+def _settle(value: float, settled: bool) -> str:
+    return f"{value:.2f}" if settled else f"&gt;{value:.2f}"  # a lower bound: still outside 1° at touchdown
+
+
+def response_header_html(hops: list[HopMetrics]) -> str:
+    head = "".join(f"<th>{h}<br><span>{u}</span></th>" for _, h, u, _ in RESPONSE_COLUMNS)
+    source = "after the scheduled kick" if any(h.kicked for h in hops) else "from liftoff (no kick scheduled)"
+    caption = f"<caption>pitch response {source}; settle: into 1°</caption>"
+    return _table(f"{caption}<tr><th>#</th><th>kick<br><span>ms</span></th>{head}</tr>", "hd-response")
+
+
+def response_row_html(hop: HopMetrics, stale: bool = False) -> str:
+    """The response of one hop's flight."""
+    kick = f"{hop.response_start_s * 1000:.0f}" if hop.kicked else "–"
+    cells = "".join(
+        f"<td>{_settle(hop.settling_time_s, hop.settled)}</td>"
+        if f == "settling_time_s"
+        else f"<td>{_cell(getattr(hop, f), fmt)}</td>"
+        for f, _, _, fmt in RESPONSE_COLUMNS
+    )
+    return _table(f"<tr{_mark(hop)}><td>{hop.index}</td><td>{kick}</td>{cells}</tr>", stale=stale)
+
+
+def response_mean_html(hops: list[HopMetrics], stale: bool = False) -> str:
+    """The mean of the kicked hops (or of every completed hop when none was kicked), or "no hops yet"."""
+    done = [h for h in hops if h.completed]
+    kicked = [h for h in done if h.kicked]
+    if not done:
+        empty = "no hops yet" if not hops else ""
+        return _table(f"<tr><td colspan={len(RESPONSE_COLUMNS) + 2} class='hd-empty'>{empty}</td></tr>", "hd-end")
+    group = kicked or done
+    means = []
+    for f, _, _, fmt in RESPONSE_COLUMNS:
+        mean = sum(getattr(h, f) for h in group) / len(group)
+        settled = all(h.settled for h in group)
+        means.append(f"<td>{_settle(mean, settled) if f == 'settling_time_s' else _cell(mean, fmt)}</td>")
+    label = "x̄ of the kicked hops" if kicked else "x̄ of all hops (none kicked)"
+    row = f"<tr class='hd-mean' title='{label}'><td>x̄</td><td>{'k' if kicked else ''}</td>{''.join(means)}</tr>"
+    return _table(row, "hd-end", stale)
 
 
 @dataclasses.dataclass
 class HopTable:
-    table: viser.GuiHtmlHandle
+    """The hop table and the response table: a new hop sends its two rows and the two means, nothing else."""
+
+    rows: Rows
+    mean: viser.GuiHtmlHandle
+    response_header: viser.GuiHtmlHandle
+    response_rows: Rows
+    response_mean: viser.GuiHtmlHandle
     hops: list[HopMetrics] = dataclasses.field(default_factory=list)
     stale: bool = False  # rows from before the last reset, kept dimmed until the next hop
 
@@ -48,87 +136,55 @@ class HopTable:
         if self.stale:
             self.hops.clear()
             self.stale = False
+            self.hops.append(hop)
+            self._render()
+            return
         self.hops.append(hop)
-        self.table.content = hop_table_html(self.hops) + response_table_html(self.hops)
+        self.rows.add(hop_row_html(hop))
+        self.response_rows.add(response_row_html(hop))
+        self._render_means()
 
     def show(self, hops: list[HopMetrics]) -> None:
         """Exactly these hops (the simulation was put back to an earlier moment)."""
         self.hops[:] = hops
         self.stale = False
-        self.table.content = hop_table_html(self.hops)
+        self._render()
 
     def clear(self) -> None:
         """After a reset: keep showing the last run (dimmed) until the first new hop replaces it."""
         if self.hops and not self.stale:
             self.stale = True
-            self.table.content = hop_table_html(self.hops, stale=True) + response_table_html(self.hops, stale=True)
+            self._render()
 
+    def _render(self) -> None:
+        """Every row again (a reset, a restore, the first hop after a reset: not at each hop)."""
+        shown = self.hops[-ROWS:]
+        self.rows.replace([hop_row_html(h, self.stale) for h in shown])
+        self.response_rows.replace([response_row_html(h, self.stale) for h in shown])
+        self._render_means()
 
-def _cell(value: float, fmt: str) -> str:
-    return fmt.format(value) if math.isfinite(value) else "–"
+    def _render_means(self) -> None:
+        self.mean.content = hop_mean_html(self.hops, self.stale)
+        self.response_mean.content = response_mean_html(self.hops, self.stale)
+        self.response_header.content = response_header_html(self.hops)  # sent only when the caption changes
 
-
-def hop_table_html(hops: list[HopMetrics], stale: bool = False) -> str:
-    """An HTML table: one row per hop (newest last), then the mean of completed hops."""
-    head = "".join(f"<th>{h}<br><span>{u}</span></th>" for _, h, u, _ in COLUMNS)
-    rows = []
-    for hop in hops[-ROWS:]:
-        cells = "".join(f"<td>{_cell(getattr(hop, f), fmt)}</td>" for f, _, _, fmt in COLUMNS)
-        mark = "" if hop.completed else " class='hd-fell' title='ended in a fall'"
-        rows.append(f"<tr{mark}><td>{hop.index}</td>{cells}</tr>")
-    done = [h for h in hops if h.completed]
-    if done:
-        means = "".join(
-            f"<td>{_cell(sum(getattr(h, f) for h in done) / len(done), fmt)}</td>" for f, _, _, fmt in COLUMNS
+    def html(self) -> str:
+        """The two tables as a page shows them, for tests and logs."""
+        return (
+            hop_header_html()
+            + "".join(self.rows.shown)
+            + self.mean.content
+            + self.response_header.content
+            + "".join(self.response_rows.shown)
+            + self.response_mean.content
         )
-        rows.append(f"<tr class='hd-mean'><td>x̄</td>{means}</tr>")
-    if not rows:
-        rows.append(f"<tr><td colspan={len(COLUMNS) + 1} class='hd-empty'>no hops yet</td></tr>")
-    caption = "<caption>previous run</caption>" if stale else ""
-    cls = "hd-hops hd-stale" if stale else "hd-hops"
-    return f"<table class='{cls}'>{caption}<tr><th>#</th>{head}</tr>{''.join(rows)}</table>"
-
-
-def _settle(value: float, settled: bool) -> str:
-    return f"{value:.2f}" if settled else f"&gt;{value:.2f}"  # a lower bound: still outside 1° at touchdown
-
-
-def response_table_html(hops: list[HopMetrics], stale: bool = False) -> str:
-    """The response of each hop's flight (newest last), then the mean of the kicked hops (or of
-    every completed hop when none was kicked)."""
-    head = "".join(f"<th>{h}<br><span>{u}</span></th>" for _, h, u, _ in RESPONSE_COLUMNS)
-    rows = []
-    for hop in hops[-ROWS:]:
-        kick = f"{hop.response_start_s * 1000:.0f}" if hop.kicked else "–"
-        cells = "".join(
-            f"<td>{_settle(hop.settling_time_s, hop.settled)}</td>"
-            if f == "settling_time_s"
-            else f"<td>{_cell(getattr(hop, f), fmt)}</td>"
-            for f, _, _, fmt in RESPONSE_COLUMNS
-        )
-        mark = "" if hop.completed else " class='hd-fell' title='ended in a fall'"
-        rows.append(f"<tr{mark}><td>{hop.index}</td><td>{kick}</td>{cells}</tr>")
-    done = [h for h in hops if h.completed]
-    kicked = [h for h in done if h.kicked]
-    if done:
-        group = kicked or done
-        means = []
-        for f, _, _, fmt in RESPONSE_COLUMNS:
-            mean = sum(getattr(h, f) for h in group) / len(group)
-            settled = all(h.settled for h in group)
-            means.append(f"<td>{_settle(mean, settled) if f == 'settling_time_s' else _cell(mean, fmt)}</td>")
-        label = "x̄ of the kicked hops" if kicked else "x̄ of all hops (none kicked)"
-        rows.append(
-            f"<tr class='hd-mean' title='{label}'><td>x̄</td><td>{'k' if kicked else ''}</td>{''.join(means)}</tr>"
-        )
-    if not rows:
-        rows.append(f"<tr><td colspan={len(RESPONSE_COLUMNS) + 2} class='hd-empty'>no hops yet</td></tr>")
-    source = "after the scheduled kick" if any(h.kicked for h in hops) else "from liftoff (no kick scheduled)"
-    caption = f"<caption>pitch response {source}; settle: into 1°</caption>"
-    cls = "hd-hops hd-response hd-stale" if stale else "hd-hops hd-response"
-    head = f"<tr><th>#</th><th>kick<br><span>ms</span></th>{head}</tr>"
-    return f"<table class='{cls}'>{caption}{head}{''.join(rows)}</table>"
 
 
 def build_hop_table(gui: viser.GuiApi) -> HopTable:
-    return HopTable(table=gui.add_html(hop_table_html([]) + response_table_html([])))
+    gui.add_html(hop_header_html(), order=HOPS_AT)
+    rows = Rows(gui, ROWS, HOPS_AT + 1)
+    mean = gui.add_html(hop_mean_html([]), order=HOPS_AT + 2 * BAND)
+    response_header = gui.add_html(response_header_html([]), order=RESPONSE_AT)
+    response_rows = Rows(gui, ROWS, RESPONSE_AT + 1)
+    response_mean = gui.add_html(response_mean_html([]), order=RESPONSE_AT + 2 * BAND)
+    return HopTable(rows, mean, response_header, response_rows, response_mean)
