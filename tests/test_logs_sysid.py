@@ -72,6 +72,16 @@ def test_bad_requests_are_refused(log: Log) -> None:
         sysid.identify(model, log, (0, 1000), ("friction",), stages=(0.0,))
 
 
+@pytest.mark.parametrize("spin", [0.0325125, 0.0286867, 0.04])
+def test_a_thin_wheel_stays_a_valid_mjcf(spin: float, tmp_path: Path) -> None:
+    """The wheel is a thin disc (A + B = C): scaled and rounded to MJCF's 6 digits, it must still load."""
+    model, _ = world_model(World())
+    path = tmp_path / "wheel.xml"
+    path.write_text(sysid.to_spec(mujoco.MjSpec.from_file(str(MODEL_XML)), model, {"wheel_inertia": spin}).to_xml())
+    loaded = mujoco.MjModel.from_xml_path(str(path))
+    assert sysid.nominal(loaded)["wheel_inertia"] == pytest.approx(spin, rel=1e-5)
+
+
 def test_the_identified_model_is_written_as_mjcf(tmp_path: Path) -> None:
     model, _ = world_model(World())
     values = {

@@ -150,6 +150,21 @@ class Robot:
         mujoco.mj_setConst(m, mujoco.MjData(m))  # masses changed: subtree masses and the like follow
 
 
+TRIANGLE_MARGIN = 1e-5  # share of the largest moment by which the other two exceed it, at least
+
+
+def _triangle(moments: np.ndarray) -> np.ndarray:
+    """Principal moments that keep A + B >= C once MJCF's 6 digits have rounded them: a thin disc (the
+    wheel: A = B = C / 2) sits on that bound, and a rounding below it is refused by the compiler.
+    The two smaller moments (about the axes out of the robot's plane) grow by what it takes."""
+    d = np.array(moments, dtype=float)
+    k = int(np.argmax(d))
+    short = d[k] * (1.0 + TRIANGLE_MARGIN) - (d.sum() - d[k])
+    if short > 0.0:
+        d[[i for i in range(3) if i != k]] += short / 2.0
+    return d
+
+
 def to_spec(spec: mujoco.MjSpec, model: mujoco.MjModel, values: dict[str, float]) -> mujoco.MjSpec:
     """Write `values` into `spec` (the MJCF `model` was compiled from), as Robot.set does to the model;
     the gyro's bias goes in a <numeric name="gyro_bias"> (rad/s): MuJoCo's sensors have no bias."""
@@ -157,10 +172,10 @@ def to_spec(spec: mujoco.MjSpec, model: mujoco.MjModel, values: dict[str, float]
     v = n | values
     torso, wheel = spec.body("torso"), spec.body("wheel")
     torso.mass = v["torso_mass"]
-    torso.inertia = np.asarray(torso.inertia) * (v["torso_inertia"] / n["torso_inertia"])
+    torso.inertia = _triangle(np.asarray(torso.inertia) * (v["torso_inertia"] / n["torso_inertia"]))
     torso.ipos = [v["torso_com_x"], torso.ipos[1], v["torso_com_z"]]
     arm, spin = wheel_split(n, values)
-    wheel.inertia = np.asarray(wheel.inertia) * (spin / (n["wheel_inertia"] - n["wheel_armature"]))
+    wheel.inertia = _triangle(np.asarray(wheel.inertia) * (spin / (n["wheel_inertia"] - n["wheel_armature"])))
     spec.joint("wheel").armature = arm
     motor = spec.actuator("wheel")
     k, d = v["motor_torque"], v["motor_damping"]
