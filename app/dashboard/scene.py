@@ -23,11 +23,17 @@ ROBOT = f"{WORLD}/robot"  # the robot's scene tree: a frame at the torso's posit
 TRAIL_SAMPLE_S = 0.05  # s of simulation between trail points
 TRAIL_CHUNK = 10  # points per line-segment node; only the newest chunk is re-sent
 TRAIL_CHUNKS = 30  # nodes kept: 15 s of trail
-TRAIL_PUBLISH_S = 0.1  # s of wall time between re-sends of the newest chunk (each re-creates its node)
+TRAIL_PUBLISH_S = 0.2  # s of wall time between re-sends of the newest chunk (each re-creates its node: about
+# 0.3 kB with the pose and visibility messages viser sends with it); 5 a second, as the charts refresh
 TRAIL_COLOR = (255, 176, 59)
 SATURATION_COLORS = ((70, 200, 120), (245, 190, 40), (235, 60, 50))  # free, half, saturated
-RING_STEP = 0.05  # of saturation: the ring's colour steps
+RING_STEP = 0.1  # of saturation: the ring's colour steps (10 from free to saturated; finer re-sent it 9 times a second)
 LABEL_POSITION = (0.0, 0.0, 0.42)  # m above the torso's origin: the phase label clears the wheel
+# Poses go on binary grids finer than the eye can tell apart (2^-16 of a quaternion's unit: 0.002 deg;
+# 2^-14 m: 0.06 mm): the float64s msgpack carries then end in zero bytes, which the frame's zstd
+# squeezes out (0.33 -> 0.26 kB a frame on the default session).
+QUAT_GRID = 2.0**-16
+POSITION_GRID = 2.0**-14  # m
 CAMERA_OFFSET = np.array([0.0, -4.4, 1.9])  # m from the look-at point: side view from 23 deg above
 LOOK_OFFSET = np.array([0.3, 0.0, -0.3])  # m from the followed torso: a little ahead (it hops toward +x), down
 CAMERA_FOV = math.radians(45.0)  # vertical; about 4 m of height in view at the default distance
@@ -42,6 +48,11 @@ def configure_lighting(scene: viser.SceneApi, shadows: bool = True) -> None:
     """
     scene.configure_environment_map("warehouse", environment_intensity=ENVIRONMENT_INTENSITY)
     scene.configure_default_lights(enabled=True, cast_shadow=shadows)
+
+
+def on_grid(values: np.ndarray, grid: float) -> np.ndarray:
+    """`values` rounded to multiples of `grid` (a power of two: exact in float64, short on the wire)."""
+    return np.round(np.asarray(values, dtype=np.float64) / grid) * grid
 
 
 def saturation(wheel_torque: float, wheel_speed: float, robot: Robot = PACKAGED) -> float:
@@ -177,11 +188,12 @@ class RobotView:
         positions, quats = body_poses(model, data, self._meshes)
         root = self._parents.index(-1)
         local_p, local_q = local_poses(positions, quats, self._parents)
-        self.root.position = positions[root]
+        self.root.position = on_grid(positions[root], POSITION_GRID)
+        local_p, local_q = on_grid(local_p, POSITION_GRID), on_grid(local_q, QUAT_GRID)
         for handle, p, q in zip(self._handles, local_p, local_q, strict=True):
             handle.position = p  # constant for hinged bodies: viser sends it only when it changes
             handle.wxyz = q
-        # Re-send the colour only when it visibly changes: in steps of 0.05, and only once the level has
+        # Re-send the colour only when it visibly changes: in steps of RING_STEP, and only once the level has
         # moved a whole step from the one shown (a level at a rounding edge would flip it every frame).
         if abs(level - self._level) >= RING_STEP:
             self._level = round(level / RING_STEP) * RING_STEP
@@ -266,7 +278,7 @@ class CameraFollow:
         self._move_world()
 
     def _move_world(self) -> None:
-        self.world.position = (-self.x, 0.0, -self.z)
+        self.world.position = on_grid(np.array([-self.x, 0.0, -self.z]), POSITION_GRID)
 
     def configure_initial(self, server: viser.ViserServer) -> None:
         """The side view new clients start from (and viser's own "reset view" returns to)."""

@@ -214,7 +214,8 @@ class ReplayPanel:
 
 def _scrub_html(snap: Snapshot | None, back: float, span: float) -> str:
     if snap is None:
-        return f"<div class='hd-record'>live · {span:.1f} s of history held</div>"
+        # Whole seconds: the line changes once a second while the history grows, not at every status.
+        return f"<div class='hd-record'>live · {span:.0f} s of history held</div>"
     return (
         f"<div class='hd-record'>showing t = {snap.time:.2f} s ({back:.1f} s back of {span:.1f} s) · "
         f"paused: <b>Resume from here</b> continues from this moment</div>"
