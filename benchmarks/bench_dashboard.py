@@ -163,7 +163,7 @@ def main() -> None:
                 if args.record:
                     sides[f"speed {speed} rec"] = lambda v=speed: at_speed(dashboard, v, args, record=True)
             if speeds:
-                sides["bare"] = lambda: bare_round(dashboard, config.sim_config(), controls)
+                sides["bare"] = lambda: bare_round(dashboard, config.sim_config(), controls, args.seconds)
             rounds = interleaved(sides, args.rounds)
             kicked = sum(h.kicked for h in dashboard.sim.hops) if args.workbench else 0
         finally:
@@ -188,16 +188,20 @@ def bare_controls(config) -> np.ndarray:
     return np.array(recorder.ctrl)
 
 
-def bare_round(dashboard, config, controls: np.ndarray) -> dict:
-    """Bare mj_step's rate (steps/s) on the same model in this process, the dashboard paused meanwhile."""
+def bare_round(dashboard, config, controls: np.ndarray, seconds: float) -> dict:
+    """Bare mj_step's rate (steps/s) on the same model in this process over about `seconds` of stepping
+    (as long as the other sides' windows, or a moment's load weighs more on it), the dashboard paused."""
     dashboard.set_paused(True)
     while not dashboard.pacer.paused:
         time.sleep(0.01)
+    steps, stepping = 0, 0.0
     try:
-        rate, _ = raw_replay(config, controls)
+        while stepping < seconds:
+            rate, _ = raw_replay(config, controls)
+            steps, stepping = steps + len(controls), stepping + len(controls) / rate
     finally:
         dashboard.set_paused(False)
-    return {"rate": rate}
+    return {"rate": steps / stepping}
 
 
 def at_speed(dashboard, speed: float, args: argparse.Namespace, record: bool) -> dict:

@@ -77,7 +77,7 @@ class History:
         self._start: Snapshot | None = None
         self._pitch = np.empty(MAX_FLIGHT_TICKS)
         self._torque = np.empty(MAX_FLIGHT_TICKS)
-        self._n = 0
+        self._count = np.zeros(1, np.int64)  # flight ticks recorded: an array, so compiled ticks add to it
         self._rewound: Snapshot | None = None
         self._q_pitch = self._s_torque = 0  # the model's indices, set at the first liftoff
         # Views of MjData's arrays, made at each liftoff (each access to data.qpos makes a new one).
@@ -86,10 +86,18 @@ class History:
 
     # -- Listener --------------------------------------------------------------------------
     def idle_until(self, sim: Simulation) -> float:
-        """On the ground, tick() does nothing before the next ring snapshot (hopper.sim.Listener)."""
-        if self._start is None and not self._liftoff_due and self._rewound is None:
-            return self._next - 5e-4
-        return -math.inf
+        """tick() does nothing but record the flight (flight_trace) before the next ring snapshot
+        (hopper.sim.Listener), unless a flight begins, ends or the simulation was rewound."""
+        if self._liftoff_due or self._landing or self._rewound is not None:
+            return -math.inf
+        return self._next - 5e-4
+
+    def flight_trace(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int] | None:
+        """While a flight is recorded: (pitch, torque, count, qpos index, sensordata index), the arrays
+        compiled ticks append each tick's qpos[index] and sensordata[index] to (hopper.stepping)."""
+        if self._start is None:
+            return None
+        return self._pitch, self._torque, self._count, self._q_pitch, self._s_torque
 
     def tick(self, sim: Simulation) -> None:
         now = sim.data.time
@@ -98,17 +106,19 @@ class History:
         if self._rewound is not None:
             self._resume_from(self._rewound)
         if self._start is not None:
-            if self._n < MAX_FLIGHT_TICKS:
-                self._pitch[self._n] = self._qpos[self._q_pitch]
-                self._torque[self._n] = self._sensors[self._s_torque]
-                self._n += 1
+            n = self._count[0]
+            if n < MAX_FLIGHT_TICKS:
+                self._pitch[n] = self._qpos[self._q_pitch]
+                self._torque[n] = self._sensors[self._s_torque]
+                self._count[0] = n + 1
             if self._landing:
                 self._finish()
         if self._liftoff_due:
             self._liftoff_due = False
             self._q_pitch, self._s_torque = sim.layout.q_pitch, sim.layout.s_wheel_torque
             self._qpos, self._sensors = sim.data.qpos, sim.data.sensordata
-            self._start, self._n, self._landing, self._hop = sim.snapshot(with_hops=False), 0, False, None
+            self._start, self._landing, self._hop = sim.snapshot(with_hops=False), False, None
+            self._count[0] = 0
         if now >= self._next - 5e-4:  # half a tick early: the float clock drifts around the grid
             self._next = self._next + self.period if now - self._next < self.period else now + self.period
             self.ring.append(sim.snapshot())
@@ -128,7 +138,7 @@ class History:
             self.last_flight = None
 
     def _finish(self) -> None:
-        n = self._n
+        n = int(self._count[0])
         assert self._start is not None
         start = self._start
         self.last_flight = Flight(

@@ -93,7 +93,8 @@ class Listener(Protocol):
 
     A listener whose tick() does nothing until some moment may also have `idle_until(sim) -> float`:
     the simulated time (s, data.time after a tick's step) before which its tick() does nothing. While
-    every listener is idle, the ticks run compiled without calling them (Simulation.advance).
+    every listener is idle, the ticks run compiled without calling them (Simulation.advance). One
+    listener may ask those ticks to record two values each: `flight_trace()` (hopper.history.History).
     """
 
     def tick(self, sim: Simulation) -> None: ...
@@ -356,15 +357,21 @@ class Simulation:
 
     def _burst(self, count: int) -> tuple[int, int]:
         """hopper.stepping.burst up to the next moment Python is due; (0, 0) if a listener wants every tick."""
-        after = math.inf
+        after, trace = math.inf, None
         for listener in self.listeners:
             idle_until = getattr(listener, "idle_until", None)
             if idle_until is None:
                 return 0, 0
             after = min(after, idle_until(self))
+            flight = getattr(listener, "flight_trace", None)  # idle but for recording a flight (hopper.history)
+            wanted = flight() if flight is not None else None
+            if wanted is not None:
+                if trace is not None:
+                    return 0, 0  # one trace a burst
+                trace = wanted
         pending = self.pending
         before = min(pending.pulse_at, pending.kick_at)
-        return burst(count, before, after, self._arrays, *self._raw)
+        return burst(count, before, after, self._arrays, *self._raw, trace)
 
     # -- the controller (hopper.controllers) -----------------------------------------------------
     def observation(self) -> Observation:

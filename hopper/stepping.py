@@ -37,7 +37,7 @@ def _call(typingctx, function, model, data):  # noqa: ANN001, ANN202 (numba's ty
 
 @njit(nogil=True, cache=True)
 def _burst(
-    count: int,
+    ticks: int,
     before: float,
     after: float,
     qpos: np.ndarray,
@@ -48,16 +48,26 @@ def _burst(
     step: int,
     model: int,
     data: int,
+    pitch: np.ndarray,
+    torque: np.ndarray,
+    count: np.ndarray,
+    q_pitch: int,
+    s_torque: int,
 ) -> tuple[int, int]:
     m = mem[0]
-    for i in range(count):
+    for i in range(ticks):
         if m.clock >= before or m.clock + m.dt >= after:
             return i, 0
         events = control_tick(qpos, qvel, sensors, ctrl, mem)
         if events:
             return i, events
         _call(step, model, data)
-    return count, 0
+        if q_pitch >= 0:  # a flight recorded (hopper.history): what its tick() would have stored
+            n = count[0]
+            if n < len(pitch):
+                pitch[n], torque[n] = qpos[q_pitch], sensors[s_torque]
+                count[0] = n + 1
+    return ticks, 0
 
 
 def burst(
@@ -67,6 +77,7 @@ def burst(
     arrays: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
     model: int,
     data: int,
+    trace: tuple[np.ndarray, np.ndarray, np.ndarray, int, int] | None = None,
 ) -> tuple[int, int]:
     """Step up to `count` ticks: (ticks stepped, the EV_* bits of the kernel's run on the next one).
 
@@ -76,6 +87,10 @@ def burst(
     hopper.sim compares data.time), that ends at or after `after` (s, when a listener wants the
     tick), or whose kernel run reports events: that tick's kernel has run (its bits are returned,
     nonzero), its mj_step has not. The kernel's clock is data.time exactly (it adds the same
-    timestep the same way).
+    timestep the same way). With `trace` (pitch, torque, count, q index, s index: History.flight_trace)
+    each tick appends qpos[q index] and sensordata[s index] after its step, at most len(pitch).
     """
-    return _burst(count, before, after, *arrays, MJ_STEP, model, data)
+    return _burst(count, before, after, *arrays, MJ_STEP, model, data, *(trace or NO_TRACE))
+
+
+NO_TRACE = (np.empty(0), np.empty(0), np.zeros(1, np.int64), -1, -1)

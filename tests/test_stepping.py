@@ -134,3 +134,22 @@ def test_advance_stops_after_the_first_tick_with_events() -> None:
     assert sim.advance(0) == (0, 0)
     taken, events = sim.advance(3)  # a liftoff's events are hundreds of ticks apart
     assert (taken, events) == (3, 0) and not math.isnan(sim.time)
+
+
+def test_the_history_records_the_same_flights_and_ring_in_bursts() -> None:
+    """History is idle in flight but for its trace, which the compiled ticks write (flight_trace)."""
+    from hopper.history import History
+
+    runs = []
+    for bursts in (True, False):
+        sim = Simulation(SimConfig(seed=4))
+        history = History()
+        sim.listeners.append(history)
+        sim.run(4) if bursts else _tick_by_tick(sim, 4)
+        runs.append((sim, history))
+    (a, ha), (b, hb) = runs
+    _same(a, b)
+    fa, fb = ha.last_flight, hb.last_flight
+    assert fa is not None and len(fa.pitch) > 100
+    assert np.array_equal(fa.pitch, fb.pitch) and np.array_equal(fa.torque, fb.torque)
+    assert [s.time for s in ha.ring] == [s.time for s in hb.ring] and len(ha.ring) > 3
