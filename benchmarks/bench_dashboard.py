@@ -266,27 +266,33 @@ def _mean(per: list[dict], key: str, sub: str | None = None) -> float:
     return sum(c[key][sub] if sub else c[key] for c in per) / len(per)
 
 
+KINDS = ("charts", "poses", "other", "terrain")  # the probe's categories (app/dashboard/probe.py), in the table
+
+
 def report(results: list[dict], seconds: float, speed: float) -> None:
     print(f"\nhopper-dashboard load, {seconds:g} s windows at {speed:g}x real time (target RTF >= 0.98)")
     print("RTF = simulated s per wall s over the asked speed (medians of the rounds); per client: means over")
     print("the clients and rounds")
     print(f"{'clients':>7}  {'RTF':>6}  {'server frames/s':>15}  {'updates/s':>9}  {'charts/s':>8}  {'kB/s':>6}  "
-          f"{'charts':>6}  {'poses':>6}  {'other':>6}  {'initial kB':>10}")  # fmt: skip
+          f"{'charts':>6}  {'poses':>6}  {'other':>6}  {'tiles':>6}  {'initial kB':>10}")  # fmt: skip
     for r in results:
         per = r["per_client"]
         if per:
-            kb = {k: _mean(per, "breakdown_bytes_per_s", k) / 1e3 for k in ("charts", "poses", "other")}
+            kb = {k: _mean(per, "breakdown_bytes_per_s", k) / 1e3 for k in KINDS}
             cells = (
                 f"{_mean(per, 'pose_updates_per_s'):9.1f}  {_mean(per, 'chart_refreshes_per_s'):8.1f}  "
-                f"{_mean(per, 'bytes_per_s') / 1e3:6.1f}  {kb['charts']:6.1f}  {kb['poses']:6.1f}  {kb['other']:6.1f}  "
-                f"{_mean(per, 'initial_bytes') / 1e3:10.0f}"
+                f"{_mean(per, 'bytes_per_s') / 1e3:6.1f}  "
+                + "".join(f"{kb[k]:6.1f}  " for k in KINDS)
+                + f"{_mean(per, 'initial_bytes') / 1e3:10.0f}"
             )
         else:
-            cells = "  ".join(f"{'-':>{w}}" for w in (9, 8, 6, 6, 6, 6, 10))
+            cells = "  ".join(f"{'-':>{w}}" for w in (9, 8, 6, 6, 6, 6, 6, 10))
         print(f"{r['clients']:7d}  {r['rtf']:6.3f}  {r['server_frames_per_s']:15.1f}  {cells}")
     for r in results:
         if r["per_client"]:
-            rates = {k: round(_mean(r["per_client"], "messages_per_s", k)) for k in ("charts", "poses", "other")}
+            rates = {
+                k: round(_mean(r["per_client"], "messages_per_s", k)) for k in ("charts", "poses", "other", "terrain")
+            }
             print(f"messages/s per client with {r['clients']} clients: {rates}")
     base = results[0]["rtf"]
     ratios = ", ".join(f"{r['clients']} clients {r['rtf'] / base:.3f}" for r in results[1:])

@@ -24,12 +24,13 @@ import zstandard
 from hopper.app.dashboard.chart_feed import apply_push, decode_push
 
 ROBOT = "/world/robot"  # scene nodes under this prefix are the robot: a frame that moves one is a scene update
+TERRAIN = "/world/terrain"  # the terrain's tiles: sent as the simulation's window reaches them (terrain_view)
 TRAIL = "/world/trail"  # the torso's trail: line segments, counted as "other" with their creation messages
 POSE_MESSAGES = frozenset(
     {"SetPositionMessage", "SetOrientationMessage", "SetBonePositionMessage", "SetBoneOrientationMessage"}
 )
 POSE_PROPS = frozenset({"batched_positions", "batched_wxyzs"})  # batched nodes' transforms (SceneNodeUpdateMessage)
-CATEGORIES = ("charts", "poses", "other")
+CATEGORIES = ("charts", "poses", "terrain", "other")
 
 
 def is_pose(message: dict[str, Any]) -> bool:
@@ -268,6 +269,8 @@ class ProbeClient:
             return "charts"
         if message.get("type") == "RunJavascriptMessage" and decode_push(message["source"]) is not None:
             return "charts"
+        if str(message.get("name", "")).startswith(TERRAIN):
+            return "terrain"
         return "poses" if is_pose(message) else "other"
 
     def _account(self, raw: bytes, compressed: int, messages: list[dict[str, Any]], lengths: list[int]) -> None:
