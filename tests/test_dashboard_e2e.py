@@ -88,7 +88,7 @@ def distinct_colours(path: Path) -> int:
     return len(image.getcolors(maxcolors=image.width * image.height))
 
 
-HOP_ROWS_JS = """() => [...document.querySelectorAll('table.hd-hops:not(.hd-response) tr:not(.hd-mean)')]
+HOP_ROWS_JS = """() => [...document.querySelectorAll('table.hd-hops:not(.hd-resp) tr:not(.hd-mean)')]
     .slice(1).map(row => row.innerText.trim().split(/\\s+/))"""
 LOG_TEXT_JS = "() => [...document.querySelectorAll('table.hd-log')].map(t => t.textContent).join(' | ')"
 LOG_HAS_JS = "line => [...document.querySelectorAll('table.hd-log')].some(t => t.textContent.includes(line))"

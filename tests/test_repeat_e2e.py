@@ -14,7 +14,8 @@ from test_workbench_e2e import _type
 
 from hopper.schedule import KickSchedule
 
-RESPONSE_JS = "() => { const t = document.querySelector('table.hd-response'); return t ? t.innerText : ''; }"
+# The response table is one HTML element a part (header, each row, the mean): read them all, in order.
+RESPONSE_JS = "() => [...document.querySelectorAll('table.hd-resp')].map(t => t.innerText).join('\\n')"
 STATUS_JS = "() => document.body.innerText"
 
 
@@ -76,7 +77,7 @@ def test_a_schedule_set_in_the_page_kicks_every_second_flight_and_fills_the_resp
         assert cells[6] == f"{hop.landing_error_deg:+.2f}"
         close_notices(page)  # viser's software-WebGL notice
         # A script, not the locator's scroll: that waits for the table to be still, and it is live.
-        page.evaluate("() => document.querySelector('table.hd-response').scrollIntoView({block: 'end'})")
+        page.evaluate("() => [...document.querySelectorAll('table.hd-resp')].pop().scrollIntoView({block: 'end'})")
         page.screenshot(path=str(tmp_path / "repeat-hop-table.png"))  # 1440x900, to look at
         print(f"\nresponse row of hop {hop.index}: {cells} ({elapsed()})")
 

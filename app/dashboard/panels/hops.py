@@ -42,7 +42,10 @@ HOPS_AT, RESPONSE_AT = 0.0, 10 * BAND
 
 
 def _table(inner: str, cls: str = "", stale: bool = False) -> str:
-    """One part of a table (its header, a row, its mean) as a table of its own: fixed, equal columns line up."""
+    """One part of a table (its header, a row, its mean) as a table of its own: fixed, equal columns line up.
+
+    Every part of the response table is `hd-resp`, so a page (or a test) can tell the two tables' parts apart.
+    """
     classes = " ".join(c for c in ("hd-hops", cls, "hd-stale" if stale else "") if c)
     return f"<table class='{classes}'>{inner}</table>"
 
@@ -87,7 +90,7 @@ def response_header_html(hops: list[HopMetrics]) -> str:
     head = "".join(f"<th>{h}<br><span>{u}</span></th>" for _, h, u, _ in RESPONSE_COLUMNS)
     source = "after the scheduled kick" if any(h.kicked for h in hops) else "from liftoff (no kick scheduled)"
     caption = f"<caption>pitch response {source}; settle: into 1°</caption>"
-    return _table(f"{caption}<tr><th>#</th><th>kick<br><span>ms</span></th>{head}</tr>", "hd-response")
+    return _table(f"{caption}<tr><th>#</th><th>kick<br><span>ms</span></th>{head}</tr>", "hd-response hd-resp")
 
 
 def response_row_html(hop: HopMetrics, stale: bool = False) -> str:
@@ -99,7 +102,7 @@ def response_row_html(hop: HopMetrics, stale: bool = False) -> str:
         else f"<td>{_cell(getattr(hop, f), fmt)}</td>"
         for f, _, _, fmt in RESPONSE_COLUMNS
     )
-    return _table(f"<tr{_mark(hop)}><td>{hop.index}</td><td>{kick}</td>{cells}</tr>", stale=stale)
+    return _table(f"<tr{_mark(hop)}><td>{hop.index}</td><td>{kick}</td>{cells}</tr>", "hd-resp", stale)
 
 
 def response_mean_html(hops: list[HopMetrics], stale: bool = False) -> str:
@@ -108,7 +111,9 @@ def response_mean_html(hops: list[HopMetrics], stale: bool = False) -> str:
     kicked = [h for h in done if h.kicked]
     if not done:
         empty = "no hops yet" if not hops else ""
-        return _table(f"<tr><td colspan={len(RESPONSE_COLUMNS) + 2} class='hd-empty'>{empty}</td></tr>", "hd-end")
+        return _table(
+            f"<tr><td colspan={len(RESPONSE_COLUMNS) + 2} class='hd-empty'>{empty}</td></tr>", "hd-end hd-resp"
+        )
     group = kicked or done
     means = []
     for f, _, _, fmt in RESPONSE_COLUMNS:
@@ -117,7 +122,7 @@ def response_mean_html(hops: list[HopMetrics], stale: bool = False) -> str:
         means.append(f"<td>{_settle(mean, settled) if f == 'settling_time_s' else _cell(mean, fmt)}</td>")
     label = "x̄ of the kicked hops" if kicked else "x̄ of all hops (none kicked)"
     row = f"<tr class='hd-mean' title='{label}'><td>x̄</td><td>{'k' if kicked else ''}</td>{''.join(means)}</tr>"
-    return _table(row, "hd-end", stale)
+    return _table(row, "hd-end hd-resp", stale)
 
 
 @dataclasses.dataclass
