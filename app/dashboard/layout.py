@@ -14,6 +14,7 @@ from hopper.app.dashboard.panels.events import EventLog, build_event_log
 from hopper.app.dashboard.panels.gains import GainsPanel, build_gains_panel
 from hopper.app.dashboard.panels.help import build_help_button
 from hopper.app.dashboard.panels.hops import HopTable, build_hop_table
+from hopper.app.dashboard.panels.logreplay import LogReplayPanel, build_logreplay_panel
 from hopper.app.dashboard.panels.record import RecordPanel, build_record_panel
 from hopper.app.dashboard.panels.replay import ReplayHost, ReplayPanel, build_replay_panel
 from hopper.app.dashboard.panels.simulation import SimulationPanel, build_simulation_panel
@@ -21,7 +22,7 @@ from hopper.app.dashboard.panels.status import StatusPanel, build_status_panel
 from hopper.app.dashboard.panels.terrain import TerrainPanel, build_terrain_panel
 from hopper.app.dashboard.panels.view import ViewPanel, build_view_panel
 from hopper.app.dashboard.physics import PhysicsView
-from hopper.app.dashboard.plots import LivePlots, ReflyPlots
+from hopper.app.dashboard.plots import LivePlots, LogReplayPlots, ReflyPlots
 from hopper.app.dashboard.recording import Recorder
 from hopper.app.dashboard.scene import CameraFollow, GhostRobot, RobotView, Trail
 
@@ -48,6 +49,7 @@ class Layout:
     viewer_safe: tuple[viser.GuiButtonHandle, ...]  # inputs a viewer may use: they change nothing shared
     replay: ReplayPanel | None = None  # re-fly, history scrubber, keyframes
     controller: ControllerPanel | None = None  # which law flies the wheel, its params
+    logreplay: LogReplayPanel | None = None  # a log replayed beside the simulation
 
 
 def configure_theme(server: viser.ViserServer) -> None:
@@ -111,10 +113,11 @@ def build_layout(
         view = build_view_panel(gui, server.scene, camera, trail, robot, physics)
     with tabs.add_tab("Record", viser.Icon.PLAYER_RECORD):
         record = build_record_panel(gui, recorder)
-    replay = None
+    replay = logreplay = None
     if replay_host is not None and ghost is not None:
         with tabs.add_tab("Replay", viser.Icon.HISTORY):
             replay = build_replay_panel(gui, ctx, replay_host, None, ghost)
+            logreplay = build_logreplay_panel(gui, server.scene, replay_host)
     help_button = build_help_button(gui, assets.help_markdown())
     server.gui.main_panel.dock_right()
     server.gui.main_panel.set_width(theme.right_panel_width)
@@ -129,6 +132,9 @@ def build_layout(
         if replay is not None:
             with gui.add_folder("Re-fly: before / after"):
                 replay.plots = ReflyPlots(gui)
+        if logreplay is not None:
+            with gui.add_folder("Log replay: simulated − logged"):
+                logreplay.plots = LogReplayPlots(gui)
     live.dock_left()
     live.set_width(theme.left_panel_width)
     return Layout(
@@ -147,4 +153,5 @@ def build_layout(
         viewer_safe=(help_button, view.home),
         replay=replay,
         controller=controller_panel,
+        logreplay=logreplay,
     )

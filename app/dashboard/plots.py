@@ -199,3 +199,35 @@ class ReflyPlots:
         deg = 180.0 / math.pi
         self.pitch.data = (t.astype(np.float32), column(before[0], deg), column(after[0], deg))
         self.torque.data = (t.astype(np.float32), column(before[1], 1.0), column(after[1], 1.0))
+
+
+LOGGED_COLOR, SIMULATED_COLOR = BEFORE_COLOR, AFTER_COLOR  # a log's replay: the log (orange), the simulation (blue)
+LOG_REPLAY_POINTS = 4000  # at most, per chart: a few hops at full rate would be tens of thousands
+
+
+class LogReplayPlots:
+    """A log replayed beside the simulation, against the log's time: pitch and wheel speed errors
+    (simulated minus logged) and the feet's contact, logged and simulated (its edges show the timing)."""
+
+    def __init__(self, gui: viser.GuiApi) -> None:
+        time = _series("log t (s)", "")
+        self.pitch = _chart(gui, (time, _series("pitch error (°)", SIMULATED_COLOR)), None)
+        self.wheel = _chart(gui, (time, _series("wheel speed error (rpm)", SIMULATED_COLOR)), None)
+        contact = (_series("log on ground", LOGGED_COLOR), _series("sim on ground", SIMULATED_COLOR, 2.0, (5, 3)))
+        self.contact = _chart(gui, (time, *contact), (-0.15, 1.25))
+
+    def show(
+        self,
+        time: np.ndarray,
+        pitch_error: np.ndarray,
+        wheel_error: np.ndarray,
+        logged_on: np.ndarray,
+        simulated_on: np.ndarray,
+    ) -> None:
+        """Per sample: time s, pitch error rad, wheel speed error rad/s, either foot down (bool), thinned
+        to LOG_REPLAY_POINTS; the simulated contact is drawn at 0.95 so that both lines show where they agree."""
+        k = slice(None, None, max(1, -(-len(time) // LOG_REPLAY_POINTS)))
+        t = time[k].astype(np.float32)
+        self.pitch.data = (t, np.degrees(pitch_error[k]).astype(np.float32))
+        self.wheel.data = (t, (wheel_error[k] * RAD_S_TO_RPM).astype(np.float32))
+        self.contact.data = (t, logged_on[k].astype(np.float32), 0.95 * simulated_on[k].astype(np.float32))

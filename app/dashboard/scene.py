@@ -323,15 +323,24 @@ class GhostRobot:
     Its own MjData turns each stored qpos into body poses; the live robot's data is never touched.
     """
 
-    def __init__(self, scene: viser.SceneApi, model: mujoco.MjModel) -> None:
+    def __init__(
+        self,
+        scene: viser.SceneApi,
+        model: mujoco.MjModel,
+        *,
+        name: str = "ghost",
+        color: tuple[int, int, int] = GHOST_COLOR,
+        offset: tuple[float, float, float] = (0.0, 0.0, 0.0),  # m, added to every pose (a ghost beside another)
+    ) -> None:
         self._model, self._data = model, mujoco.MjData(model)
         self._meshes = body_meshes(model)
+        self._offset = np.asarray(offset, dtype=float)
         self._handles = [
             scene.add_mesh_simple(
-                f"{WORLD}/ghost/{body.name}",
+                f"{WORLD}/{name}/{body.name}",
                 body.vertices,
                 body.faces,
-                color=GHOST_COLOR,
+                color=color,
                 opacity=GHOST_OPACITY,
                 side="double",
                 cast_shadow=False,
@@ -376,5 +385,5 @@ class GhostRobot:
         mujoco.mj_kinematics(self._model, self._data)
         positions, quats = body_poses(self._model, self._data, self._meshes)
         for handle, p, q in zip(self._handles, positions, quats, strict=True):
-            handle.position, handle.wxyz = p, q
+            handle.position, handle.wxyz = p + self._offset, q
         self._show(True)

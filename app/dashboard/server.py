@@ -381,6 +381,8 @@ class Dashboard:
             # Smoothing in simulated time: at 64x the camera keeps up with a robot 64 times as fast.
             self.camera.update(s.x, s.z, dt * max(self.pacer.pace, 1.0))
             self.ghost.update(now)
+            if self.layout.logreplay is not None:
+                self.layout.logreplay.update(now)
             self.physics.update(sim, now)
         self.trail.publish(now)
         self.layout.plots.publish(now)

@@ -93,6 +93,30 @@ def set_state(model: mujoco.MjModel, data: mujoco.MjData, log: Log, k: int) -> N
     mujoco.mj_forward(model, data)
 
 
+def poses(model: mujoco.MjModel, signals: dict[str, np.ndarray], every: int = 1) -> np.ndarray:
+    """qpos rows of the robot at every `every`-th sample of `signals` (SIMULATED or log names: pitch,
+    the legs and the torso CoM's x, z in m), as set_state places it, the wheel's angle at 0; a sample
+    that is not finite (a diverged replay) holds the pose before it."""
+    lay = ModelLayout.of(model)
+    data = mujoco.MjData(model)
+    rows = range(0, len(signals["pitch"]), every)
+    out = np.empty((len(rows), model.nq))
+    x0, z0 = lay.torso_origin
+    for i, k in enumerate(rows):
+        values = [signals[name][k] for name in ("pitch", "x", "z", *LEG_JOINTS)]
+        if not all(math.isfinite(v) for v in values):
+            out[i] = out[i - 1] if i else data.qpos
+            continue
+        mujoco.mj_resetData(model, data)
+        data.qpos[lay.q_pitch] = values[0]
+        data.qpos[list(lay.q_legs)] = values[3:]
+        mujoco.mj_kinematics(model, data)  # the root at 0: where the torso's CoM is from its frame
+        r = data.xipos[lay.torso] - data.xpos[lay.torso]
+        data.qpos[lay.q_x], data.qpos[lay.q_z] = values[1] - x0 - r[0], values[2] - z0 - r[2]
+        out[i] = data.qpos
+    return out
+
+
 def place_terrain(model: mujoco.MjModel, window, x: float) -> None:  # noqa: ANN001 (a terrain.Window)
     """Move the model's terrain window under world x (m) if it is not there already."""
     if window.follow(x, urgent=False):

@@ -1,0 +1,183 @@
+"""Log replay panel: load a recorded log, fly its hops open loop in the dashboard's world (hopper.logs.replay),
+and show the log's robot and the simulated one as two ghosts side by side, in step, with the errors charted.
+
+A load runs on a thread of its own (never the 1 kHz loop's, never viser's): the simulation keeps running,
+and a bad path or a log that cannot be replayed is a notification to the one who asked.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import html
+import logging
+import math
+import threading
+import time
+from typing import TYPE_CHECKING, Protocol
+
+import numpy as np
+import viser
+from hopper.app.dashboard.feedback import guarded, notify
+from hopper.app.dashboard.plots import LogReplayPlots
+from hopper.app.dashboard.scene import GhostRobot
+
+from hopper.config import SimConfig
+from hopper.errors import HopperError
+from hopper.logs.io import read_log
+from hopper.logs.replay import Errors, Trajectory, World, contact, hops, poses, replay_hops, world_model
+
+if TYPE_CHECKING:
+    from hopper.sim import Simulation
+
+log = logging.getLogger(__name__)
+
+MAX_HOPS = 20  # replayed at most (the first ones): a long log would keep a core busy for minutes
+GHOST_FRAME_S = 0.01  # s of log time between the ghosts' poses (100 Hz, as the re-fly's ghost)
+LOGGED_GHOST = (255, 176, 59)  # orange, as the charts' "log" lines
+SIMULATED_GHOST = (90, 169, 255)  # blue, as the charts' "sim" lines
+BESIDE_M = 0.5  # m: the log's ghost stands this far behind the simulated one (y), so that both show
+
+
+class LogReplayHost(Protocol):
+    sim: Simulation  # its config is the world the log is replayed in
+
+
+@dataclasses.dataclass(frozen=True)
+class LogReplay:
+    """A log's hops replayed: the parts (hopper.logs.replay.replay_hops), both robots' poses, the charts' series."""
+
+    source: str
+    found: int  # hops in the log
+    parts: list[tuple[Trajectory, Errors]]
+    logged: np.ndarray  # qpos rows every `frame_s` of log time
+    simulated: np.ndarray  # likewise
+    frame_s: float  # s
+    logged_on: np.ndarray  # either foot down, per sample
+    simulated_on: np.ndarray
+
+    @property
+    def errors(self) -> Errors:
+        return Errors.concat([e for _, e in self.parts])
+
+
+def world_of(config: SimConfig) -> World:
+    return World(terrain=config.terrain, seed=config.seed, gravity=config.gravity, model=config.model)
+
+
+def replay_log(path: str, config: SimConfig) -> LogReplay:
+    """Read the log at `path` and replay its first MAX_HOPS hops in `config`'s world; HopperError if it cannot."""
+    recorded = read_log(path)
+    model, window = world_model(world_of(config))
+    found = len(hops(recorded))
+    parts = replay_hops(model, recorded, MAX_HOPS, window=window)
+    first, last = parts[0][0], parts[-1][0]
+    rows = slice(first.first, last.first + len(last.time))
+    s = recorded.signals
+    simulated = {k: np.concatenate([tr.signals[k] for tr, _ in parts]) for k in first.signals}
+    every = max(1, round(GHOST_FRAME_S / recorded.period))
+    return LogReplay(
+        source=str(path),
+        found=found,
+        parts=parts,
+        logged=poses(model, {k: v[rows] for k, v in s.items()}, every),
+        simulated=poses(model, simulated, every),
+        frame_s=every * recorded.period,
+        logged_on=contact(s["foot_L_force"][rows], s["foot_R_force"][rows]),
+        simulated_on=contact(simulated["foot_L_force"], simulated["foot_R_force"]),
+    )
+
+
+def summary_html(done: LogReplay | None) -> str:
+    if done is None:
+        return (
+            "<div class='hd-record'>Replays a log's hops open loop in this world (terrain, seed, gravity): "
+            "<b style='color:#ffb03b'>orange</b> ghost the log, <b style='color:#5aa9ff'>blue</b> the simulation. "
+            "Errors chart on the left.</div>"
+        )
+    e = done.errors
+    td = e.touchdown[np.isfinite(e.touchdown)]
+    timing = f"{1e3 * np.abs(td).mean():.0f} ms mean |touchdown error| over {td.size}" if td.size else "no touchdown"
+    rms_pitch, rms_wheel = math.degrees(e.rms("pitch")), e.rms("wheel_speed")
+    shown = len(done.parts)
+    of = f"{shown} of {done.found} hops" if shown < done.found else f"{shown} hop(s)"
+    return (
+        f"<div class='hd-record'><b>{html.escape(done.source)}</b>: {of}, {e.time[0]:.2f}–{e.time[-1]:.2f} s · "
+        f"pitch RMS {rms_pitch:.3f}° · wheel speed RMS {rms_wheel:.3f} rad/s · {timing}. "
+        "<b style='color:#ffb03b'>Orange</b>: the log; <b style='color:#5aa9ff'>blue</b>: simulated.</div>"
+    )
+
+
+@dataclasses.dataclass
+class LogReplayPanel:
+    host: LogReplayHost
+    path: viser.GuiTextHandle
+    load: viser.GuiButtonHandle
+    summary: viser.GuiHtmlHandle
+    logged_ghost: GhostRobot
+    simulated_ghost: GhostRobot
+    plots: LogReplayPlots | None = None  # set once the left panel exists
+    last: LogReplay | None = None
+    finished: int = 0  # loads ended (replayed or refused), for tests to wait on
+    _lock: threading.Lock = dataclasses.field(default_factory=threading.Lock, repr=False)
+
+    def request(self, text: str, client: viser.ClientHandle | None) -> threading.Thread | None:
+        """Load and replay the log at `text` on a thread of its own; None (and a notice) while one runs."""
+        path = text.strip()
+        if not path:
+            notify(client, "No log", "Type the path of a log (.csv, .npz, .mcap, .rrd) first.", "warning")
+            self.finished += 1
+            return None
+        if not self._lock.acquire(blocking=False):
+            notify(client, "Replay running", "A log is being replayed: wait for it to finish.", "warning")
+            return None
+        self.load.disabled = True
+        worker = threading.Thread(target=self._run, args=(path, client), name="log-replay", daemon=True)
+        worker.start()
+        return worker
+
+    def _run(self, path: str, client: viser.ClientHandle | None) -> None:
+        try:
+            done = replay_log(path, self.host.sim.config)
+            self.show(done)
+            notify(client, "Log replayed", f"{path}: {len(done.parts)} hop(s)")
+        except HopperError as exc:
+            notify(client, "Log not replayed", str(exc), "error")
+        except Exception as exc:  # a reader's own failure on a corrupt file: said, never raised into the thread
+            log.exception("log replay of %s failed", path)
+            notify(client, "Log not replayed", f"{path}: {type(exc).__name__}: {exc}", "error")
+        finally:
+            self.load.disabled = False
+            self.finished += 1
+            self._lock.release()
+
+    def show(self, done: LogReplay) -> None:
+        now = time.perf_counter()  # both from the same moment, the same length: they play in step
+        self.logged_ghost.play(done.logged, done.frame_s, now)
+        self.simulated_ghost.play(done.simulated, done.frame_s, now)
+        if self.plots is not None:
+            e = done.errors
+            self.plots.show(e.time, e.pitch, e.wheel_speed, done.logged_on, done.simulated_on)
+        self.summary.content = summary_html(done)
+        self.last = done
+
+    def update(self, now: float) -> None:
+        """Send both ghosts' poses due at wall time `now` (the loop calls it inside server.atomic())."""
+        self.logged_ghost.update(now)
+        self.simulated_ghost.update(now)
+
+
+def build_logreplay_panel(gui: viser.GuiApi, scene: viser.SceneApi, host: LogReplayHost) -> LogReplayPanel:
+    model = host.sim.model
+    logged = GhostRobot(scene, model, name="log_ghost", color=LOGGED_GHOST, offset=(0.0, BESIDE_M, 0.0))
+    simulated = GhostRobot(scene, model, name="sim_ghost", color=SIMULATED_GHOST)
+    with gui.add_folder("Replay a log"):
+        path = gui.add_text("Log path", "", hint="A hopper log on the server: .csv, .npz, .mcap or .rrd")
+        load = gui.add_button(
+            "Load and replay log",
+            icon=viser.Icon.FILE_IMPORT,
+            hint="Fly the log's commands open loop from its state at each liftoff, in this world",
+        )
+        summary = gui.add_html(summary_html(None))
+    panel = LogReplayPanel(host, path, load, summary, logged, simulated)
+    load.on_click(guarded(lambda event: panel.request(path.value, event.client)))
+    return panel

@@ -1,0 +1,74 @@
+"""End to end in a real headless Chromium: a bad path is a notification and the simulation keeps running;
+a captured log of two hops is replayed beside the simulation: two ghosts in step and the error charts.
+Skips without /usr/bin/chromium, except under CI=true. The screenshot goes to the test's tmp_path
+(and to $HOPPER_SHOTS when set).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from hopper.app.dashboard.server import Dashboard
+from net import wait_until
+from test_dashboard_e2e import browser  # noqa: F401  (the Chromium fixture)
+from test_replay_e2e import NOTES_JS, _input, _open, _shot
+
+from hopper.logs.capture import capture
+from hopper.logs.io import write_log
+
+
+def _load(page, dashboard: Dashboard, text: str) -> None:
+    panel = dashboard.layout.logreplay
+    before = panel.finished
+    box = _input(page, panel.path)
+    box.fill(text)
+    box.press("Tab")
+    assert wait_until(lambda: panel.path.value == text, timeout=30)
+    page.get_by_role("button", name="Load and replay log").click()
+    assert wait_until(lambda: panel.finished > before, timeout=60), "the load never ended"
+
+
+def test_a_log_replays_beside_the_simulation(browser, dashboard: Dashboard, tmp_path: Path):  # noqa: F811
+    recorded = capture(dashboard.sim.config, 2).log  # the dashboard's world: terrain, seed, gravity
+    path = write_log(recorded, tmp_path / "two_hops.npz")
+    page = _open(browser, dashboard)
+    try:
+        panel = dashboard.layout.logreplay
+        start = dashboard.sim.data.time
+        _load(page, dashboard, str(tmp_path / "missing.npz"))
+        page.wait_for_function(f"() => ({NOTES_JS})().includes('Log not replayed')")
+        assert "no such file" in page.evaluate(NOTES_JS)
+        assert panel.last is None
+        assert wait_until(lambda: dashboard.sim.data.time > start + 0.5, timeout=60), "the simulation stopped"
+
+        _load(page, dashboard, str(path))
+        done = panel.last
+        assert done is not None and done.source == str(path) and len(done.parts) == done.found == 2
+        assert done.logged.shape == done.simulated.shape and len(done.logged) > 100
+        # The log's ghost is the log: its first pose stands where the log's robot was at the first liftoff.
+        lay = dashboard.sim.layout
+        first = done.parts[0][0].first
+        assert abs(done.logged[0][lay.q_pitch] - recorded.signals["pitch"][first]) < 1e-12
+        # Both ghosts play in step: the loop sends them the same frame.
+        assert wait_until(lambda: 5 < panel.logged_ghost.shown_frame == panel.simulated_ghost.shown_frame, timeout=60)
+        page.wait_for_function(f"() => ({NOTES_JS})().includes('Log replayed')")
+        page.wait_for_function(
+            "() => [...document.querySelectorAll('.hd-record')].some(e => e.innerText.includes('pitch RMS'))"
+        )
+        page.wait_for_function(
+            "() => ['pitch error (°)', 'wheel speed error (rpm)', 'sim on ground'].every(l => "
+            "[...document.querySelectorAll('.uplot')].some(u => u.innerText.includes(l)))"
+        )
+        e = done.errors
+        pitch = panel.plots.pitch.data
+        assert len(pitch[0]) > 100 and pitch[0][0] == np.float32(e.time[0])
+        assert np.isclose(pitch[1][0], np.degrees(e.pitch[0]), atol=1e-4)
+        assert panel.plots.contact.data[1].max() == 1.0 and panel.plots.contact.data[1].min() == 0.0
+        page.evaluate(
+            "() => [...document.querySelectorAll('.uplot')].find(u => u.innerText.includes('pitch error'))"
+            ".scrollIntoView()"
+        )
+        _shot(page, tmp_path, "logreplay.png")
+    finally:
+        page.close()
