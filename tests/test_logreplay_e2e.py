@@ -53,6 +53,9 @@ def test_a_log_replays_beside_the_simulation(browser, dashboard: Dashboard, tmp_
         # Both ghosts play in step: the loop sends them the same frame.
         assert wait_until(lambda: 5 < panel.logged_ghost.shown_frame == panel.simulated_ghost.shown_frame, timeout=60)
         page.wait_for_function(f"() => ({NOTES_JS})().includes('Log replayed')")
+        # The camera goes to the ghosts (where the log was recorded), and back to the live robot when unticked.
+        assert panel.watch.value and panel.watched() is not None
+        assert wait_until(lambda: abs(dashboard.camera.robot[0] - dashboard.sim.state().x) < 0.5, timeout=30)
         page.wait_for_function(
             "() => [...document.querySelectorAll('.hd-record')].some(e => e.innerText.includes('pitch RMS'))"
         )

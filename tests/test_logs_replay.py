@@ -4,12 +4,24 @@ from __future__ import annotations
 
 import math
 
+import mujoco
 import numpy as np
 import pytest
 
 from hopper.config import SensingParams, SimConfig
 from hopper.logs.capture import capture
-from hopper.logs.replay import ReplayError, World, errors, flights, hops, replay_hops, simulate, world_model
+from hopper.logs.replay import (
+    ReplayError,
+    World,
+    errors,
+    flights,
+    hops,
+    poses,
+    replay_hops,
+    set_state,
+    simulate,
+    world_model,
+)
 from hopper.logs.schema import Log
 from hopper.mismatch import Nominal
 
@@ -74,3 +86,19 @@ def test_what_cannot_be_replayed_is_refused(log: Log) -> None:
     standing = log.between(0.0, 0.5)
     with pytest.raises(ReplayError, match="no hop"):
         replay_hops(model, standing)
+
+
+def test_poses_place_the_robot_as_its_state_does(log: Log) -> None:
+    """A ghost's qpos rows (every 7th sample) are where set_state puts the robot; a diverged sample
+    holds the pose before it."""
+    model, _ = robot()
+    data = mujoco.MjData(model)
+    got = poses(model, log.signals, 7)
+    assert got.shape == (len(range(0, len(log.time), 7)), model.nq)
+    for i in (0, 100, len(got) - 1):
+        set_state(model, data, log, 7 * i)
+        assert np.abs(got[i] - data.qpos).max() < 1e-12
+    broken = {k: v.copy() for k, v in log.signals.items()}
+    broken["pitch"][700:] = np.nan
+    held = poses(model, broken, 7)
+    assert np.array_equal(held[-1], held[99]) and np.isfinite(held).all()

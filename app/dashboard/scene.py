@@ -303,13 +303,15 @@ class CameraFollow:
             client.camera.position = look_at + CAMERA_OFFSET
             client.camera.look_at = look_at
 
-    def update(self, x: float, z: float, dt: float) -> None:
-        """Note the robot at (x, z) (m); if following, move the followed point toward it and the world to match."""
+    def update(self, x: float, z: float, dt: float, target: tuple[float, float] | None = None) -> None:
+        """Note the robot at (x, z) (m); if following, move the followed point toward it (or toward
+        `target`, m: a replayed log's ghosts) and the world to match."""
         self.robot = (x, z)
         if not self.enabled:
             return
-        self.x += (x - self.x) * (1.0 - math.exp(-dt / FOLLOW_TAU_X))
-        self.z += (z - self.z) * (1.0 - math.exp(-dt / FOLLOW_TAU_Z))
+        tx, tz = (x, z) if target is None else target
+        self.x += (tx - self.x) * (1.0 - math.exp(-dt / FOLLOW_TAU_X))
+        self.z += (tz - self.z) * (1.0 - math.exp(-dt / FOLLOW_TAU_Z))
         self._move_world()
 
 

@@ -379,7 +379,8 @@ class Dashboard:
             if status is not None:
                 self.layout.status.show(status)
             # Smoothing in simulated time: at 64x the camera keeps up with a robot 64 times as fast.
-            self.camera.update(s.x, s.z, dt * max(self.pacer.pace, 1.0))
+            watched = None if self.layout.logreplay is None else self.layout.logreplay.watched()
+            self.camera.update(s.x, s.z, dt * max(self.pacer.pace, 1.0), watched)
             self.ghost.update(now)
             if self.layout.logreplay is not None:
                 self.layout.logreplay.update(now)

@@ -54,6 +54,7 @@ class LogReplay:
     frame_s: float  # s
     logged_on: np.ndarray  # either foot down, per sample
     simulated_on: np.ndarray
+    track: np.ndarray  # (frames, 2): the log's torso CoM x, z (m) at each ghost pose, for the camera
 
     @property
     def errors(self) -> Errors:
@@ -84,6 +85,7 @@ def replay_log(path: str, config: SimConfig) -> LogReplay:
         frame_s=every * recorded.period,
         logged_on=contact(s["foot_L_force"][rows], s["foot_R_force"][rows]),
         simulated_on=contact(simulated["foot_L_force"], simulated["foot_R_force"]),
+        track=np.column_stack([s["x"][rows][::every], s["z"][rows][::every]]),
     )
 
 
@@ -112,6 +114,7 @@ class LogReplayPanel:
     host: LogReplayHost
     path: viser.GuiTextHandle
     load: viser.GuiButtonHandle
+    watch: viser.GuiCheckboxHandle
     summary: viser.GuiHtmlHandle
     logged_ghost: GhostRobot
     simulated_ghost: GhostRobot
@@ -159,6 +162,14 @@ class LogReplayPanel:
             self.plots.show(e.time, e.pitch, e.wheel_speed, done.logged_on, done.simulated_on)
         self.summary.content = summary_html(done)
         self.last = done
+        self.watch.value = True  # the ghosts play where the log was recorded: show them there
+
+    def watched(self) -> tuple[float, float] | None:
+        """Where the camera should look (m: the log's torso x, z now) while the ghosts are watched, else None."""
+        done, frame = self.last, self.logged_ghost.shown_frame
+        if done is None or not self.watch.value or not self.logged_ghost.playing or frame < 0:
+            return None
+        return float(done.track[frame, 0]), float(done.track[frame, 1])
 
     def update(self, now: float) -> None:
         """Send both ghosts' poses due at wall time `now` (the loop calls it inside server.atomic())."""
@@ -177,7 +188,10 @@ def build_logreplay_panel(gui: viser.GuiApi, scene: viser.SceneApi, host: LogRep
             icon=viser.Icon.FILE_IMPORT,
             hint="Fly the log's commands open loop from its state at each liftoff, in this world",
         )
+        watch = gui.add_checkbox(
+            "Camera on the ghosts", False, hint="Follow the replayed log's ghosts; untick to follow the live robot"
+        )
         summary = gui.add_html(summary_html(None))
-    panel = LogReplayPanel(host, path, load, summary, logged, simulated)
+    panel = LogReplayPanel(host, path, load, watch, summary, logged, simulated)
     load.on_click(guarded(lambda event: panel.request(path.value, event.client)))
     return panel
