@@ -16,6 +16,7 @@ from test_replay_e2e import NOTES_JS, _input, _open, _shot
 
 from hopper.logs.capture import capture
 from hopper.logs.io import write_log
+from hopper.logs.synthetic import synthetic_log
 
 
 def _load(page, dashboard: Dashboard, text: str) -> None:
@@ -41,6 +42,10 @@ def test_a_log_replays_beside_the_simulation(browser, dashboard: Dashboard, tmp_
         assert "no such file" in page.evaluate(NOTES_JS)
         assert panel.last is None
         assert wait_until(lambda: dashboard.sim.data.time > start + 0.5, timeout=60), "the simulation stopped"
+        stateless = write_log(synthetic_log(1.0, optional=False), tmp_path / "no_state.npz")  # no x, z, vx, ...
+        _load(page, dashboard, str(stateless))
+        page.wait_for_function(f"() => ({NOTES_JS})().includes('has no x')")
+        assert panel.last is None
 
         _load(page, dashboard, str(path))
         done = panel.last

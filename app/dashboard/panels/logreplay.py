@@ -24,7 +24,17 @@ from hopper.app.dashboard.scene import GhostRobot
 from hopper.config import SimConfig
 from hopper.errors import HopperError
 from hopper.logs.io import read_log
-from hopper.logs.replay import Errors, Trajectory, World, contact, hops, poses, replay_hops, world_model
+from hopper.logs.replay import (
+    Errors,
+    Trajectory,
+    World,
+    check_replayable,
+    contact,
+    hops,
+    poses,
+    replay_hops,
+    world_model,
+)
 
 if TYPE_CHECKING:
     from hopper.sim import Simulation
@@ -68,6 +78,7 @@ def world_of(config: SimConfig) -> World:
 def replay_log(path: str, config: SimConfig) -> LogReplay:
     """Read the log at `path` and replay its first MAX_HOPS hops in `config`'s world; HopperError if it cannot."""
     recorded = read_log(path)
+    check_replayable(recorded)  # before the hops: a log without the state says so, not 'no hop'
     model, window = world_model(world_of(config))
     found = len(hops(recorded))
     parts = replay_hops(model, recorded, MAX_HOPS, window=window)
@@ -130,10 +141,10 @@ class LogReplayPanel:
             notify(client, "No log", "Type the path of a log (.csv, .npz, .mcap, .rrd) first.", "warning")
             self.finished += 1
             return None
+        # A second load while one runs is refused (the button is not greyed: Roles owns each client's greying).
         if not self._lock.acquire(blocking=False):
             notify(client, "Replay running", "A log is being replayed: wait for it to finish.", "warning")
             return None
-        self.load.disabled = True
         worker = threading.Thread(target=self._run, args=(path, client), name="log-replay", daemon=True)
         worker.start()
         return worker
@@ -149,7 +160,6 @@ class LogReplayPanel:
             log.exception("log replay of %s failed", path)
             notify(client, "Log not replayed", f"{path}: {type(exc).__name__}: {exc}", "error")
         finally:
-            self.load.disabled = False
             self.finished += 1
             self._lock.release()
 
