@@ -8,11 +8,12 @@ from __future__ import annotations
 import dataclasses
 from typing import Literal
 
-from hopper.config import Gains
+from hopper.config import Gains, InvalidConfig
 from hopper.disturbances import DisturbanceKind
 from hopper.schedule import KickSchedule
 from hopper.sim import Command as Command  # re-exported: it was defined here before
 from hopper.sim import Simulation
+from hopper.stand import StandSimulation
 
 
 @dataclasses.dataclass(frozen=True)
@@ -128,3 +129,15 @@ class Reset:
 
     def apply(self, sim: Simulation) -> None:
         sim.reset(reason=self.reason)
+
+
+@dataclasses.dataclass(frozen=True)
+class SetReference:
+    """Step the stand's pitch reference to `pitch` (rad); refused off the stand."""
+
+    pitch: float  # rad
+
+    def apply(self, sim: Simulation) -> None:
+        if not isinstance(sim, StandSimulation):
+            raise InvalidConfig("a reference step needs the stand: choose a stand mode first")
+        sim.set_reference(self.pitch)

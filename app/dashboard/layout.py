@@ -18,6 +18,7 @@ from hopper.app.dashboard.panels.logreplay import LogReplayPanel, build_logrepla
 from hopper.app.dashboard.panels.record import RecordPanel, build_record_panel
 from hopper.app.dashboard.panels.replay import ReplayHost, ReplayPanel, build_replay_panel
 from hopper.app.dashboard.panels.simulation import SimulationPanel, build_simulation_panel
+from hopper.app.dashboard.panels.stand import StandPanel, build_stand_panel
 from hopper.app.dashboard.panels.status import StatusPanel, build_status_panel
 from hopper.app.dashboard.panels.terrain import TerrainPanel, build_terrain_panel
 from hopper.app.dashboard.panels.view import ViewPanel, build_view_panel
@@ -50,6 +51,7 @@ class Layout:
     replay: ReplayPanel | None = None  # re-fly, history scrubber, keyframes
     controller: ControllerPanel | None = None  # which law flies the wheel, its params
     logreplay: LogReplayPanel | None = None  # a log replayed beside the simulation
+    stand: StandPanel | None = None  # hop, or the test stand (World tab)
 
 
 def configure_theme(server: viser.ViserServer) -> None:
@@ -110,6 +112,8 @@ def build_layout(
         disturbances = build_disturbances_panel(gui, ctx)
     with tabs.add_tab("World", viser.Icon.PLANET):
         terrain_panel = build_terrain_panel(gui, ctx, seed, terrain, gravity)
+        with gui.add_folder("Test stand"):
+            stand = build_stand_panel(gui, ctx)
         view = build_view_panel(gui, server.scene, camera, trail, robot, physics)
     with tabs.add_tab("Record", viser.Icon.PLAYER_RECORD):
         record = build_record_panel(gui, recorder)
@@ -154,4 +158,5 @@ def build_layout(
         replay=replay,
         controller=controller_panel,
         logreplay=logreplay,
+        stand=stand,
     )

@@ -1,4 +1,4 @@
-"""The dashboard loop's own commands (pause, speed, steps, stay fallen, restore), on the simulation's queue.
+"""The dashboard loop's own commands (pause, speed, steps, stay fallen, restore, mode), on the simulation's queue.
 
 Viser's threads never write the loop's flags: they submit these, and the loop applies them with the
 simulation's commands, in the order they came, at the top of its next round (Dashboard._run).
@@ -26,6 +26,8 @@ class Loop(Protocol):
     def apply_stay_fallen(self, stay: bool) -> None: ...
 
     def apply_restore(self, snapshot: Snapshot) -> None: ...
+
+    def apply_mode(self, mode: str) -> None: ...
 
 
 @dataclasses.dataclass(frozen=True)
@@ -71,3 +73,15 @@ class Restore:
 
     def apply(self, sim: Simulation) -> None:
         self.loop.apply_restore(self.snapshot)
+
+
+@dataclasses.dataclass(frozen=True)
+class SetMode:
+    """Hop, or put the robot on the test stand ("stand locked", "stand free"): the loop rebuilds its
+    simulation between rounds (Dashboard.apply_mode)."""
+
+    loop: Loop
+    mode: str
+
+    def apply(self, sim: Simulation) -> None:
+        self.loop.apply_mode(self.mode)

@@ -19,7 +19,7 @@ from hopper.app.dashboard.access import Access, Gatekeeper, page_url
 from hopper.app.dashboard.config import DashboardConfig
 from hopper.app.dashboard.feedback import notify_all
 from hopper.app.dashboard.layout import Layout, build_layout
-from hopper.app.dashboard.loop_commands import Pause, Restore, SetSpeed, StayFallen, Steps
+from hopper.app.dashboard.loop_commands import Pause, Restore, SetMode, SetSpeed, StayFallen, Steps
 from hopper.app.dashboard.pacing import Pacer, chart_scale
 from hopper.app.dashboard.panels import PanelContext
 from hopper.app.dashboard.panels.status import Status
@@ -43,8 +43,9 @@ from hopper.errors import HopperError
 from hopper.events import Event, EventKind, Fall
 from hopper.history import History
 from hopper.metrics import RAD_S_TO_RPM
-from hopper.sim import Simulation
+from hopper.sim import Command, Simulation
 from hopper.snapshot import Snapshot
+from hopper.stand import StandSimulation
 from hopper.state import RobotState
 
 log = logging.getLogger(__name__)
@@ -57,6 +58,7 @@ MAX_SLEEP_S = 0.005  # s; the loop wakes at least this often to step (5 steps a 
 STATUS_S = 0.2  # s between status-strip updates
 OFF_WORLD_Z_M = -3.0  # m; a torso below this has left the terrain (pushed off its side)
 FALL_RESET_S = 2.0  # s of (running) wall time a fallen robot stays down before the auto reset
+MODES = ("hop", "stand locked", "stand free")  # hop over the terrain, or on the test stand (hopper.stand)
 OFF_WORLD_NOTICE_S = 30.0  # s of wall time between "off the terrain" notices (the event log has every one)
 
 
@@ -94,10 +96,12 @@ class Dashboard:
         self._next_sample = 0.0
         self.chart_scale = chart_scale(config.speed, CHART_WALL_S, PLOT_WINDOW_S)  # the charts' window / 10 s
         self._pending_restore: Snapshot | None = None  # a Restore drained, applied at the next round's top
+        self._pending_mode: str | None = None  # a SetMode drained, applied at the next round's top
+        self.mode = "hop"
         self.frames = 0  # pose frames published, for tests and the benchmark
 
         limits = FileLimits(max_mb=config.rrd_max_mb, max_min=config.rrd_max_min, flush_s=config.rrd_flush_s)
-        self.recorder = Recorder(self.sim.submit, config.sessions_dir, limits)
+        self.recorder = Recorder(self.submit, config.sessions_dir, limits)
         if config.rrd is not None or config.rerun_viewer != "off":  # fails here, before any server starts
             self.recorder.start_now(self.sim, config.rrd, config.rerun_viewer, name="hopper-dashboard")
         try:
@@ -129,10 +133,10 @@ class Dashboard:
         self.history = History()  # replay: liftoff states and a ring of recent ones
         self.ghost = GhostRobot(self.server.scene, sim.model)
         self.physics = PhysicsView(self.server.scene, sim)
-        bind_drag(self.robot, self.camera, sim.submit)
+        bind_drag(self.robot, self.camera, self.submit)
         self.layout: Layout = build_layout(
             self.server,
-            PanelContext(self.server, sim.submit, self),
+            PanelContext(self.server, self.submit, self),
             gains=sim.gains,
             sensing=sim.config.sensing == "realistic",
             seed=config.seed,
@@ -159,7 +163,7 @@ class Dashboard:
         self.layout.analysis.update_plant(sim.config)
         self.roles = Roles(  # after every shared input exists: it greys them for viewers
             self.server,
-            sim.submit,
+            self.submit,
             folder=self.layout.control,
             viewer_safe=self.layout.viewer_safe,
             gatekeeper=self.gatekeeper,
@@ -205,26 +209,35 @@ class Dashboard:
         """Block until stop() is called (or `timeout` s); True if stopped."""
         return self._stopping.wait(timeout)
 
+    def submit(self, command: Command) -> None:
+        """Queue a command for the simulation the loop runs now (a mode change replaces it)."""
+        self.sim.submit(command)
+
     # -- LoopControls (called from any thread: each is a command on the simulation's queue) ----
+    def set_mode(self, mode: str) -> None:
+        if mode not in MODES:  # refused in the caller's thread, with its notice
+            raise HopperError(f"unknown mode {mode!r}; choose from {', '.join(MODES)}")
+        self.submit(SetMode(self, mode))
+
     def set_paused(self, paused: bool) -> None:
-        self.sim.submit(Pause(self, bool(paused)))
+        self.submit(Pause(self, bool(paused)))
 
     def request_steps(self, count: int) -> None:
-        self.sim.submit(Steps(self, max(int(count), 0)))
+        self.submit(Steps(self, max(int(count), 0)))
 
     def set_speed(self, speed: float) -> None:
         self.pacer.check_speed(speed)  # a bad speed is refused here, in the caller's thread
-        self.sim.submit(SetSpeed(self, speed))
+        self.submit(SetSpeed(self, speed))
 
     def set_stay_fallen(self, stay: bool) -> None:
-        self.sim.submit(StayFallen(self, bool(stay)))
+        self.submit(StayFallen(self, bool(stay)))
 
     # -- ReplayHost (panels/replay.py) ------------------------------------------------------
     def pause(self, paused: bool) -> None:
         self.layout.simulation.set_paused(paused)
 
     def request_restore(self, snapshot: Snapshot) -> None:
-        self.sim.submit(Restore(self, snapshot))
+        self.submit(Restore(self, snapshot))
 
     # -- loop_commands.Loop (on the loop thread, as the queue is drained) ---------------------
     def apply_paused(self, paused: bool) -> None:
@@ -251,6 +264,40 @@ class Dashboard:
         """Restore `snapshot` at the top of the next round, never inside a tick (the queue may be
         drained by sim.step mid-batch; the batch stops there)."""
         self._pending_restore = snapshot
+
+    def apply_mode(self, mode: str) -> None:
+        """Switch at the top of the next round, never inside a tick (as a restore)."""
+        self._pending_mode = mode
+
+    def _switch_mode(self) -> None:
+        """Replace the simulation by the one `mode` asks for, built from the live configuration (gains,
+        gravity, terrain, controller); the listeners (charts, recording, history) follow it."""
+        mode, self._pending_mode = self._pending_mode, None
+        old = self.sim
+        try:
+            config = old.config
+            new = (
+                Simulation(config)
+                if mode == "hop"
+                else StandSimulation(config, "locked" if mode == "stand locked" else "free")
+            )
+        except Exception as exc:
+            log.exception("switching to %s failed", mode)
+            notify_all(self.server, "Mode change failed", f"{type(exc).__name__}: {exc}; still {self.mode}", "error")
+            return
+        old.apply_pending()  # what came in meanwhile acts on the old one; the next goes to the new
+        new.listeners[:] = old.listeners
+        self.sim, self.mode = new, mode
+        self.physics.terrain_changed(new)
+        new.reset(reason=mode.split()[0])  # its listeners hear the reset: the charts and tables start over
+        notify_all(
+            self.server,
+            "Mode",
+            {"hop": "Hopping", "stand locked": "On the stand, legs locked", "stand free": "On the stand, legs free"}[
+                mode
+            ],
+            "info",
+        )
 
     def _restore_now(self) -> None:
         """Restore the pending snapshot; no steps in this round: the restored moment must be the one shown."""
@@ -296,6 +343,8 @@ class Dashboard:
             restored = self._pending_restore is not None
             if restored:
                 self._restore_now()
+            if self._pending_mode is not None:
+                self._switch_mode()
             pacer = self.pacer
             most = None if pacer.flat_out else math.ceil(2 * FRAME_S * pacer.speed / pacer.timestep)
             budgeted = pacer.due(now, most)

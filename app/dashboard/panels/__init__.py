@@ -25,6 +25,8 @@ class LoopControls(Protocol):
 
     def set_speed(self, speed: float) -> None: ...
 
+    def set_mode(self, mode: str) -> None: ...
+
 
 @dataclasses.dataclass(frozen=True)
 class PanelContext:

@@ -1,0 +1,63 @@
+"""The dashboard's stand mode (World tab): the live simulation onto the test stand and back, kicks
+and reference steps on it, bad values refused with a notice while the loop runs on."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from hopper.app.dashboard.probe import ProbeClient
+from hopper.app.dashboard.server import Dashboard
+from net import wait_until
+
+from hopper.sim import Simulation
+from hopper.stand import StandSimulation
+
+pytestmark = pytest.mark.integration
+
+
+def titles(client: ProbeClient) -> list[str]:
+    return [n.get("title", "") for n in client.notifications]
+
+
+def pitch(dashboard: Dashboard) -> float:
+    return dashboard.sim.state().pitch
+
+
+def test_the_stand_takes_kicks_and_reference_steps_and_gives_the_robot_back(
+    dashboard: Dashboard, client: ProbeClient
+) -> None:
+    client.set_gui_value("Reference °", "5")  # hopping: no reference to step
+    assert client.wait_for(lambda p: "Command failed" in titles(p)), titles(client)
+    assert "needs the stand" in client.notifications[-1]["body"]
+
+    client.set_gui_value("Mode", "Stand, legs locked")
+    assert wait_until(lambda: isinstance(dashboard.sim, StandSimulation) and dashboard.sim.time > 0.5)
+    sim = dashboard.sim
+    assert sim.legs == "locked" and dashboard.mode == "stand locked"
+    assert client.wait_for(lambda p: "Mode" in titles(p))
+    assert abs(pitch(dashboard)) < math.radians(1.0)  # held level
+
+    client.set_gui_value("Apply", "Pitch kick")  # the Disturb tab's kick, on the stand
+    assert wait_until(lambda: abs(pitch(dashboard)) > math.radians(2.0)), "the kick never moved the torso"
+    assert wait_until(lambda: abs(pitch(dashboard)) < math.radians(0.5))  # the attitude loop brings it back
+    assert dashboard.sim is sim
+
+    client.set_gui_value("Reference °", "10")
+    assert wait_until(lambda: sim.reference == pytest.approx(math.radians(10.0)))
+    assert wait_until(lambda: abs(pitch(dashboard) - math.radians(10.0)) < math.radians(0.5))
+
+    client.set_gui_value("Reference °", "abc")
+    assert client.wait_for(lambda p: "Value refused" in titles(p)), titles(client)
+    client.set_gui_value("Reference °", "99")
+    assert client.wait_for(lambda p: "Value clamped" in titles(p)), titles(client)
+    assert wait_until(lambda: sim.reference == pytest.approx(math.radians(30.0)))
+    t = sim.time
+    assert wait_until(lambda: sim.time > t + 0.3)  # the loop runs on
+
+    client.set_gui_value("Mode", "Stand, legs free")
+    assert wait_until(lambda: isinstance(dashboard.sim, StandSimulation) and dashboard.sim.legs == "free")
+    assert wait_until(lambda: dashboard.sim.time > 0.3)
+    client.set_gui_value("Mode", "Hopping")
+    assert wait_until(lambda: type(dashboard.sim) is Simulation and dashboard.mode == "hop")
+    assert wait_until(lambda: len(dashboard.sim.hops) > 0), "the robot did not hop again"
