@@ -78,5 +78,8 @@ def test_a_log_replays_beside_the_simulation(browser, dashboard: Dashboard, tmp_
             ".scrollIntoView()"
         )
         _shot(page, tmp_path, "logreplay.png")
+        page.get_by_role("button", name="Stop log replay").click()
+        assert wait_until(lambda: not panel.logged_ghost.playing and not panel.simulated_ghost.playing, timeout=30)
+        assert panel.watched() is None and not panel.watch.value
     finally:
         page.close()

@@ -13,6 +13,7 @@ import logging
 import math
 import threading
 import time
+from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
@@ -126,6 +127,7 @@ class LogReplayPanel:
     path: viser.GuiTextHandle
     load: viser.GuiButtonHandle
     watch: viser.GuiCheckboxHandle
+    stop_button: viser.GuiButtonHandle
     summary: viser.GuiHtmlHandle
     logged_ghost: GhostRobot
     simulated_ghost: GhostRobot
@@ -136,7 +138,7 @@ class LogReplayPanel:
 
     def request(self, text: str, client: viser.ClientHandle | None) -> threading.Thread | None:
         """Load and replay the log at `text` on a thread of its own; None (and a notice) while one runs."""
-        path = text.strip()
+        path = str(Path(text.strip()).expanduser()) if text.strip() else ""
         if not path:
             notify(client, "No log", "Type the path of a log (.csv, .npz, .mcap, .rrd) first.", "warning")
             self.finished += 1
@@ -181,6 +183,12 @@ class LogReplayPanel:
             return None
         return float(done.track[frame, 0]), float(done.track[frame, 1])
 
+    def stop(self) -> None:
+        """Hide both ghosts; the camera goes back to the live robot."""
+        self.watch.value = False
+        self.logged_ghost.hide()
+        self.simulated_ghost.hide()
+
     def update(self, now: float) -> None:
         """Send both ghosts' poses due at wall time `now` (the loop calls it inside server.atomic())."""
         self.logged_ghost.update(now)
@@ -201,7 +209,9 @@ def build_logreplay_panel(gui: viser.GuiApi, scene: viser.SceneApi, host: LogRep
         watch = gui.add_checkbox(
             "Camera on the ghosts", False, hint="Follow the replayed log's ghosts; untick to follow the live robot"
         )
+        stop_button = gui.add_button("Stop log replay", icon=viser.Icon.PLAYER_STOP, color="gray")
         summary = gui.add_html(summary_html(None))
-    panel = LogReplayPanel(host, path, load, watch, summary, logged, simulated)
+    panel = LogReplayPanel(host, path, load, watch, stop_button, summary, logged, simulated)
+    stop_button.on_click(guarded(lambda _: panel.stop()))
     load.on_click(guarded(lambda event: panel.request(path.value, event.client)))
     return panel
