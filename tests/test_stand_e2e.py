@@ -1,0 +1,61 @@
+"""End to end in a real headless Chromium: the World tab's Mode puts the robot on the test stand, the
+Disturb tab's kick and the Reference ° box act on it, a bad reference is a notification, and Hopping
+gives the robot back. Skips without /usr/bin/chromium, except under CI=true.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from hopper.app.dashboard.server import Dashboard
+from net import wait_until
+from pages import close_notices
+from test_dashboard_e2e import PAGE_LOAD_MS, browser  # noqa: F401  (browser: the Chromium fixture)
+from test_dashboard_inputs_e2e import box, notice, type_into
+from test_replay_e2e import WORK_VIEWPORT
+
+from hopper.stand import StandSimulation
+
+
+def _mode(page, dashboard: Dashboard, option: str) -> None:
+    """Open the Mode selector and click `option`, as a person does."""
+    assert dashboard.layout.stand is not None
+    page.locator(f'input[id="{dashboard.layout.stand.mode._impl.uuid}"]').click()  # Mantine's Select
+    page.get_by_role("option", name=option).click()
+
+
+def test_the_world_tab_puts_the_robot_on_the_stand_and_back(browser, start, tmp_path: Path) -> None:  # noqa: F811
+    dashboard = start()
+    page = browser.new_page(viewport=WORK_VIEWPORT)
+    page.set_default_timeout(60_000)  # a bound for a loaded machine, not a pace
+    try:
+        page.goto(dashboard.url)
+        page.get_by_text("Kp", exact=True).first.wait_for(timeout=PAGE_LOAD_MS)
+        assert wait_until(lambda: len(dashboard.server.get_clients()) == 1, timeout=30)
+        close_notices(page)
+        page.get_by_role("tab", name="World").click()
+        _mode(page, dashboard, "Stand, legs locked")
+        notice(page, "On the stand, legs locked")
+        assert wait_until(lambda: isinstance(dashboard.sim, StandSimulation) and dashboard.sim.time > 0.5)
+        sim = dashboard.sim
+
+        reference = box(page, dashboard.layout.stand.reference.handle)
+        type_into(page, reference, "12")
+        assert wait_until(lambda: abs(sim.state().pitch - math.radians(12.0)) < math.radians(0.5))
+        type_into(page, reference, "lots")
+        notice(page, "Reference")
+        assert wait_until(lambda: reference.input_value() == "12"), reference.input_value()
+
+        page.get_by_role("tab", name="Disturb").click()
+        page.get_by_role("button", name="Pitch kick").click()
+        assert wait_until(lambda: any(e.kind == "disturbance" for e in list(sim.events))), "no kick on the stand"
+        assert wait_until(lambda: abs(sim.state().pitch - math.radians(12.0)) < math.radians(0.5))
+        page.get_by_role("tab", name="World").click()
+        page.screenshot(path=str(tmp_path / "stand.png"))
+        Path("/tmp/standview-shot.png").write_bytes((tmp_path / "stand.png").read_bytes())
+
+        _mode(page, dashboard, "Hopping")
+        assert wait_until(lambda: dashboard.mode == "hop" and len(dashboard.sim.hops) > 0, timeout=60)
+    finally:
+        page.close()
