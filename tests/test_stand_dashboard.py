@@ -46,6 +46,7 @@ def test_the_stand_takes_kicks_and_reference_steps_and_gives_the_robot_back(
     client.set_gui_value("Reference °", "10")
     assert wait_until(lambda: sim.reference == pytest.approx(math.radians(10.0)))
     assert wait_until(lambda: abs(pitch(dashboard) - math.radians(10.0)) < math.radians(0.5))
+    assert dashboard.physics.visible and not dashboard.physics.arc.visible  # nothing ballistic on the stand
 
     client.set_gui_value("Reference °", "abc")
     assert client.wait_for(lambda p: "Value refused" in titles(p)), titles(client)
@@ -61,3 +62,4 @@ def test_the_stand_takes_kicks_and_reference_steps_and_gives_the_robot_back(
     client.set_gui_value("Mode", "Hopping")
     assert wait_until(lambda: type(dashboard.sim) is Simulation and dashboard.mode == "hop")
     assert wait_until(lambda: len(dashboard.sim.hops) > 0), "the robot did not hop again"
+    assert wait_until(lambda: dashboard.physics.arc.visible), "no flight arc once hopping again"

@@ -22,6 +22,7 @@ from hopper.ballistics import Arc, predict
 from hopper.commands import Grab, PullTo, Release
 from hopper.control import Phase
 from hopper.sim import Command, Simulation
+from hopper.stand import StandSimulation
 
 FORCE_COLOR = (88, 166, 255)  # blue: what the ground pushes
 ARC_COLOR = (120, 220, 255)  # cyan: apart from the orange trail
@@ -83,7 +84,8 @@ class PhysicsView:
         if not shown:
             return
         flight = sim.phase is Phase.FLIGHT
-        self._update_arc(sim, flight)
+        # On the stand the kernel flies its flight's attitude loop, but nothing is ballistic: no arc.
+        self._update_arc(sim, flight and not isinstance(sim, StandSimulation))
         if now >= self._next_forces:
             self._next_forces = now + FORCES_S
             weight = float(sim.model.body_subtreemass[sim.layout.torso]) * sim.config.gravity  # N, at this gravity
