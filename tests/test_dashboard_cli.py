@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 from hopper.app.dashboard.cli import parse
 from hopper.app.dashboard.config import DashboardConfig, check_sessions_dir
+from hopper.app.dashboard.pacing import MAX
 from net import free_port, port_is_free, wait_until
 from rrd import verify
 
@@ -72,7 +73,8 @@ def dashboard_process(*args: str, cwd: Path = REPO) -> subprocess.Popen[str]:
         (["--terrain", "moon"], "invalid choice 'moon'"),
         (["--port", "abc"], "--port"),
         (["--port", "70000"], "port must be an integer in [1, 65535]"),
-        (["--speed", "99"], "speed must be in [0.1, 64]"),
+        (["--speed", "99"], "speed must be in [0.1, 64] x real time, or max"),
+        (["--speed", "fast"], "invalid speed 'fast' (a number, x real time, or max)"),
         (["--seed", "-3"], "seed must be a non-negative integer"),
         (["--host", "not a host"], "host must be an IP address"),
         (["--rrd", "/nonexistent/dir/run.rrd"], "does not exist"),
@@ -107,6 +109,8 @@ def test_no_flags_give_the_default_config_and_flags_reach_their_fields() -> None
     config = parse(["--kp", "500", "--rerun-viewer", "serve", "--sessions-dir", "runs", "--rrd", "a.rrd"])
     assert config.kp == 500.0 and config.rerun_viewer == "serve"
     assert config.sessions_dir == Path("runs") and config.rrd == Path("a.rrd")
+    assert parse(["--speed", "max"]).speed == MAX and parse(["--speed", "Max"]).speed == MAX
+    assert parse(["--speed", "16"]).speed == 16.0
 
 
 def test_a_sessions_folder_is_created_and_probed_and_left_empty(tmp_path: Path) -> None:

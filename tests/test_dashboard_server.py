@@ -500,6 +500,18 @@ def test_loop_controls_are_commands_the_loop_applies_in_order(dashboard: Dashboa
         dashboard.set_speed(1000.0)  # refused in the caller's thread, nothing queued
 
 
+def test_max_asked_at_start_runs_flat_out_and_the_slider_can_take_over(start) -> None:
+    """`hopper-dashboard --speed max`: the loop starts at Max (the status says so, frames go out);
+    the slider, which cannot show Max, sits at its top until a speed is chosen."""
+    dashboard = start(speed=MAX)
+    assert dashboard.pacer.flat_out and dashboard.layout.simulation.speed.value == 64.0
+    assert wait_until(lambda: "(Max)" in dashboard.layout.status.html.content)
+    frames = dashboard.frames
+    assert wait_until(lambda: dashboard.frames >= frames + 3), "no frames at Max"
+    dashboard.layout.simulation.choose("4×")
+    assert wait_until(lambda: dashboard.pacer.speed == 4.0 and not dashboard.pacer.flat_out)
+
+
 def test_max_runs_flat_out_with_frames_stretched_charts_and_says_so(dashboard: Dashboard) -> None:
     """The Max preset: the loop steps without a budget, frames still go out, the charts' samples
     (and so their window) are spaced by the scale of the pace delivered, and the status says Max.

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, NoReturn
 
 from hopper.app.cli_common import add_controller_flags, add_model_flag
 from hopper.app.dashboard.config import DashboardConfig, check_sessions_dir
+from hopper.app.dashboard.pacing import MAX
 
 from hopper.config import GAIN_RANGES
 from hopper.controllers import ControllerError
@@ -53,6 +54,16 @@ def choice(*options: str) -> Callable[[str], str]:
     return check
 
 
+def speed(text: str) -> float:
+    """An argparse type: a speed (x real time), or 'max' for MAX (the range is DashboardConfig's check)."""
+    if text.strip().lower() == "max":
+        return MAX
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid speed {text!r} (a number, x real time, or max)") from None
+
+
 def parser() -> Parser:
     """The flags of DashboardConfig, one each, with units and defaults in the help."""
     p = Parser(prog=PROG, description=DashboardConfig.__doc__, epilog=EXIT_STATUSES, formatter_class=Help)
@@ -77,7 +88,13 @@ def parser() -> Parser:
             default=getattr(DEFAULTS, name),
             help=f"wheel PID {what} gain in [{low:g}, {high:g}] {unit}",
         )
-    p.add_argument("--speed", type=float, default=DEFAULTS.speed, help="simulation speed, x real time")
+    p.add_argument(
+        "--speed",
+        type=speed,
+        default=DEFAULTS.speed,
+        metavar="X|max",
+        help="simulation speed: max (as fast as the machine allows) or x real time",
+    )
     p.add_argument(
         "--rrd", type=Path, default=DEFAULTS.rrd, metavar="PATH", help="record the whole session to this .rrd file"
     )

@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Literal
 
 from hopper.app.dashboard.access import AUTO, check_token, generate_token, is_loopback
-from hopper.app.dashboard.pacing import MAX_SPEED, MIN_SPEED
+from hopper.app.dashboard.pacing import MAX, MAX_SPEED, MIN_SPEED
 
 from hopper.config import Gains, InvalidConfig, SimConfig
 from hopper.controllers import load_class, with_controller
@@ -43,7 +43,7 @@ class DashboardConfig:
     kd: float = _DEFAULT_GAINS.kd
     """Wheel PID derivative gain, N m s/rad."""
     speed: float = 1.0
-    """Simulation speed, x real time."""
+    """Simulation speed, x real time; MAX (inf): as fast as the machine allows."""
     rrd: Path | None = None
     """Record the whole session to this .rrd file from the start."""
     rerun_viewer: Literal["spawn", "serve", "off"] = "off"
@@ -92,8 +92,10 @@ class DashboardConfig:
             raise InvalidConfig(f"idle-timeout must be a positive number of seconds, got {self.idle_timeout!r}")
         if not isinstance(self.port, int) or not 1 <= self.port <= 65535:
             raise InvalidConfig(f"port must be an integer in [1, 65535], got {self.port!r}")
-        if not MIN_SPEED <= self.speed <= MAX_SPEED:
-            raise InvalidConfig(f"speed must be in [{MIN_SPEED:g}, {MAX_SPEED:g}] x real time, got {self.speed!r}")
+        if not (self.speed == MAX or MIN_SPEED <= self.speed <= MAX_SPEED):
+            raise InvalidConfig(
+                f"speed must be in [{MIN_SPEED:g}, {MAX_SPEED:g}] x real time, or max, got {self.speed!r}"
+            )
         self.sim_config()  # validates seed, terrain and gains with the core's own messages
         object.__setattr__(self, "controller_choice", tuple(canonical(c) for c in self.controller_choice))
         for spec in self.controller_choice:

@@ -94,7 +94,7 @@ class Dashboard:
         self._fallen_since: float | None = None
         self._off_notified = -math.inf  # wall s of the last "off the terrain" notice
         self._next_sample = 0.0
-        self.chart_scale = chart_scale(config.speed, CHART_WALL_S, PLOT_WINDOW_S)  # the charts' window / 10 s
+        self.chart_scale = chart_scale(self.pacer.pace, CHART_WALL_S, PLOT_WINDOW_S)  # the charts' window / 10 s
         self._pending_restore: Snapshot | None = None  # a Restore drained, applied at the next round's top
         self._pending_mode: str | None = None  # a SetMode drained, applied at the next round's top
         self.mode = "hop"

@@ -69,7 +69,12 @@ def build_simulation_panel(gui: viser.GuiApi, ctx: PanelContext, speed: float = 
             "Reset robot", icon=viser.Icon.REFRESH, color="gray", hint="Stand the robot at the start"
         ),
         speed=gui.add_slider(
-            "Speed ×", MIN_SPEED, MAX_SPEED, 0.1, speed, marks=((1.0, "1"), (16.0, "16"), (32.0, "32"), (64.0, "64"))
+            "Speed ×",
+            MIN_SPEED,
+            MAX_SPEED,
+            0.1,
+            min(speed, MAX_SPEED),
+            marks=((1.0, "1"), (16.0, "16"), (32.0, "32"), (64.0, "64")),
         ),
         presets=gui.add_button_group("Speeds", tuple(SPEEDS), hint="Fast-forward; Max: as fast as the machine allows"),
         stay_fallen=gui.add_checkbox("Stay fallen", False, hint="After a fall, keep the robot down for inspection"),
