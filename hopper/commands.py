@@ -6,14 +6,17 @@ Each is a hopper.sim.Command: Simulation.submit() queues it, the loop calls its 
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from typing import Literal
+
+import numpy as np
 
 from hopper.config import Gains, InvalidConfig
 from hopper.disturbances import DisturbanceKind
 from hopper.schedule import KickSchedule
 from hopper.sim import Command as Command  # re-exported: it was defined here before
 from hopper.sim import Simulation
-from hopper.stand import StandSimulation
+from hopper.stand import Injection, StandSimulation
 
 
 @dataclasses.dataclass(frozen=True)
@@ -141,3 +144,19 @@ class SetReference:
         if not isinstance(sim, StandSimulation):
             raise InvalidConfig("a reference step needs the stand: choose a stand mode first")
         sim.set_reference(self.pitch)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Inject:
+    """Play `signal` into the stand's loop from the next tick (hopper.stand.StandSimulation.inject);
+    refused off the stand or while another plays. `done(injection)` is called on the loop's thread
+    when it has played, or was stopped (injection.stopped says why)."""
+
+    signal: np.ndarray  # one sample a tick: N m at "input", rad at "reference"
+    at: Literal["input", "reference"]
+    done: Callable[[Injection], None]
+
+    def apply(self, sim: Simulation) -> None:
+        if not isinstance(sim, StandSimulation):
+            raise InvalidConfig("an injection needs the stand: choose a stand mode first")
+        sim.inject(self.signal, self.at, self.done)

@@ -13,6 +13,7 @@ and a pivot there would ask the wheel for 0.3 N m for ever, filling it in second
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Literal
 
 import mujoco
@@ -22,6 +23,7 @@ from hopper.config import THIGH_LENGTH, InvalidConfig, SimConfig, require_finite
 from hopper.layout import LEG_JOINTS
 from hopper.model import Derive
 from hopper.sim import Simulation
+from hopper.snapshot import Snapshot
 
 Legs = Literal["locked", "free"]
 LEGS: tuple[Legs, ...] = ("locked", "free")
@@ -83,9 +85,11 @@ class StandSimulation(Simulation):
 
     def __init__(self, config: SimConfig, legs: Legs = "locked") -> None:
         self.legs = legs
+        self.injection: Injection | None = None  # the newest one played (inject)
         super().__init__(config, derive=stand_model(config, legs))
 
     def reset(self, reason: str = "user") -> None:
+        self.stop_injection(f"the stand was reset ({reason})")
         super().reset(reason)
         mujoco.mj_resetData(self.model, self.data)  # translation and pitch at 0
         for joint, angle in self.landing_pose().items():
@@ -120,35 +124,117 @@ class StandSimulation(Simulation):
         require_finite("pitch reference", pitch, -limit, limit, "rad")
         self.controller.mem["pitch_ref"] = pitch
 
+    def restore(self, snap: Snapshot) -> None:
+        self.stop_injection("a snapshot was restored")
+        super().restore(snap)
+
+    def inject(
+        self, d: np.ndarray, at: Literal["input", "reference"], done: Callable[[Injection], None] | None = None
+    ) -> Injection:
+        """Play `d` (one sample a tick: N m at the wheel torque at "input", rad at the pitch reference
+        at "reference") from the next tick, as the loop runs (Injection); refused while another plays.
+        A reset, a restore or stop_injection ends it early."""
+        if self.injection is not None and self.injection.playing:
+            played = self.injection
+            raise InvalidConfig(
+                f"an injection is playing ({played.played} of {len(played.d)} ticks): wait for it, or reset"
+            )
+        d = np.asarray(d, float)
+        limit, unit = (self.robot.wheel_torque_limit, "N m") if at == "input" else (REFERENCE_LIMIT, "rad")
+        if d.ndim != 1 or not len(d) or not np.isfinite(d).all() or np.abs(d).max() > limit:
+            raise InvalidConfig(f"an injection is a non-empty series of finite samples within +-{limit:.3g} {unit}")
+        self.injection = Injection(self, d, at, done)
+        return self.injection
+
+    def stop_injection(self, why: str) -> None:
+        """End the injection playing, if one is (its `done` hears `why`)."""
+        if self.injection is not None:
+            self.injection.stop(why)
+
     def settle(self, seconds: float) -> None:
         """Step `seconds` of simulation (the legs and the loop settle after a reset)."""
         for _ in range(round(seconds / self.model.opt.timestep)):
             self.step()
 
 
+class Injection:
+    """A signal played into the loop one sample a tick, and what the loop did: a listener of the
+    simulation while it plays (it wants every tick, so they run one by one). Sample i is added in
+    tick i (N m to the wheel torque at "input", rad to the pitch reference at "reference"), and what
+    that tick sent and measured is read after its step. It ends by itself after the last sample, or
+    by stop(why); then the injection is 0 again, it leaves the listeners, and `done(self)` is called
+    (on the loop's thread)."""
+
+    def __init__(
+        self,
+        sim: Simulation,
+        d: np.ndarray,
+        at: Literal["input", "reference"],
+        done: Callable[[Injection], None] | None = None,
+    ) -> None:
+        if at not in ("input", "reference"):
+            raise InvalidConfig(f"an injection point is input or reference, got {at!r}")
+        m = sim.controller.mem
+        self.sim, self.at, self.done = sim, at, done
+        self.d = np.asarray(d, float)
+        self.stopped = ""  # why it ended before its last sample ("" if it did not)
+        self.played = 0  # samples stepped
+        self.start = sim.snapshot(with_hops=False)  # where it began: the model is linearized there
+        self._inject = m["inject_torque" if at == "input" else "inject_ref"]
+        self._read = (m["wheel_command"], m["law_command"], m["pitch_true"], m["saturated"], m["phase"])
+        n = len(self.d)
+        self._out = (np.empty(n), np.empty(n), np.empty(n), np.zeros(n, bool), np.zeros(n, np.int64))
+        self.playing = n > 0
+        if self.playing:
+            self._inject[0] = self.d[0]
+            sim.listeners.append(self)
+
+    @property
+    def length_s(self) -> float:
+        return len(self.d) * self.sim.model.opt.timestep
+
+    def records(self) -> dict[str, np.ndarray]:
+        """The arrays hopper.analysis.frequency reads, as far as played, shape (played,): "d", "u"
+        (the torque sent, N m), "uc" (the law's, N m), "pitch" (true, rad), "saturated" (bool: the
+        envelope clamped the torque that tick) and "phase" (the kernel's)."""
+        n = self.played
+        u, uc, pitch, saturated, phase = (a[:n] for a in self._out)
+        return {"d": self.d[:n], "u": u, "uc": uc, "pitch": pitch, "saturated": saturated, "phase": phase}
+
+    def tick(self, sim: Simulation) -> None:
+        i = self.played
+        for source, out in zip(self._read, self._out, strict=True):
+            out[i] = source[0]
+        self.played = i + 1
+        if self.played < len(self.d):
+            self._inject[0] = self.d[self.played]
+        else:
+            self._end("")
+
+    def event(self, sim: Simulation, event: object) -> None:
+        pass
+
+    def stop(self, why: str) -> None:
+        """End it before its last sample (nothing if it has ended)."""
+        if self.playing:
+            self._end(why)
+
+    def _end(self, why: str) -> None:
+        self.playing, self.stopped = False, why
+        self._inject[0] = 0.0
+        # A new list, not remove(): this runs inside the simulation's loop over its listeners.
+        self.sim.listeners = [listener for listener in self.sim.listeners if listener is not self]
+        if self.done is not None:
+            self.done(self)
+
+
 def record(sim: Simulation, d: np.ndarray, at: Literal["input", "reference"]) -> dict[str, np.ndarray]:
     """Step `sim` one tick per sample of `d`, adding it at the plant input (N m on the wheel torque)
-    or at the pitch reference (rad). Returns the arrays hopper.analysis.frequency reads, shape
-    (len(d),): "d", "u" (the torque sent, N m), "uc" (the law's, N m), "pitch" (true, rad),
-    "saturated" (bool: the envelope clamped the torque that tick) and "phase" (the kernel's)."""
-    m = sim.controller.mem
-    inject = m["inject_torque" if at == "input" else "inject_ref"]
-    sent, law, pitch, saturated, phase = (
-        m["wheel_command"],
-        m["law_command"],
-        m["pitch_true"],
-        m["saturated"],
-        m["phase"],
-    )
-    out = {name: np.empty(len(d)) for name in ("u", "uc", "pitch")}
-    clamped, phases = np.zeros(len(d), bool), np.zeros(len(d), np.int64)
-    u, uc, y = out["u"], out["uc"], out["pitch"]
+    or at the pitch reference (rad): Injection.records() of the whole of it."""
+    injection = Injection(sim, d, at)
     try:
-        for i, di in enumerate(d.tolist()):
-            inject[0] = di
+        for _ in range(len(injection.d)):
             sim.step()
-            u[i], uc[i], y[i], clamped[i], phases[i] = sent[0], law[0], pitch[0], saturated[0], phase[0]
     finally:
-        inject[0] = 0.0
-    out["d"], out["saturated"], out["phase"] = np.asarray(d, float), clamped, phases
-    return out
+        injection.stop("interrupted")
+    return injection.records()

@@ -22,7 +22,8 @@ from hopper.config import SimConfig
 from hopper.control.kernel import EV_APEX, EV_FALL
 from hopper.control.phases import Phase
 from hopper.sim import Simulation
-from hopper.stand import StandSimulation, record
+from hopper.snapshot import Snapshot
+from hopper.stand import Legs, StandSimulation, record
 
 SETTLE_S = 0.5  # s on the stand after a reset before a measurement: the legs and the loop at rest
 FLIGHT_SETTLE_S = 0.1  # s after the apex: the legs hold their landing pose (hopper.analysis.linearize)
@@ -132,14 +133,22 @@ def _compare(
 
 def measure_stand(sim: StandSimulation, spec: ChirpSpec) -> Measurement:
     """Inject `spec` on the stand, from where the simulation is (settle it first)."""
-    scratch = _twin(sim)  # the prediction's linearization runs on a copy: the stand goes on untouched
+    start = sim.snapshot(with_hops=False)
     records = [record(sim, excitation(spec), spec.at)]
-    return _compare(f"stand (legs {sim.legs})", sim, spec, records, scratch)
+    return compare_stand(sim.legs, start, spec, records)
 
 
-def _twin(sim: StandSimulation) -> StandSimulation:
-    twin = StandSimulation(sim.config, sim.legs)
-    twin.restore(sim.snapshot(with_hops=False))
+def compare_stand(legs: Legs, start: Snapshot, spec: ChirpSpec, records: list[dict[str, np.ndarray]]) -> Measurement:
+    """What `records` of `spec` played on a stand with legs `legs` from `start` measured, beside the
+    model's prediction there (linearized on a copy of the stand at `start`, e.g. after a live
+    injection: hopper.stand.Injection)."""
+    twin = _twin(start.config, legs, start)
+    return _compare(f"stand (legs {legs})", twin, spec, records, twin)
+
+
+def _twin(config: SimConfig, legs: Legs, start: Snapshot) -> StandSimulation:
+    twin = StandSimulation(config, legs)
+    twin.restore(start)
     return twin
 
 
@@ -247,7 +256,7 @@ class StepResult:
 
 def step_response(sim: StandSimulation, step_rad: float, seconds: float = 1.5) -> StepResult:
     """Step the reference by `step_rad` on the stand and compare with the model's closed loop."""
-    scratch = _twin(sim)
+    scratch = _twin(sim.config, sim.legs, sim.snapshot(with_hops=False))
     start = sim.state().pitch
     rec = record(sim, np.full(round(seconds / sim.model.opt.timestep), step_rad), "reference")
     sim.set_reference(sim.reference + step_rad)  # the step stays when the record ends
