@@ -63,3 +63,36 @@ def test_the_stand_takes_kicks_and_reference_steps_and_gives_the_robot_back(
     assert wait_until(lambda: type(dashboard.sim) is Simulation and dashboard.mode == "hop")
     assert wait_until(lambda: len(dashboard.sim.hops) > 0), "the robot did not hop again"
     assert wait_until(lambda: dashboard.physics.arc.visible), "no flight arc once hopping again"
+
+
+def test_a_chirp_injected_live_on_the_stand_is_measured_and_drawn(dashboard: Dashboard, client: ProbeClient) -> None:
+    client.set_gui_value("Inject", True)  # hopping: nothing to inject into
+    assert client.wait_for(lambda p: "Not on the stand" in titles(p)), titles(client)
+
+    client.set_gui_value("Mode", "Stand, legs locked")
+    assert wait_until(lambda: isinstance(dashboard.sim, StandSimulation) and dashboard.sim.time > 0.3)
+    sim = dashboard.sim
+    client.set_gui_value("To (Hz)", "600")  # beyond the loop's Nyquist frequency
+    client.set_gui_value("Inject", True)
+    assert client.wait_for(lambda p: "Chirp refused" in titles(p)), titles(client)
+    assert "Nyquist" in client.notifications[-1]["body"]
+    assert sim.injection is None  # nothing was played
+
+    client.set_gui_value("To (Hz)", "200")
+    client.set_gui_value("Length (s)", "3")
+    client.set_gui_value("Inject", True)
+    assert wait_until(lambda: sim.injection is not None), "the injection never started"
+    started = sim.time
+    assert client.wait_for(lambda p: "Injection measured" in titles(p), timeout=60.0), titles(client)
+    injection = sim.injection
+    assert injection.stopped == "" and injection.played == 3000 and injection.length_s == pytest.approx(3.0)
+    assert injection.start.time == pytest.approx(started, abs=0.1)
+    assert "crossover" in client.notifications[-1]["body"]
+    assert dashboard.layout.stand.inject.bode.visible
+    assert dashboard.sim is sim and sim.time > started + 3.0  # the loop ran on through it
+
+    client.set_gui_value("Inject", True)
+    assert wait_until(lambda: sim.injection is not injection and sim.injection.playing)
+    client.set_gui_value("Reset robot", True)  # a reset ends it, and says so
+    assert client.wait_for(lambda p: "Injection stopped" in titles(p)), titles(client)
+    assert "reset" in client.notifications[-1]["body"]

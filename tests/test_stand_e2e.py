@@ -1,6 +1,7 @@
 """End to end in a real headless Chromium: the World tab's Mode puts the robot on the test stand, the
-Disturb tab's kick and the Reference ° box act on it, a bad reference is a notification, and Hopping
-gives the robot back. Skips without /usr/bin/chromium, except under CI=true.
+Disturb tab's kick and the Reference ° box act on it, a bad reference is a notification, a chirp is
+injected live and its Bode plot drawn, and Hopping gives the robot back. Skips without
+/usr/bin/chromium, except under CI=true.
 """
 
 from __future__ import annotations
@@ -23,6 +24,29 @@ def _mode(page, dashboard: Dashboard, option: str) -> None:
     assert dashboard.layout.stand is not None
     page.locator(f'input[id="{dashboard.layout.stand.mode._impl.uuid}"]').click()  # Mantine's Select
     page.get_by_role("option", name=option).click()
+
+
+def _inject_a_chirp(page, dashboard: Dashboard, sim: StandSimulation, tmp_path: Path) -> None:
+    """The Chirp injection folder: a zero length is refused, a 3 s chirp is played and drawn."""
+    inject = dashboard.layout.stand.inject
+    page.get_by_text("Chirp injection", exact=True).click()
+    length = box(page, inject.length.handle)
+    type_into(page, length, "0")
+    page.get_by_role("button", name="Inject", exact=True).click()
+    notice(page, "Chirp refused")
+    assert sim.injection is None
+    type_into(page, box(page, inject.f_max.handle), "200")
+    type_into(page, length, "3")
+    page.get_by_role("button", name="Inject", exact=True).click()
+    assert wait_until(lambda: sim.injection is not None and not sim.injection.playing, timeout=60)
+    assert sim.injection.stopped == "" and sim.injection.played == 3000
+    assert wait_until(lambda: inject.bode.visible, timeout=60), "no Bode plot drawn"
+    notice(page, "Injection measured")
+    image = page.get_by_role("img").last
+    image.scroll_into_view_if_needed()
+    image.wait_for(state="visible")
+    page.screenshot(path=str(tmp_path / "injected.png"))
+    Path("/tmp/stand-injected-shot.png").write_bytes((tmp_path / "injected.png").read_bytes())
 
 
 def test_the_world_tab_puts_the_robot_on_the_stand_and_back(browser, start, tmp_path: Path) -> None:  # noqa: F811
@@ -54,6 +78,8 @@ def test_the_world_tab_puts_the_robot_on_the_stand_and_back(browser, start, tmp_
         page.get_by_role("tab", name="World").click()
         page.screenshot(path=str(tmp_path / "stand.png"))
         Path("/tmp/standview-shot.png").write_bytes((tmp_path / "stand.png").read_bytes())
+
+        _inject_a_chirp(page, dashboard, sim, tmp_path)
 
         _mode(page, dashboard, "Hopping")
         assert wait_until(lambda: dashboard.mode == "hop" and len(dashboard.sim.hops) > 0, timeout=60)

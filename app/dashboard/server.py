@@ -192,6 +192,8 @@ class Dashboard:
         self._stopped = True
         self._stopping.set()
         self.layout.analysis.close()
+        if self.layout.stand is not None:
+            self.layout.stand.inject.close()
         if self._thread.is_alive():
             self._thread.join(timeout=5.0)
         try:
@@ -286,6 +288,8 @@ class Dashboard:
             notify_all(self.server, "Mode change failed", f"{type(exc).__name__}: {exc}; still {self.mode}", "error")
             return
         old.apply_pending()  # what came in meanwhile acts on the old one; the next goes to the new
+        if isinstance(old, StandSimulation):
+            old.stop_injection(f"the mode changed to {mode}")  # it would play into the old one's memory
         new.listeners[:] = old.listeners
         self.sim, self.mode = new, mode
         self.physics.terrain_changed(new)

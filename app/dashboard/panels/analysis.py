@@ -19,9 +19,9 @@ import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 
-import numpy as np
 import viser
 from hopper.app.dashboard.feedback import guarded, notify
+from hopper.app.dashboard.panels import measured
 from hopper.app.dashboard.panels.entry import NumberEntry
 
 from hopper.analysis.design import lqr_bryson, place_poles
@@ -219,7 +219,6 @@ class AnalysisPanel:
     def _measure(self, config: SimConfig, where: str, client: viser.ClientHandle | None) -> None:
         from hopper.analysis import bench
         from hopper.analysis.frequency import ChirpSpec
-        from hopper.report import frequency, style
 
         try:
             if where == "flight":
@@ -229,30 +228,18 @@ class AnalysisPanel:
                 spec = ChirpSpec(f_min=1.0, f_max=300.0, amplitude=0.5, length=10.0)
                 sim = bench.stand(dataclasses.replace(config, terrain="flat"), where)
                 result = bench.measure_stand(sim, spec)
-            fig = frequency.bode(result.to_json())
-            fig.set_size_inches(6.4, 5.2)
-            fig.tight_layout()
-            fig.canvas.draw()
-            image = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
-            style.close(fig)
+            image = measured.bode_image(result)
         except Exception as exc:  # a controller that cannot fly the stand, no flight: say so, go on
             log.warning("measurement failed: %s", exc)
             with self._lock:
-                self.measured_html.content = (
-                    f"<div class='hd-measured hd-bad'>not measured: {html.escape(str(exc))}</div>"
-                )
+                self.measured_html.content = measured.failed_html(str(exc))
             notify(client, "Not measured", str(exc), "warning")
             return
         with self._lock:
             if self._closed:
                 return
-            self.bode.image = image
-            self.bode.visible = True
-            text = "<br>".join(html.escape(line).replace("  ", "&nbsp;&nbsp;") for line in result.lines())
-            self.measured_html.content = f"<div class='hd-measured'><pre>{text}</pre></div>"
-        m = result.measured
-        summary = f"crossover {m.crossover_hz:.2f} Hz, phase margin {m.phase_margin_deg:.1f} deg" if m else result.note
-        notify(client, "Loop measured", summary)
+            measured.show(result, image, self.bode, self.measured_html)
+        notify(client, "Loop measured", measured.summary(result))
 
 
 def _render(
@@ -317,9 +304,7 @@ def build_analysis_panel(
             "Measure", icon=viser.Icon.WAVE_SINE, hint="The loop measured by injection, over the model's"
         )
         measured_html = gui.add_html("<div class='hd-measured hd-dim'>not measured yet</div>")
-        bode = gui.add_image(
-            np.full((8, 8, 3), 255, np.uint8), label="Bode: measured over predicted", format="png", visible=False
-        )
+        bode = gui.add_image(measured.blank(), label="Bode: measured over predicted", format="png", visible=False)
     with gui.add_folder("Design gains", expand_by_default=False):
         wn = _entry(gui, "ωn", 25.0, 1.0, 200.0, "rad/s", "Natural frequency of the dominant pair")
         zeta = _entry(gui, "ζ", 0.7, 0.05, 2.0, "", "Damping ratio of the dominant pair")
