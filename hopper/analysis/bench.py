@@ -117,10 +117,6 @@ def _compare(
         note = f"{sim.law.name} is not a linear law of the API (no state_feedback): no prediction, no linear margins"
     elif predicted_at is not None:
         predicted = response(loop_of(predicted_at, law), response_.f)
-        if sim.config.sensing == "realistic" and where != "stand (legs locked)":
-            # Measured here: crossovers 12 to 18 % above the model's with the leg servos in the loop
-            # (PID 450/50/30, 900/100/45; the estimate they read is modelled); not explained yet.
-            note = "realistic sensing with the leg servos in the loop: the model is approximate (12-18 % low here)"
     measured = None
     if spec.at == "input":
         try:

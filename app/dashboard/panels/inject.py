@@ -134,7 +134,7 @@ def build_inject_panel(gui: viser.GuiApi, ctx: PanelContext) -> InjectPanel:
     f_max = entry("To", 300.0, "Hz", "Its highest: under the loop's Nyquist frequency (500 Hz at 1 kHz)")
     value, unit = AMPLITUDE["input"]
     amplitude = entry(
-        "Amplitude", value, unit, "N m at the wheel torque (up to the motor's limit), deg at the reference"
+        "Amplitude", value, unit, "N m at the wheel torque (2 with realistic sensing), deg at the reference"
     )
     length = entry("Length", 10.0, "s", "The chirp's length: 2 cycles of its lowest frequency at least")
     button = gui.add_button("Inject", icon=viser.Icon.WAVE_SINE, hint="Play the chirp into the stand's loop, live")
