@@ -58,7 +58,7 @@ def add_parser(commands: argparse._SubParsersAction, epilog: str) -> None:
     p.add_argument("--f-min", type=finite, default=None, metavar="HZ", help="default 1 Hz (flight: 5 Hz)")
     p.add_argument("--f-max", type=finite, default=None, metavar="HZ", help="default 400 Hz (flight: 200 Hz)")
     p.add_argument(
-        "--amplitude", type=finite, default=None, help="N m at the input (default 0.5; flight 1), rad at the reference"
+        "--amplitude", type=finite, default=None, help="N m at the input (default 2; flight 3), rad at the reference"
     )
     p.add_argument(
         "--length",
@@ -94,7 +94,7 @@ def _config(args: argparse.Namespace) -> SimConfig:
 
 
 def _spec(args: argparse.Namespace, config: SimConfig):  # noqa: ANN202 (hopper.analysis.frequency.ChirpSpec)
-    from hopper.analysis.bench import flight_window
+    from hopper.analysis.bench import FLIGHT_AMPLITUDE, STAND_AMPLITUDE, flight_window
     from hopper.analysis.frequency import ChirpSpec, InvalidChirp, NotMeasured
 
     flight = args.flight
@@ -114,7 +114,7 @@ def _spec(args: argparse.Namespace, config: SimConfig):  # noqa: ANN202 (hopper.
             if flight
             else 1.0,
             f_max=args.f_max if args.f_max is not None else 200.0 if flight else 400.0,
-            amplitude=args.amplitude if args.amplitude is not None else 1.0 if flight else 0.5,
+            amplitude=args.amplitude if args.amplitude is not None else FLIGHT_AMPLITUDE if flight else STAND_AMPLITUDE,
             length=length,
             kind=args.chirp or ("linear" if flight else "log"),
             at=args.at,

@@ -1,13 +1,12 @@
 """Issue 20's acceptance for the stand and the injection: measured against predicted, per gain set.
 
 Run: python -m benchmarks.stand_acceptance [--flights 30] [--gravity 1.625] [--sensing ideal]
-     [--amplitude 0.5] [--flight-amplitude 1.0]   (N m: with realistic sensing, 2 and 3 lift the
-     coherence above the gyro's noise through the law)
+     [--amplitude 2] [--flight-amplitude 3] [--gains KP/KI/KD ...] [--seed 0]
 
 For PID 450/50/30, soft 200/20/12, stiff 900/100/45, 300/30/20 and the LQR: the loop's crossover
 (Hz) and phase margin (deg), measured by a chirp at the plant input and predicted by the model, on
-the stand with the legs locked and free (one 20 s log chirp 1-400 Hz, 0.5 N m; pass: within 10 %
-and 5 deg, coherence >= 0.9 at the crossover) and in flight (a 0.4 s linear chirp 5-200 Hz, 1 N m,
+the stand with the legs locked and free (one 20 s log chirp 1-400 Hz, 2 N m; pass: within 10 %
+and 5 deg, coherence >= 0.9 at the crossover) and in flight (a 0.4 s linear chirp 5-200 Hz, 3 N m,
 in each of --flights flights; shorter where flights are, f_min then 2 cycles of it; pass: within
 20 % and 10 deg, or "not measurable" when the crossover is below what the records resolve). Then
 a 2 deg step of the reference on the stand with the legs locked: rise, overshoot and settling,
@@ -25,7 +24,15 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
-from hopper.analysis.bench import flight_window, measure_flight, measure_stand, stand, step_response  # noqa: E402
+from hopper.analysis.bench import (  # noqa: E402
+    FLIGHT_AMPLITUDE,
+    STAND_AMPLITUDE,
+    flight_window,
+    measure_flight,
+    measure_stand,
+    stand,
+    step_response,
+)
 from hopper.analysis.frequency import ChirpSpec, InvalidChirp, NotMeasured  # noqa: E402
 from hopper.config import Gains, SimConfig  # noqa: E402
 from hopper.controllers import with_controller  # noqa: E402
@@ -37,8 +44,8 @@ SETS = {
     "PID 300/30/20": Gains(kp=300.0, ki=30.0, kd=20.0),
     "LQR": None,
 }
-STAND_CHIRP = ChirpSpec(f_min=1.0, f_max=400.0, amplitude=0.5, length=20.0)
-FLIGHT_CHIRP = ChirpSpec(f_min=5.0, f_max=200.0, amplitude=1.0, length=0.4, kind="linear")
+STAND_CHIRP = ChirpSpec(f_min=1.0, f_max=400.0, amplitude=STAND_AMPLITUDE, length=20.0)
+FLIGHT_CHIRP = ChirpSpec(f_min=5.0, f_max=200.0, amplitude=FLIGHT_AMPLITUDE, length=0.4, kind="linear")
 TOLERANCE = {"stand": (0.10, 5.0, 0.9), "flight": (0.20, 10.0, 0.0)}  # crossover share, PM deg, coherence
 
 

@@ -222,13 +222,10 @@ class AnalysisPanel:
 
         try:
             if where == "flight":
-                amplitude = 3.0 if config.sensing == "realistic" else 1.0  # N m, as on the stand
-                spec = ChirpSpec(f_min=5.0, f_max=200.0, amplitude=amplitude, length=0.4, kind="linear")
+                spec = ChirpSpec(f_min=5.0, f_max=200.0, amplitude=bench.FLIGHT_AMPLITUDE, length=0.4, kind="linear")
                 result = bench.measure_flight(config, spec, MEASURE_FLIGHTS)
             else:
-                # N m: with realistic sensing the gyro's noise through the law needs 2 to stay coherent.
-                amplitude = 2.0 if config.sensing == "realistic" else 0.5
-                spec = ChirpSpec(f_min=1.0, f_max=300.0, amplitude=amplitude, length=10.0)
+                spec = ChirpSpec(f_min=1.0, f_max=300.0, amplitude=bench.STAND_AMPLITUDE, length=10.0)
                 sim = bench.stand(dataclasses.replace(config, terrain="flat"), where)
                 result = bench.measure_stand(sim, spec)
             image = measured.bode_image(result)

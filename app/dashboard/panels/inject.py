@@ -22,6 +22,7 @@ from hopper.app.dashboard.feedback import guarded, notify
 from hopper.app.dashboard.panels import PanelContext, measured
 from hopper.app.dashboard.panels.entry import NumberEntry
 
+from hopper.analysis.bench import STAND_AMPLITUDE
 from hopper.analysis.frequency import ChirpSpec, InvalidChirp, excitation
 from hopper.commands import Inject
 from hopper.stand import Injection
@@ -31,7 +32,7 @@ log = logging.getLogger(__name__)
 # What the dropdowns show -> ChirpSpec's words.
 AT = {"wheel torque (N m)": "input", "pitch reference (deg)": "reference"}
 KINDS = {"logarithmic": "log", "linear": "linear", "stepped sines": "stepped"}
-AMPLITUDE = {"input": (0.5, "N m"), "reference": (2.0, "deg")}  # a default that stays linear, and its unit
+AMPLITUDE = {"input": (STAND_AMPLITUDE, "N m"), "reference": (2.0, "deg")}  # defaults that stay linear, and units
 
 
 @dataclasses.dataclass
@@ -133,9 +134,7 @@ def build_inject_panel(gui: viser.GuiApi, ctx: PanelContext) -> InjectPanel:
     f_min = entry("From", 1.0, "Hz", "The chirp's lowest frequency")
     f_max = entry("To", 300.0, "Hz", "Its highest: under the loop's Nyquist frequency (500 Hz at 1 kHz)")
     value, unit = AMPLITUDE["input"]
-    amplitude = entry(
-        "Amplitude", value, unit, "N m at the wheel torque (2 with realistic sensing), deg at the reference"
-    )
+    amplitude = entry("Amplitude", value, unit, "N m at the wheel torque, deg at the reference")
     length = entry("Length", 10.0, "s", "The chirp's length: 2 cycles of its lowest frequency at least")
     button = gui.add_button("Inject", icon=viser.Icon.WAVE_SINE, hint="Play the chirp into the stand's loop, live")
     status = gui.add_html("<div class='hd-measured hd-dim'>nothing injected yet</div>")
