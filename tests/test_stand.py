@@ -141,6 +141,24 @@ def test_a_reference_step_on_the_stand_responds_as_predicted(legs: str, gains: G
     assert measured.final == pytest.approx(step, rel=0.05)
 
 
+def test_with_realistic_sensing_the_step_differs_from_the_prediction_by_the_noise_alone():
+    """The measured step rises ~3.6 ms sooner and overshoots ~1.5 points more than predicted with the
+    IMU's noise: the same step less the same noise run alone (one seed, two stands) is the model's."""
+    step, seconds = math.radians(2.0), 1.5
+    stepped, still = stand(gains=PID, sensing="realistic"), stand(gains=PID, sensing="realistic")
+    ticks = round(seconds / stepped.model.opt.timestep)
+    loop = loop_of(stepped)
+    noisy = record(stepped, np.full(ticks, step), "reference")["pitch"]
+    noise = record(still, np.zeros(ticks), "reference")["pitch"]
+    t = np.arange(ticks) * stepped.model.opt.timestep
+    predicted = metrics(*predicted_step(loop, step, seconds), step)
+    as_measured, clean = metrics(t, noisy - noisy[0], step), metrics(t, noisy - noise, step)
+    assert as_measured.overshoot_pct > predicted.overshoot_pct + 0.5  # the noise on one record shows
+    assert clean.rise_s == pytest.approx(predicted.rise_s, abs=0.0005)
+    assert clean.overshoot_pct == pytest.approx(predicted.overshoot_pct, abs=0.1)
+    assert clean.settling_s == pytest.approx(predicted.settling_s, abs=0.002)
+
+
 def test_a_step_that_never_settles_is_said_so():
     t = np.arange(1000) * 0.001
     with pytest.raises(NotMeasured, match="not settled"):
