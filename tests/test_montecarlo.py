@@ -15,7 +15,7 @@ import pyarrow.dataset as ds
 import pytest
 
 from hopper.config import MOTOR_TORQUE_CONSTANT, STANDARD_GRAVITY, SimConfig
-from hopper.experiments.montecarlo import group_stats, success, wilson
+from hopper.experiments.montecarlo import group_stats, percent, success, wilson
 from hopper.experiments.spec import SpecError, parse_spec
 from hopper.experiments.uncertainty import TRUNCATE_SD, Distribution, params, parse_model
 from hopper.mismatch import quantities
@@ -137,6 +137,13 @@ def test_the_simulated_model_holds_the_samples_values() -> None:
 )
 def test_the_wilson_interval_is_the_published_one(successes: int, n: int, low: float, high: float) -> None:
     assert wilson(successes, n) == pytest.approx((low, high), abs=5e-5)
+
+
+def test_an_interval_short_of_100_percent_never_prints_as_100() -> None:
+    low, high = wilson(8000, 8000)
+    assert (percent(low), percent(high)) == ("99.95", "100.0")
+    assert percent(wilson(500, 500)[0]) == "99.2" and percent(wilson(0, 8000)[1]) == "0.05"
+    assert percent(0.0) == "0.0" and percent(0.5) == "50.0"
 
 
 def test_the_wilson_interval_is_exact_at_the_ends() -> None:

@@ -41,6 +41,17 @@ def wilson(successes: int, n: int, z: float = Z_95) -> tuple[float, float]:
     return (0.0 if successes == 0 else low), (1.0 if successes == n else high)  # exact at the ends, not 1 - 1e-16
 
 
+def percent(p: float) -> str:
+    """A probability in % to one decimal, or to as many (up to 3) as keep a value short of 0 or 100 %
+    from printing as one: 8000 successes of 8000 have a lower bound of 99.95 %, not 100.0."""
+    for digits in (1, 2, 3):
+        text = f"{100 * p:.{digits}f}"
+        if 0.0 < p < 1.0 and float(text) in (0.0, 100.0):
+            continue
+        return text
+    return text
+
+
 def quantile(values: np.ndarray, q: float) -> float:
     """The empirical quantile: the smallest value with at least a share q of the values at or below it (the
     ECDF's inverse, as the report draws it; no interpolation, so a failure's inf stays inf, never nan)."""
@@ -133,7 +144,7 @@ def summary_lines(table: pa.Table, samples: int, seed: int) -> list[str]:
     for g in group_stats(table):
         low, high = g.interval
         lines.append(f"{g.label}: success {g.successes}/{g.episodes} = {100 * g.probability:.1f} % "
-                     f"[{100 * low:.1f}, {100 * high:.1f}] %")  # fmt: skip
+                     f"[{percent(low)}, {percent(high)}] %")  # fmt: skip
         for m, (label, unit) in METRICS.items():
             lines.append(f"  {label} ({unit}) {qs}: " + " / ".join(map(_number, g.quantiles[m])))
     return lines

@@ -18,7 +18,7 @@ from typing import Literal
 import numpy as np
 import pyarrow as pa
 
-from hopper.experiments.montecarlo import QUANTILES, landing_or_inf, success, wilson
+from hopper.experiments.montecarlo import QUANTILES, landing_or_inf, percent, success, wilson
 from hopper.experiments.montecarlo import quantile as quantile_of
 from hopper.experiments.stress import LANDING_LIMIT_DEG
 from hopper.experiments.worker import EpisodeResult
@@ -107,6 +107,6 @@ def score_line(label: str, s: RobustScore) -> str:
 
     return (
         f"{label:22}{f'{s.successes}/{s.episodes}':>9} {100 * s.successes / s.episodes:6.1f} % "
-        f"[{100 * low:5.1f}, {100 * high:5.1f}]  landing {q(s.landing_deg)} deg, peak {q(s.peak_pitch_deg)} deg, "
+        f"[{percent(low):>5s}, {percent(high):>5s}]  landing {q(s.landing_deg)} deg, peak {q(s.peak_pitch_deg)} deg, "
         f"{q(s.energy_j_per_hop)} J/hop, momentum {q(s.momentum_used_pct)} %; score {s.value:.4g}"
     )
