@@ -143,7 +143,7 @@ class StandSimulation(Simulation):
         limit, unit = (self.robot.wheel_torque_limit, "N m") if at == "input" else (REFERENCE_LIMIT, "rad")
         if d.ndim != 1 or not len(d) or not np.isfinite(d).all() or np.abs(d).max() > limit:
             raise InvalidConfig(f"an injection is a non-empty series of finite samples within +-{limit:.3g} {unit}")
-        self.injection = Injection(self, d, at, done)
+        self.injection = Injection(self, d, at, done, start=self.snapshot(with_hops=False))
         return self.injection
 
     def stop_injection(self, why: str) -> None:
@@ -171,6 +171,7 @@ class Injection:
         d: np.ndarray,
         at: Literal["input", "reference"],
         done: Callable[[Injection], None] | None = None,
+        start: Snapshot | None = None,
     ) -> None:
         if at not in ("input", "reference"):
             raise InvalidConfig(f"an injection point is input or reference, got {at!r}")
@@ -179,7 +180,7 @@ class Injection:
         self.d = np.asarray(d, float)
         self.stopped = ""  # why it ended before its last sample ("" if it did not)
         self.played = 0  # samples stepped
-        self.start = sim.snapshot(with_hops=False)  # where it began: the model is linearized there
+        self.start = start  # where it began, if asked for: the model is linearized there
         self._inject = m["inject_torque" if at == "input" else "inject_ref"]
         self._read = (m["wheel_command"], m["law_command"], m["pitch_true"], m["saturated"], m["phase"])
         n = len(self.d)

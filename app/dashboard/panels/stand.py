@@ -1,7 +1,7 @@
 """Stand panel (World tab): put the live robot on the gimbal test stand (hopper.stand) and back.
 
 On the stand the Disturb tab's kicks act as in flight; the reference box steps the pitch the
-attitude loop holds (deg, within hopper.stand.REFERENCE_LIMIT); its Inject folder plays a chirp into
+attitude loop holds (deg, within hopper.stand.REFERENCE_LIMIT); its Chirp injection folder plays a chirp into
 the loop (panels.inject). A reference off the stand, or out of range, is refused with a
 notification and the loop runs on.
 """
