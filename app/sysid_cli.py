@@ -19,8 +19,10 @@ from hopper.app.cli_common import EXIT_FELL, EXIT_OK, add_model_flag, fail, fini
 from hopper.config import GRAVITY_PRESETS, MISMATCH_FACTORS, MISMATCH_OFFSETS, SensingParams, SimConfig, check_mismatch
 from hopper.errors import HopperError
 from hopper.logs.io import read_log, write_log
-from hopper.logs.replay import DELAY_TICKS, Errors, World, hops, replay_hops, simulate, world_model
+from hopper.logs.replay import DELAY_TICKS, Errors, hops, replay_hops, simulate, world_model
+from hopper.logs.schema import Log
 from hopper.logs.sysid import PROFILE_SIGMAS, STAGES
+from hopper.logs.world import resolve
 from hopper.mismatch import Nominal
 from hopper.model import MODEL_XML
 
@@ -38,10 +40,21 @@ def mismatch_pair(text: str) -> tuple[str, float]:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
-def add_world_flags(p: argparse.ArgumentParser, help_suffix: str) -> None:
-    p.add_argument("--terrain", choices=("flat", "crater"), default="flat", help=f"(default flat) {help_suffix}")
-    p.add_argument("--seed", type=seed, default=0, help="terrain seed (default 0); capture: also the IMU's")
-    p.add_argument("--gravity", type=gravity, default=GRAVITY_PRESETS["moon"], help="m/s^2 or moon|mars|ceres|earth")
+def add_world_flags(p: argparse.ArgumentParser, help_suffix: str, from_log: bool = False) -> None:
+    """--terrain, --seed, --gravity; `from_log`: each defaults to the log's world (None here)."""
+    default = "the log's, else " if from_log else ""
+    p.add_argument(
+        "--terrain", choices=("flat", "crater"), default=None if from_log else "flat",
+        help=f"(default {default}flat) {help_suffix}",
+    )  # fmt: skip
+    p.add_argument(
+        "--seed", type=seed, default=None if from_log else 0,
+        help=f"terrain seed (default {default}0)" + ("" if from_log else "; also the IMU's"),
+    )  # fmt: skip
+    p.add_argument(
+        "--gravity", type=gravity, default=None if from_log else GRAVITY_PRESETS["moon"],
+        help=f"m/s^2 or moon|mars|ceres|earth (default {default}moon)",
+    )  # fmt: skip
 
 
 def add_commands(commands: argparse._SubParsersAction) -> None:  # noqa: SLF001 (argparse's own type)
@@ -84,7 +97,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:  # noqa: SLF001 
 
 
 def add_model_flags(p: argparse.ArgumentParser) -> None:
-    add_world_flags(p, "the ground the log was recorded on")
+    add_world_flags(p, "the ground the log was recorded on", from_log=True)
     p.add_argument("--delay-ticks", type=int, default=DELAY_TICKS, help=f"wheel command delay (default {DELAY_TICKS})")
     add_model_flag(p)
 
@@ -106,9 +119,11 @@ def truth_pair(text: str) -> tuple[str, float]:
     return mismatch_pair(text)
 
 
-def robot_model(args: argparse.Namespace):  # noqa: ANN201
-    """(the robot compiled in the log's world, its terrain window)."""
-    return world_model(World(terrain=args.terrain, seed=args.seed, gravity=args.gravity, model=args.model))
+def robot_model(args: argparse.Namespace, log: Log):  # noqa: ANN201
+    """(the robot compiled in the log's world, its terrain window); says which world that is."""
+    world, origin = resolve(log.world, args.terrain, args.seed, args.gravity, args.model)
+    print(f"world: {world.describe()} ({origin})")
+    return world_model(world)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -155,7 +170,7 @@ def error_line(label: str, e: Errors) -> str:
 
 def command_replay(args: argparse.Namespace) -> int:
     log = read_log(args.log)
-    model, window = robot_model(args)
+    model, window = robot_model(args, log)
     if args.start is not None:
         t = log.time
         if not t[0] <= args.start < t[-1]:
@@ -221,9 +236,9 @@ def command_identify(args: argparse.Namespace) -> int:
     if args.hops < 1:
         fail(f"--hops must be at least 1, got {args.hops}")
     log = read_log(args.log)
-    model, _ = robot_model(args)
+    model, _ = robot_model(args, log)
     span = sysid.hop_span(log, 0, args.hops)
-    fresh, _ = robot_model(args)
+    fresh, _ = world_model(resolve(log.world, args.terrain, args.seed, args.gravity, args.model)[0])
     before = sysid.replay_error(fresh, log, 0, args.hops, args.delay_ticks)
     fit = sysid.identify(
         model, log, span, names, stages=args.windows, delay_ticks=args.delay_ticks,

@@ -132,3 +132,10 @@ def test_files_that_are_no_hopper_recording_are_refused(recorded, tmp_path: Path
     rec.flush()
     rec.disconnect()
     assert "no 'signals' entity: not a hopper recording" in bad_logs.refused(rrd_log.read, other)
+
+
+def test_the_recordings_world_is_its_config_property(recorded) -> None:  # noqa: ANN001
+    from hopper.logs.world import World
+
+    path, _ = recorded
+    assert rrd_log.read(path).world == World(terrain="flat", seed=0, gravity=SimConfig().gravity)

@@ -18,6 +18,7 @@ import numpy as np
 from hopper.config import SimConfig
 from hopper.layout import LEG_JOINTS
 from hopper.logs.schema import Log
+from hopper.logs.world import of_config
 from hopper.sim import Simulation
 
 
@@ -73,4 +74,5 @@ def capture(config: SimConfig, hops: int, source: str = "capture") -> Capture:
     if n < 2:
         raise ValueError("the run ended before it could be logged")
     signals = {name: rows[:n, i].copy() for i, name in enumerate(names) if name != "time"}
-    return Capture(Log(rows[:n, 0].copy(), signals, source), len(sim.hops), sim.fallen)
+    log = Log(rows[:n, 0].copy(), signals, source, world=of_config(config))
+    return Capture(log, len(sim.hops), sim.fallen)

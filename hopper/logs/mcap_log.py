@@ -9,7 +9,9 @@ Each message is a `hopper_msgs/msg/SignalBlock` (schema encoding `ros2msg`, mess
     float64[] values  # column-major, len(names) * n: values[k * n + i] is column k at sample i
 
 A block is BLOCK_SAMPLES samples (1 s at 1 kHz); its log time is its first sample's. The
-channel's metadata `source` says what the log was written from (the reader's Log.source keeps it). The raw
+channel's metadata `source` says what the log was written from (the reader's Log.source keeps it), and
+`world.terrain`, `world.seed`, `world.gravity` (and `world.model`) where it was recorded, when the log
+knows (hopper.logs.world). The raw
 float arrays make a 1-hour log 3,600 messages, decoded with one numpy view each. Messages are
 read in file order, one chunk at a time, so a file whose time goes backwards is refused rather
 than silently sorted, and memory stays near one copy of the log.
@@ -28,8 +30,10 @@ from mcap.writer import CompressionType, Writer
 
 from hopper.logs.columns import Columns
 from hopper.logs.schema import COLUMNS, Log, LogError, check_columns, located, to_si
+from hopper.logs.world import World, from_meta
 
 TOPIC = "/hopper/signals"
+WORLD = "world."  # prefix of the channel metadata keys of the log's world
 SCHEMA_NAME = "hopper_msgs/msg/SignalBlock"
 SCHEMA_TEXT = """\
 # A block of consecutive samples of a hopper log (hopper-dashboard README, "Logs in").
@@ -112,7 +116,8 @@ def write(log: Log, path: str | Path) -> Path:
         writer = Writer(f, chunk_size=4 << 20, compression=CompressionType.ZSTD)
         writer.start(profile="", library="hopper-dashboard")
         schema = writer.register_schema(SCHEMA_NAME, "ros2msg", SCHEMA_TEXT.encode())
-        channel = writer.register_channel(TOPIC, "cdr", schema, metadata={"source": log.source})
+        world = {f"{WORLD}{k}": v for k, v in log.world.to_meta().items()} if log.world is not None else {}
+        channel = writer.register_channel(TOPIC, "cdr", schema, metadata={"source": log.source, **world})
         for start in range(0, len(log.time), BLOCK_SAMPLES):
             block = columns[:, start : start + BLOCK_SAMPLES]
             stamp = max(0, round(float(block[0, 0]) * 1e9))
@@ -121,9 +126,9 @@ def write(log: Log, path: str | Path) -> Path:
     return path
 
 
-def _channel(reader, path: Path) -> tuple[int, int, str]:  # noqa: ANN001 (mcap's McapReader)
-    """The /hopper/signals channel's id, message count and `source` (what the log was written from);
-    LogError if there is none."""
+def _channel(reader, path: Path) -> tuple[int, int, str, World | None]:  # noqa: ANN001 (mcap's McapReader)
+    """The /hopper/signals channel's id, message count, `source` (what the log was written from) and
+    world (None if it has none); LogError if there is no such channel, or its world is bad."""
     summary = reader.get_summary()
     if summary is None:
         raise LogError(f"{path}: an MCAP file without its summary (not finished?); write it again")
@@ -137,7 +142,12 @@ def _channel(reader, path: Path) -> tuple[int, int, str]:  # noqa: ANN001 (mcap'
         got = f"{schema.name if schema else 'no schema'} in {channel.message_encoding or 'no encoding'}"
         raise LogError(f"{path}: {TOPIC} carries {got}, expected {SCHEMA_NAME} in cdr")
     count = summary.statistics.channel_message_counts.get(channel.id, 0) if summary.statistics else 0
-    return channel.id, count, channel.metadata.get("source", "")
+    meta = {k.removeprefix(WORLD): v for k, v in channel.metadata.items() if k.startswith(WORLD)}
+    try:
+        world = from_meta(meta) if meta else None
+    except ValueError as exc:
+        raise LogError(f"{path}: {TOPIC}'s metadata: {exc}") from None
+    return channel.id, count, channel.metadata.get("source", ""), world
 
 
 def read(path: str | Path) -> Log:
@@ -150,7 +160,7 @@ def read(path: str | Path) -> Log:
     starts: list[int] = []  # each message's first sample, to say where a bad sample is
     with path.open("rb") as f:
         try:
-            channel, count, origin = _channel(make_reader(f), path)
+            channel, count, origin, world = _channel(make_reader(f), path)
             # Then one pass in file order, a chunk in memory at a time (the seeking reader's file
             # order decompresses every chunk before it yields the first message).
             f.seek(0)
@@ -192,4 +202,4 @@ def read(path: str | Path) -> Log:
         return f"{TOPIC} message {m}, its sample {sample - starts[m]}"
 
     source = f"{path} (written from {origin})" if origin and origin != str(path) else str(path)
-    return located(time, signals, source, where)
+    return located(time, signals, source, where, world)

@@ -2,7 +2,8 @@
 
 The archive holds `time`, every signal of hopper.logs.schema under its column name, and `units`
 (the JSON object column -> unit as written), so that a file whose units are not the schema's is
-refused rather than read as if they were. Gaps are found again from the time column on reading.
+refused rather than read as if they were; and `world` (JSON, hopper.logs.world) when the log knows
+where it was recorded. Gaps are found again from the time column on reading.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from hopper.logs.schema import COLUMNS, TIME, Log, LogError, find_gaps
+from hopper.logs.world import from_meta
 
 FORMAT = "hopper-log-npz-1"  # the archive's `format` entry
 
@@ -23,6 +25,8 @@ def write(log: Log, path: str | Path) -> Path:
     path = Path(path)
     units = {TIME.name: TIME.unit} | {name: COLUMNS[name].unit for name in log.signals}
     arrays = {"time": log.time, **log.signals}
+    if log.world is not None:
+        arrays["world"] = np.array(json.dumps(log.world.to_meta()))
     with open(path, "wb") as out:  # a file object: numpy would append .npz to a bare name
         np.savez_compressed(out, format=np.array(FORMAT), units=np.array(json.dumps(units)), **arrays)
     return path
@@ -49,5 +53,12 @@ def read(path: str | Path) -> Log:
         if "time" not in names:
             raise LogError(f"{path}: no time column")
         time = np.asarray(archive["time"], dtype=np.float64)
-        signals = {n: np.asarray(archive[n], dtype=np.float64) for n in sorted(names - {"format", "units", "time"})}
-    return Log(time, signals, str(path), find_gaps(time))
+        world = None
+        if "world" in names:
+            try:
+                world = from_meta(json.loads(str(archive["world"])))
+            except (ValueError, AttributeError) as exc:
+                raise LogError(f"{path}: {exc}") from None
+        columns = sorted(names - {"format", "units", "time", "world"})
+        signals = {n: np.asarray(archive[n], dtype=np.float64) for n in columns}
+    return Log(time, signals, str(path), find_gaps(time), world)

@@ -17,10 +17,11 @@ import math
 import mujoco
 import numpy as np
 
-from hopper.config import MOON_GRAVITY, SensingParams, SimConfig
+from hopper.config import SensingParams
 from hopper.errors import HopperError
 from hopper.layout import LEG_JOINTS, ModelLayout
 from hopper.logs.schema import STATE, Log
+from hopper.logs.world import World
 from hopper.model import build_model, set_terrain, terrain_window
 from hopper.robot import PACKAGED, Robot
 
@@ -32,19 +33,6 @@ SIMULATED = ("pitch", "pitch_rate", "wheel_speed", "x", "z", *LEG_JOINTS, "foot_
 
 class ReplayError(HopperError, ValueError):
     """A log that cannot be replayed as asked (no state to start from, a span outside it, ...)."""
-
-
-@dataclasses.dataclass(frozen=True, kw_only=True)
-class World:
-    """Where the log was recorded: the ground and gravity the replay puts the model in."""
-
-    terrain: str = "flat"  # "flat" or "crater"
-    seed: int = 0  # the crater field's
-    gravity: float = MOON_GRAVITY  # m/s^2
-    model: str | None = None  # the robot's MJCF (SimConfig.model), None: the packaged one
-
-    def config(self) -> SimConfig:
-        return SimConfig(terrain=self.terrain, seed=self.seed, gravity=self.gravity, model=self.model)  # type: ignore[arg-type]
 
 
 def world_model(world: World):  # noqa: ANN201

@@ -7,6 +7,7 @@ the body poses (`world/tf`). It does not keep the commands: the torques the actu
 says. Nor the IMU as the controller read it: `gyro_pitch` is MuJoCo's gyro (noise-free). The
 state: `pitch` and `pitch_rate` at 1 kHz; `x`, `z` the torso frame's position (its CoM in
 models/hopper.xml) and `vx`, `vz` its central differences, at the 50 Hz poses interpolated.
+The world (terrain, seed, gravity, model) is the recording's `config` property, if it never changed.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from rerun.chunk import RrdReader
 
 from hopper.layout import LEG_JOINTS
 from hopper.logs.schema import Log, LogError, located
+from hopper.logs.world import World, from_meta
 
 DEG = math.pi / 180.0
 RPM = 2.0 * math.pi / 60.0
@@ -53,6 +55,23 @@ def _chunks(path: Path) -> tuple[list[pa.RecordBatch], list[pa.RecordBatch]]:
         why = str(exc).splitlines()[0].replace(f"Failed to read RRD file at {path}: ", "")
         raise LogError(f"{path}: not a rerun recording, or one cut short ({why})") from None
     return signals, poses
+
+
+def _world(path: Path) -> World | None:
+    """The recording's world from its `config` property (hopper.telemetry.recorder), None if it has
+    none or it changed during the recording (a Regenerate: which one would the log be?)."""
+    rows = []
+    for chunk in RrdReader(path).stream().filter(content=["/__properties/config"]):
+        rows += chunk.to_record_batch().to_pylist()
+    keys = ("terrain", "seed", "gravity", "model")
+    seen = {tuple((r.get(k) or [""])[0] for k in keys) for r in rows}
+    if len(seen) != 1:
+        return None
+    terrain, seed, gravity, model = seen.pop()
+    try:
+        return from_meta({"terrain": str(terrain), "seed": str(seed), "gravity": str(gravity), "model": str(model)})
+    except ValueError as exc:
+        raise LogError(f"{path}: the recording's config property: {exc}") from None
 
 
 def _seconds(table: pa.Table) -> np.ndarray:
@@ -103,4 +122,4 @@ def read(path: str | Path) -> Log:
         for name, (field, factor) in FROM_SIGNALS.items()
     }
     signals |= _torso(poses, time, path)
-    return located(time, signals, f"{path} ({NOTE})", lambda i: f"sim_time {time[i]:.3f} s")
+    return located(time, signals, f"{path} ({NOTE})", lambda i: f"sim_time {time[i]:.3f} s", _world(path))

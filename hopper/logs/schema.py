@@ -22,6 +22,7 @@ import numpy as np
 
 from hopper.errors import HopperError
 from hopper.layout import LEG_JOINTS
+from hopper.logs.world import World
 
 
 class Column(NamedTuple):
@@ -98,6 +99,7 @@ class Log:
     signals: dict[str, np.ndarray]  # column name -> (n,) float64
     source: str  # the file it came from, for messages
     gaps: tuple[tuple[float, float], ...] = ()
+    world: World | None = None  # where it was recorded, when the file says (hopper.logs.world)
 
     def __post_init__(self) -> None:
         validate(self)
@@ -114,7 +116,7 @@ class Log:
         """The samples with start <= time < end (s)."""
         keep = (self.time >= start) & (self.time < end)
         gaps = tuple((a, b) for a, b in self.gaps if b > start and a < end)
-        return Log(self.time[keep], {k: v[keep] for k, v in self.signals.items()}, self.source, gaps)
+        return Log(self.time[keep], {k: v[keep] for k, v in self.signals.items()}, self.source, gaps, self.world)
 
 
 GAP_FACTOR = 3.0  # a spacing above this many median periods is a gap
@@ -181,11 +183,17 @@ def schema_line() -> str:
     return ", ".join(f"{c.name} [{c.unit}]" for c in REQUIRED)
 
 
-def located(time: np.ndarray, signals: dict[str, np.ndarray], source: str, where: Callable[[int], str]) -> Log:
+def located(
+    time: np.ndarray,
+    signals: dict[str, np.ndarray],
+    source: str,
+    where: Callable[[int], str],
+    world: World | None = None,
+) -> Log:
     """The Log of a reader's columns, its gaps found; a LogError at a sample says `where(sample)` it
     is in the file too (a CSV's line, an MCAP's message)."""
     try:
-        return Log(time, signals, source, find_gaps(time))
+        return Log(time, signals, source, find_gaps(time), world)
     except LogError as exc:
         if exc.sample is None:
             raise

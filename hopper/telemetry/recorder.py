@@ -395,6 +395,7 @@ class Telemetry:
                 terrain=c.terrain,
                 seed=c.seed,
                 gravity=c.gravity,
+                model=c.model or "",  # the robot's MJCF path, "" for the packaged one
                 wheel=c.wheel,
                 timestep=c.timestep,
                 sensing=c.sensing,

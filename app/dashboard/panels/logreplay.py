@@ -1,4 +1,5 @@
-"""Log replay panel: load a recorded log, fly its hops open loop in the dashboard's world (hopper.logs.replay),
+"""Log replay panel: load a recorded log, fly its hops open loop in the log's world (hopper.logs.replay; the
+dashboard's terrain, seed and gravity for a log that names none),
 and show the log's robot and the simulated one as two ghosts side by side, in step, with the errors charted.
 
 A load runs on a thread of its own (never the 1 kHz loop's, never viser's): the simulation keeps running,
@@ -28,7 +29,6 @@ from hopper.logs.io import read_log
 from hopper.logs.replay import (
     Errors,
     Trajectory,
-    World,
     check_replayable,
     contact,
     hops,
@@ -36,6 +36,8 @@ from hopper.logs.replay import (
     replay_hops,
     world_model,
 )
+from hopper.logs.schema import Log
+from hopper.logs.world import World, resolve
 
 if TYPE_CHECKING:
     from hopper.sim import Simulation
@@ -58,6 +60,7 @@ class LogReplay:
     """A log's hops replayed: the parts (hopper.logs.replay.replay_hops), both robots' poses, the charts' series."""
 
     source: str
+    world: str  # where it was replayed, and why there
     found: int  # hops in the log
     parts: list[tuple[Trajectory, Errors]]
     logged: np.ndarray  # qpos rows every `frame_s` of log time
@@ -72,15 +75,21 @@ class LogReplay:
         return Errors.concat([e for _, e in self.parts])
 
 
-def world_of(config: SimConfig) -> World:
-    return World(terrain=config.terrain, seed=config.seed, gravity=config.gravity, model=config.model)
+def world_for(recorded: Log, config: SimConfig) -> tuple[World, str]:
+    """The log's world (its ground and gravity) with the dashboard's robot; the dashboard's whole world
+    for a log that names none (a real robot's). With a line saying which."""
+    if recorded.world is not None:
+        return resolve(recorded.world, model=config.model)
+    here = World(terrain=config.terrain, seed=config.seed, gravity=config.gravity, model=config.model)
+    return here, "the log names none: this dashboard's"
 
 
 def replay_log(path: str, config: SimConfig) -> LogReplay:
-    """Read the log at `path` and replay its first MAX_HOPS hops in `config`'s world; HopperError if it cannot."""
+    """Read the log at `path` and replay its first MAX_HOPS hops in its world (world_for); HopperError if it cannot."""
     recorded = read_log(path)
     check_replayable(recorded)  # before the hops: a log without the state says so, not 'no hop'
-    model, window = world_model(world_of(config))
+    world, origin = world_for(recorded, config)
+    model, window = world_model(world)
     found = len(hops(recorded))
     parts = replay_hops(model, recorded, MAX_HOPS, window=window)
     first, last = parts[0][0], parts[-1][0]
@@ -90,6 +99,7 @@ def replay_log(path: str, config: SimConfig) -> LogReplay:
     every = max(1, round(GHOST_FRAME_S / recorded.period))
     return LogReplay(
         source=str(path),
+        world=f"{world.describe()} ({origin})",
         found=found,
         parts=parts,
         logged=poses(model, {k: v[rows] for k, v in s.items()}, every),
@@ -104,7 +114,8 @@ def replay_log(path: str, config: SimConfig) -> LogReplay:
 def summary_html(done: LogReplay | None) -> str:
     if done is None:
         return (
-            "<div class='hd-record'>Replays a log's hops open loop in this world (terrain, seed, gravity): "
+            "<div class='hd-record'>Replays a log's hops open loop in the log's world (this one's terrain, seed "
+            "and gravity if the log names none): "
             "<b style='color:#ffb03b'>orange</b> ghost the log, <b style='color:#5aa9ff'>blue</b> the simulation. "
             "Errors chart on the left.</div>"
         )
@@ -116,7 +127,8 @@ def summary_html(done: LogReplay | None) -> str:
     of = f"{shown} of {done.found} hops" if shown < done.found else f"{shown} hop(s)"
     return (
         f"<div class='hd-record'><b>{html.escape(done.source)}</b>: {of}, {e.time[0]:.2f}–{e.time[-1]:.2f} s · "
-        f"pitch RMS {rms_pitch:.3f}° · wheel speed RMS {rms_wheel:.3f} rad/s · {timing}. "
+        f"pitch RMS {rms_pitch:.3f}° · wheel speed RMS {rms_wheel:.3f} rad/s · {timing} · "
+        f"in {html.escape(done.world)}. "
         "<b style='color:#ffb03b'>Orange</b>: the log; <b style='color:#5aa9ff'>blue</b>: simulated.</div>"
     )
 
@@ -204,7 +216,8 @@ def build_logreplay_panel(gui: viser.GuiApi, scene: viser.SceneApi, host: LogRep
         load = gui.add_button(
             "Load and replay log",
             icon=viser.Icon.FILE_IMPORT,
-            hint="Fly the log's commands open loop from its state at each liftoff, in this world",
+            hint="Fly the log's commands open loop from its state at each liftoff, on the log's ground "
+            "(this one's if it names none)",
         )
         watch = gui.add_checkbox(
             "Camera on the ghosts", False, hint="Follow the replayed log's ghosts; untick to follow the live robot"

@@ -1,0 +1,93 @@
+"""A log's world (where it was recorded) written, read back, refused when bad, and replayed in by default."""
+
+from __future__ import annotations
+
+import json
+import math
+import zipfile
+from pathlib import Path
+
+import bad_logs
+import numpy as np
+import pytest
+from hopper.app.dashboard.panels.logreplay import replay_log
+from hopper.app.sim_cli import main
+
+from hopper.config import SimConfig
+from hopper.logs import mcap_log, npz
+from hopper.logs.capture import capture
+from hopper.logs.io import read_log, write_log
+from hopper.logs.schema import Log
+from hopper.logs.world import World, resolve
+
+WORLD = World(terrain="crater", seed=5, gravity=1.625)
+
+
+@pytest.fixture(scope="module")
+def cratered() -> Log:
+    """Three hops on crater seed 5 (by the third the ground is far from flat), sensed as capture's CLI
+    does: the replay's drive delays the commands as the realistic sensing's motor does."""
+    got = capture(SimConfig(terrain="crater", seed=5, sensing="realistic"), 3)
+    assert got.hops == 3
+    return got.log
+
+
+def test_capture_knows_its_world_and_npz_mcap_keep_it(cratered: Log, tmp_path: Path) -> None:
+    assert cratered.world == WORLD
+    for suffix in ("npz", "mcap"):
+        assert read_log(write_log(cratered, tmp_path / f"log.{suffix}")).world == WORLD
+    # A CSV has one header line, the columns: it names no world (the flags or the dashboard do).
+    assert read_log(write_log(cratered, tmp_path / "log.csv")).world is None
+    assert cratered.between(1.0, 2.0).world == WORLD
+
+
+def test_a_bad_world_is_refused_in_one_line(cratered: Log, tmp_path: Path) -> None:
+    good = write_log(cratered.between(0.0, 0.5), tmp_path / "good.npz")
+    bad = tmp_path / "bad.npz"
+    with zipfile.ZipFile(good) as src, zipfile.ZipFile(bad, "w") as dst:
+        for item in src.namelist():
+            if item != "world.npy":
+                dst.writestr(item, src.read(item))
+    with np.load(good) as archive:
+        arrays = {k: archive[k] for k in archive.files}
+    arrays["world"] = np.array(json.dumps({"terrain": "lava", "seed": "5", "gravity": "1.625"}))
+    with bad.open("wb") as out:
+        np.savez_compressed(out, **arrays)
+    assert "terrain is 'lava', expected one of flat, crater" in bad_logs.refused(npz.read, bad)
+    arrays["world"] = np.array(json.dumps({"terrain": "flat", "seed": "0", "gravity": "-3"}))
+    with bad.open("wb") as out:
+        np.savez_compressed(out, **arrays)
+    assert "gravity > 0 m/s^2" in bad_logs.refused(npz.read, bad)
+    wrong = Log(cratered.time[:100], {k: v[:100] for k, v in cratered.signals.items()}, "t", (), World(seed=2))
+    path = mcap_log.write(wrong, tmp_path / "seed.mcap")
+    assert mcap_log.read(path).world == World(seed=2)
+
+
+def test_the_world_is_the_flags_then_the_logs_then_the_defaults() -> None:
+    assert resolve(WORLD) == (WORLD, "the log's")
+    world, origin = resolve(WORLD, terrain="flat", model="robot.xml")
+    assert world == World(terrain="flat", seed=5, gravity=1.625, model="robot.xml")
+    assert origin == "as asked (terrain); the log's is crater seed 5, 1.625 m/s^2"
+    assert resolve(None) == (World(), "the log names no world: the defaults")
+    # The log's robot is the one compared with, never the model replayed.
+    assert resolve(World(model="truth.xml"))[0].model is None
+
+
+def test_the_cli_and_the_dashboard_replay_in_the_logs_world(cratered: Log, tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    path = write_log(cratered, tmp_path / "crater.npz")
+    assert main(["replay", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "world: crater seed 5, 1.625 m/s^2 (the log's)" in out
+    assert "all (3 replay(s)" in out and "pitch RMS 0.000 deg" in out.splitlines()[-1]
+    assert main(["replay", str(path), "--terrain", "flat"]) == 0  # the wrong ground, asked for: it shows
+    flat = capsys.readouterr().out.splitlines()[-1]
+    assert float(flat.split("pitch RMS ")[1].split()[0]) > 1.0, flat
+    # The dashboard stands on other ground; the log's world is used, and the same errors come out.
+    done = replay_log(str(path), SimConfig(terrain="flat", seed=0))
+    assert done.world == "crater seed 5, 1.625 m/s^2 (the log's)"
+    assert math.degrees(done.errors.rms("pitch")) < 1e-3 and done.errors.rms("wheel_speed") < 1e-3
+    # A log that names no world (a CSV, a real robot's) replays in the dashboard's.
+    csv = write_log(cratered, tmp_path / "crater.csv")
+    here = replay_log(str(csv), SimConfig(terrain="crater", seed=5))
+    assert here.world == "crater seed 5, 1.625 m/s^2 (the log names none: this dashboard's)"
+    assert math.degrees(here.errors.rms("pitch")) < 1e-3
