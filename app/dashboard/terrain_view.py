@@ -1,9 +1,10 @@
 """The terrain in the 3D scene: the simulation's window, drawn tile by tile, following it as it moves.
 
 Each tile of the field (hopper.terrain.field, 4 m) is one mesh node, sent when it enters the
-window and removed when it leaves, so a move sends only the ground that is new (~130 kB a tile:
-~33 kB per metre travelled, whatever the window's length); a new terrain replaces them all. The
-plain ground either side of the strip moves with the window (a pose, not a mesh).
+window and removed when it leaves, so a move sends only the ground that is new (79 kB a tile as
+hopper.app.dashboard.tile_glb writes it: ~20 kB per metre travelled, whatever the window's
+length); a new terrain replaces them all. The plain ground either side of the strip moves with
+the window (a pose, not a mesh).
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 import viser
 from hopper.app.dashboard.scene import WORLD
+from hopper.app.dashboard.tile_glb import tile_glb
 from hopper.terrain import CraterParams, Field
 
 from hopper.meshes import terrain_tile
@@ -54,9 +56,10 @@ class TerrainView:
         mesh = terrain_tile(field, k)
         colors = np.asarray(mesh.visual.vertex_colors).copy()
         colors[:, :3] = (colors[:, :3] * TERRAIN_DIM).astype(np.uint8)
-        mesh.visual.vertex_colors = colors
         self.sent += 1
-        return self._scene.add_mesh_trimesh(f"{WORLD}/terrain/{k}", mesh, cast_shadow=False)
+        return self._scene.add_glb(
+            f"{WORLD}/terrain/{k}", tile_glb(mesh.vertices, mesh.faces, colors), cast_shadow=False
+        )
 
     def _remove(self, tiles: list[int]) -> None:
         for k in tiles:
