@@ -57,9 +57,9 @@ class TerrainView:
         colors = np.asarray(mesh.visual.vertex_colors).copy()
         colors[:, :3] = (colors[:, :3] * TERRAIN_DIM).astype(np.uint8)
         self.sent += 1
-        return self._scene.add_glb(
-            f"{WORLD}/terrain/{k}", tile_glb(mesh.vertices, mesh.faces, colors), cast_shadow=False
-        )
+        nrow = field.params.shape[0]  # hopper.meshes' grid: row-major, rows along y
+        glb = tile_glb(mesh.vertices, (nrow, len(mesh.vertices) // nrow), colors)
+        return self._scene.add_glb(f"{WORLD}/terrain/{k}", glb, cast_shadow=False)
 
     def _remove(self, tiles: list[int]) -> None:
         for k in tiles:

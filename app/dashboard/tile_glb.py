@@ -1,10 +1,12 @@
-"""A terrain tile as a compact binary glTF (GLB), for the scene: about 40 % of what trimesh writes.
+"""A terrain tile as a compact binary glTF (GLB), for the scene: 41 % of what trimesh writes.
 
-trimesh's GLB holds float32 positions and uint32 indices: 131 kB a 4 m tile, the largest message
-a client receives while the robot hops on (issue 22's stream budget). Here positions are int16
-(KHR_mesh_quantization, which three.js's GLTFLoader reads: the node's scale and translation undo
-the quantization, 61 um steps over a 4 m tile) and indices uint16 (a tile has 3,321 vertices); the
-colours stay RGBA uint8. No normals, as trimesh's: the viewer computes them.
+trimesh's GLB holds float32 positions and a uint32 index per triangle corner: 131 kB a 4 m tile,
+the largest message a client receives while the robot hops on (issue 22's stream budget). Here
+positions are int16 (KHR_mesh_quantization, which three.js's GLTFLoader reads: the node's scale
+and translation undo the quantization, 61 um steps over a 4 m tile), and the grid is one triangle
+strip of uint16 indices, a band of rows after another joined by degenerate triangles (about one
+index per triangle instead of three); the colours stay RGBA uint8. No normals, as trimesh's: the
+viewer computes them.
 """
 
 from __future__ import annotations
@@ -17,16 +19,34 @@ import numpy as np
 QUANT = 32767  # int16 normalized: value / 32767 in [-1, 1]
 SHORT, UNSIGNED_BYTE, UNSIGNED_SHORT = 5122, 5121, 5123  # glTF component types
 ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER = 34962, 34963
-TRIANGLES = 4
+STRIP = 5  # glTF's TRIANGLE_STRIP mode
 
 
 def _pad(data: bytes, fill: bytes) -> bytes:
     return data + fill * (-len(data) % 4)
 
 
-def tile_glb(vertices: np.ndarray, faces: np.ndarray, colors: np.ndarray) -> bytes:
-    """GLB of a triangle mesh: `vertices` (n, 3) m, `faces` (m, 3) indices < 65536, `colors` (n, 4) uint8."""
-    vertices, faces = np.asarray(vertices, np.float64), np.asarray(faces)
+def grid_strip(nrow: int, ncol: int) -> np.ndarray:
+    """One triangle strip over a row-major grid of nrow x ncol vertices, counter-clockwise from +z
+    (rows along +y, columns along +x) as hopper.meshes' triangles are. Each band of two rows zigzags
+    from its upper row to its lower; a band ends with its last index repeated and the next band's
+    first, so that every band starts at an even position (the strip's winding) and the joins draw
+    nothing (triangles of no area)."""
+    bands = []
+    for r in range(nrow - 1):
+        band = np.empty(2 * ncol, np.int64)
+        band[0::2], band[1::2] = (r + 1) * ncol + np.arange(ncol), r * ncol + np.arange(ncol)
+        if bands:
+            bands.append(np.array([bands[-1][-1], band[0]]))
+        bands.append(band)
+    return np.concatenate(bands)
+
+
+def tile_glb(vertices: np.ndarray, shape: tuple[int, int], colors: np.ndarray) -> bytes:
+    """GLB of a grid mesh: `vertices` (nrow * ncol, 3) m, row-major in `shape` (nrow, ncol), at most
+    65,536 of them; `colors` (n, 4) uint8."""
+    vertices = np.asarray(vertices, np.float64)
+    faces = grid_strip(*shape)
     if len(vertices) > 65536:
         raise ValueError(f"a tile of {len(vertices)} vertices needs 32-bit indices")
     lo, hi = vertices.min(axis=0), vertices.max(axis=0)
@@ -49,7 +69,7 @@ def tile_glb(vertices: np.ndarray, faces: np.ndarray, colors: np.ndarray) -> byt
         "scene": 0,
         "scenes": [{"nodes": [0]}],
         "nodes": [{"mesh": 0, "translation": center.tolist(), "scale": half.tolist()}],
-        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "COLOR_0": 1}, "indices": 2, "mode": TRIANGLES}]}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "COLOR_0": 1}, "indices": 2, "mode": STRIP}]}],
         "buffers": [{"byteLength": offset}],
         "bufferViews": views,
         "accessors": [
