@@ -164,7 +164,9 @@ def main() -> None:
                     sides[f"speed {speed} rec"] = lambda v=speed: at_speed(dashboard, v, args, record=True)
             if speeds:
                 sides["bare"] = lambda: bare_round(dashboard, config.sim_config(), controls, args.seconds)
+            start = (dashboard.sim.state().x, time.perf_counter())
             rounds = interleaved(sides, args.rounds)
+            end = (dashboard.sim.state().x, time.perf_counter(), dashboard.terrain.sent, dashboard.terrain.sent_bytes)
             kicked = sum(h.kicked for h in dashboard.sim.hops) if args.workbench else 0
         finally:
             dashboard.stop()
@@ -172,6 +174,7 @@ def main() -> None:
     print(f"{args.rounds} rounds, each case in turn in every round (medians; range in brackets); machine shared")
     if cases:
         report([merged(rounds[f"clients {n}"]) for n in cases], args.seconds, args.speed)
+        long_run(start, end, dashboard.sim.config.craters.tile, [merged(rounds[f"clients {n}"]) for n in cases])
         base = [r["rtf"] for r in rounds[f"clients {cases[0]}"]]
         for n in cases[1:]:
             print(f"RTF {n} clients / {cases[0]} clients: {ratio([r['rtf'] for r in rounds[f'clients {n}']], base)}")
@@ -260,6 +263,24 @@ def report_speeds(rounds: dict[str, list], speeds: list[float], clients: int, re
                 cpu = ratio([r["cpu"] for r in runs], [r["cpu"] for r in rounds[f"speed {speed}"]])
                 on_disk = spread([r["recorded_kb_per_s"] for r in runs], 1)
                 print(f"{'':>6}  recording: {on_disk} kB/s on disk; CPU with / without: {cpu}")
+
+
+def long_run(start: tuple, end: tuple, tile_m: float, results: list[dict]) -> None:
+    """The terrain's share of the stream over a long run, which the windows cannot show: a tile is
+    sent as the window moves, 15 m at a time (its first move 18 m out), so a run sends none for a
+    minute or more and a window sends four or none. Each client receives every tile once: their
+    bytes per metre of travel at the robot's speed over this run is what a long session averages."""
+    (x0, t0), (x1, t1, sent, sent_bytes) = start, end
+    speed = (x1 - x0) / (t1 - t0)  # m per wall s
+    tile_kb = sent_bytes / max(sent, 1) / 1e3  # the mean tile, the start's included
+    rate = tile_kb / tile_m * speed
+    print(f"\nterrain over the long run: {tile_kb:.0f} kB a {tile_m:g} m tile, the robot at {speed:.3f} m/s: "
+          f"{rate:.1f} kB/s a client")  # fmt: skip
+    for r in results:
+        if r["per_client"]:
+            per = r["per_client"]
+            rest = (_mean(per, "bytes_per_s") - _mean(per, "breakdown_bytes_per_s", "terrain")) / 1e3
+            print(f"  {r['clients']} client(s): {rest:.1f} kB/s without tiles + {rate:.1f} = {rest + rate:.1f} kB/s")
 
 
 def _mean(per: list[dict], key: str, sub: str | None = None) -> float:

@@ -34,6 +34,7 @@ class TerrainView:
         self._first: int | None = None
         self.tiles: dict[int, viser.GlbHandle] = {}  # tile index -> its node
         self.sent = 0  # tile meshes sent, for tests and the benchmark
+        self.sent_bytes = 0  # their GLBs' bytes, which every client receives (benchmarks/bench_dashboard.py)
         self.ground = _add_ground(scene, sim.config.craters)
         self.sync(sim)
 
@@ -59,6 +60,7 @@ class TerrainView:
         self.sent += 1
         nrow = field.params.shape[0]  # hopper.meshes' grid: row-major, rows along y
         glb = tile_glb(mesh.vertices, (nrow, len(mesh.vertices) // nrow), colors)
+        self.sent_bytes += len(glb)
         return self._scene.add_glb(f"{WORLD}/terrain/{k}", glb, cast_shadow=False)
 
     def _remove(self, tiles: list[int]) -> None:
