@@ -13,7 +13,7 @@ from hopper.config import SimConfig
 from hopper.meshes import terrain_tile
 from hopper.model import terrain_window
 
-COMPONENTS = {5121: np.uint8, 5122: np.int16, 5123: np.uint16}
+COMPONENTS = {5120: np.int8, 5121: np.uint8, 5123: np.uint16}
 WIDTH = {"SCALAR": 1, "VEC3": 3, "VEC4": 4}
 
 
@@ -66,26 +66,27 @@ def strip_triangles(strip: np.ndarray) -> set[tuple[int, int, int]]:
     return out
 
 
-def test_a_tile_reads_back_as_the_physics_tile_in_41_percent_of_the_bytes(tile) -> None:  # noqa: ANN001
+def test_a_tile_reads_back_as_the_physics_tile_in_a_third_of_the_bytes(tile) -> None:  # noqa: ANN001
     colors = np.asarray(tile.visual.vertex_colors)
     nrow = SimConfig(terrain="crater").craters.shape[0]  # the grid's rows, along y
     glb = tile_glb(tile.vertices, (nrow, len(tile.vertices) // nrow), colors)
     gltf, got = read_glb(glb)
     assert gltf["extensionsRequired"] == ["KHR_mesh_quantization"]  # a reader without it must refuse, not misdraw
-    span = tile.vertices.max(axis=0) - tile.vertices.min(axis=0)
-    assert np.all(np.abs(got["POSITION"] - tile.vertices) <= span / 2 / 32767 * 0.5 + 1e-12)
+    # x and y count the grid's columns and rows: exact; z has 255 levels over the tile's heights.
+    error = np.abs(got["POSITION"] - tile.vertices).max(axis=0)
+    assert error[0] < 1e-9 and error[1] < 1e-9 and error[2] <= np.ptp(tile.vertices[:, 2]) / 254 / 2 + 1e-12, error
     assert gltf["meshes"][0]["primitives"][0]["mode"] == 5  # a triangle strip
     # The same triangles, each wound the same way (counter-clockwise from above: the lit side up).
     assert strip_triangles(got["indices"].ravel()) == {
         tuple(int(v) for v in np.roll(f, -int(np.argmin(f)))) for f in tile.faces
     }
     assert np.array_equal(np.round(got["COLOR_0"] * 255).astype(np.uint8), colors)
-    # min/max as three.js reads them (raw ints) for the bounding box: the tile spans the whole int16 range.
-    assert gltf["accessors"][0]["min"] == [-32767] * 3 and gltf["accessors"][0]["max"] == [32767] * 3
-    assert len(glb) < 0.45 * len(tile.export(file_type="glb"))
+    # min/max as three.js reads them (raw ints) for the bounding box: 81 columns, 41 rows, z's 255 levels.
+    assert gltf["accessors"][0]["min"] == [-40, -20, -127] and gltf["accessors"][0]["max"] == [40, 20, 127]
+    assert len(glb) < 0.33 * len(tile.export(file_type="glb"))
 
 
-def test_a_mesh_beyond_16_bit_indices_is_refused() -> None:
-    vertices = np.zeros((70_000, 3))
-    with pytest.raises(ValueError, match="32-bit indices"):
-        tile_glb(vertices, (700, 100), np.zeros((70_000, 4), np.uint8))
+def test_a_grid_beyond_int8_positions_is_refused() -> None:
+    vertices = np.zeros((300 * 10, 3))
+    with pytest.raises(ValueError, match="more rows or columns than int8 positions count"):
+        tile_glb(vertices, (10, 300), np.zeros((3000, 4), np.uint8))

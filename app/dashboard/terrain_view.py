@@ -1,8 +1,8 @@
 """The terrain in the 3D scene: the simulation's window, drawn tile by tile, following it as it moves.
 
 Each tile of the field (hopper.terrain.field, 4 m) is one mesh node, sent when it enters the
-window and removed when it leaves, so a move sends only the ground that is new (79 kB a tile as
-hopper.app.dashboard.tile_glb writes it: ~20 kB per metre travelled, whatever the window's
+window and removed when it leaves, so a move sends only the ground that is new (41 kB a tile as
+hopper.app.dashboard.tile_glb writes it: ~10 kB per metre travelled, whatever the window's
 length); a new terrain replaces them all. The plain ground either side of the strip moves with
 the window (a pose, not a mesh).
 """
