@@ -97,7 +97,9 @@ def simulate(
                 from hopper.app.rerun_viewer import ViewerError
 
                 try:
-                    telemetry, url = open_recording(sim, rrd, viewer, limits, on_stop=_recording_stopped)
+                    telemetry, url = open_recording(
+                        sim, rrd, viewer, limits, on_stop=_recording_stopped, on_lag=_recording_lag
+                    )
                 except ViewerError as exc:
                     fail(str(exc))
                 if url:
@@ -162,3 +164,8 @@ def shortfall(sim: Simulation, hops: int) -> str | None:
 def _recording_stopped(message: str) -> None:
     """A recording that stopped by itself (a full disk): the run goes on."""
     print(f"hopper-sim: warning: {message}", file=sys.stderr)
+
+
+def _recording_lag(message: str | None) -> None:
+    """The recording's file fell behind what it was sent (a slow disk), or caught up again."""
+    print(f"hopper-sim: warning: recording: {message or 'the file has caught up'}", file=sys.stderr)

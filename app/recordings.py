@@ -46,6 +46,7 @@ def open_recording(
     name: str | None = None,
     on_part: Callable[[Path, Path], None] | None = None,
     on_stop: Callable[[str], None] | None = None,
+    on_lag: Callable[[str | None], None] | None = None,
 ) -> tuple[Telemetry, str | None]:
     """Start recording `sim` to `path` (None: no file) and/or a rerun viewer; the Telemetry, attached
     to `sim`, and the served viewer's URL (None unless `viewer` is "serve").
@@ -68,6 +69,7 @@ def open_recording(
             recording_name=name,
             on_part=on_part,
             on_stop=on_stop,
+            on_lag=on_lag,
             **(limits.telemetry_options() if path is not None else {}),
         )
     except BaseException:

@@ -6,10 +6,11 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from clients import connect
 from hopper.app.dashboard.config import DashboardConfig
 from hopper.app.dashboard.probe import ProbeClient
 from hopper.app.dashboard.server import Dashboard
-from net import free_port, wait_until
+from net import free_port
 
 from hopper.config import SimConfig
 from hopper.sim import Simulation
@@ -53,12 +54,7 @@ def probes() -> Iterator[list[ProbeClient]]:
 
 @pytest.fixture
 def client(dashboard: Dashboard):
-    c = ProbeClient(dashboard.url)
-    assert c.wait_for(lambda p: len(p.gui) > 20 and p.pose_frames > 0), "the probe never saw the page"
-    # Seeing the page is not being a client: viser registers a connection only once it has handled
-    # its first camera message, and until then notifications (sent to server.get_clients()) and GUI
-    # callbacks (dropped for an unknown client) miss it. On a loaded machine that can come later.
-    assert wait_until(lambda: len(dashboard.server.get_clients()) == 1), "the server never registered the probe"
+    c = connect(dashboard)
     yield c
     c.close()
 

@@ -12,8 +12,8 @@ import subprocess
 from pathlib import Path
 
 import pytest
+from clients import connect, titles
 from hopper.app.dashboard.config import DashboardConfig
-from hopper.app.dashboard.probe import ProbeClient
 from hopper.app.dashboard.server import Dashboard
 from net import free_port, wait_until
 from rrd import signal_times, verify
@@ -38,17 +38,11 @@ def small_disk(tmp_path: Path):
         subprocess.run(["umount", "-l", str(folder)], check=False)
 
 
-def titles(client: ProbeClient) -> list[str]:
-    return [n.get("title", "") for n in client.notifications]
-
-
 def test_full_disk_stops_the_recording_and_the_dashboard_goes_on(small_disk: Path) -> None:
     config = DashboardConfig(port=free_port(), sessions_dir=small_disk, speed=4.0)
     with Dashboard(config, verbose=False) as dashboard:
-        client = ProbeClient(dashboard.url)
+        client = connect(dashboard)
         try:
-            assert client.wait_for(lambda p: len(p.gui) > 20 and p.pose_frames > 0)
-            assert wait_until(lambda: len(dashboard.server.get_clients()) == 1)
             client.set_gui_value("Record", True)
             assert wait_until(lambda: dashboard.recorder.active), "Record did not start a recording"
             assert client.wait_for(lambda p: "Recording failed" in titles(p), timeout=90), titles(client)

@@ -56,6 +56,8 @@ class Recorder:
 
     Listeners are called as `changed(state, path, message)` with state "recording", "saved" or
     "failed"; every change is also a Recording event in the simulation's log (and recordings).
+    "behind" (message: why) says the file fell behind what the recording sends (a slow disk), and
+    "recording" again once it has caught up.
     """
 
     def __init__(self, submit: Callable[[Command], None], sessions_dir: Path, limits: FileLimits | None = None) -> None:
@@ -115,6 +117,7 @@ class Recorder:
                 name,
                 on_part=lambda finished, started: self._next_part(sim, finished, started),
                 on_stop=lambda message: self._stopped(sim, mine, message),
+                on_lag=lambda message: self._lagging(mine, message),
             )
         except Exception as exc:
             self._changed(sim, "failed", f"{type(exc).__name__}: {exc}")
@@ -139,6 +142,17 @@ class Recorder:
             return
         self._telemetry = None
         self._changed(sim, "failed", message)
+
+    def _lagging(self, mine: list[Any], message: str | None) -> None:
+        """The file fell behind (a slow disk) or caught up (on the loop thread): "behind" or "recording"."""
+        if not mine or mine[0] is not self._telemetry:
+            return
+        state = "behind" if message is not None else "recording"
+        for listener in self.listeners:
+            try:
+                listener(state, self.path, message or "")
+            except Exception:
+                log.exception("recording listener failed")
 
     def start_now(self, sim: Simulation, path: Path | None, viewer: Viewer = "off", name: str | None = None) -> None:
         """Attach at once, raising on failure; only while the simulation loop is not running (startup)."""

@@ -102,6 +102,7 @@ class Dashboard:
 
         limits = FileLimits(max_mb=config.rrd_max_mb, max_min=config.rrd_max_min, flush_s=config.rrd_flush_s)
         self.recorder = Recorder(self.submit, config.sessions_dir, limits)
+        self._recording_behind = False  # a "Recording behind" notice is out: say when it caught up
         if config.rrd is not None or config.rerun_viewer != "off":  # fails here, before any server starts
             self.recorder.start_now(self.sim, config.rrd, config.rerun_viewer, name="hopper-dashboard")
         try:
@@ -508,3 +509,9 @@ class Dashboard:
             notify_all(self.server, "Recording saved", str(path))
         elif state == "failed":
             notify_all(self.server, "Recording failed", message, "error")
+        elif state == "behind":
+            notify_all(self.server, "Recording behind", message, "warning")
+            self._recording_behind = True
+        elif state == "recording" and self._recording_behind:
+            notify_all(self.server, "Recording caught up", "the file has everything the recording sent so far")
+            self._recording_behind = False

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import atexit
 import bisect
+import collections
 import contextlib
 import dataclasses
 import json
@@ -62,6 +63,14 @@ log = logging.getLogger(__name__)
 BATCH_TICKS = 4000
 FLUSH_WALL_S = 1.0
 SINK_TIMEOUT_S = 60.0  # s a flush may wait for the sinks before it is reported as failed
+# The recording is behind when the file's writer has not found rerun's pipe empty for BEHIND_S of
+# wall time (the disk takes the bytes slower than they come: they wait in rerun's memory), or the
+# loop spent more than BEHIND_SHARE of the last BEHIND_S waiting in rerun's send and flush (rerun's
+# channel to the file is full: the disk holds the simulation to its pace). Nothing is lost either
+# way. A batch is written in milliseconds on a disk that keeps up and its send costs ~1 ms. Caught
+# up once, over a whole BEHIND_S, the pipe was never full for a quarter of it and the loop waited
+# less than CAUGHT_UP_SHARE: a slow disk's bursts are no flapping.
+BEHIND_S, BEHIND_SHARE, CAUGHT_UP_SHARE = 5.0, 0.5, 0.1
 LIMIT_EVERY_BATCHES = 5  # the torque limit lines only need a point now and then
 POSE_EVERY_TICKS = 20  # 50 Hz body poses
 EVENT_LEVELS = {
@@ -132,6 +141,13 @@ class Telemetry:
     released, the batch in flight and the footer go into its space, and the recording stops by
     itself (queued on the simulation, which goes on): `on_stop(message)` then says why. A write
     that fails for good also stops it, with the file cut short (`failure` is set in both cases).
+
+    A slow disk: the bytes wait in rerun's memory, and once its channel to the file is full its
+    sends wait for room, so the disk holds the simulation to its pace (nothing is lost). When the
+    file has been `behind_s` behind, or the loop waited more than BEHIND_SHARE of the last
+    `behind_s`, `behind` says so and `on_lag(message)` is called; once caught up, `behind` is None
+    again and `on_lag(None)`. Both come from the recording's watchdog thread (the loop's may be
+    the one waiting).
     """
 
     def __init__(
@@ -148,9 +164,13 @@ class Telemetry:
         flush_s: float = FLUSH_WALL_S,
         on_part: Callable[[Path, Path], None] | None = None,
         on_stop: Callable[[str], None] | None = None,
+        on_lag: Callable[[str | None], None] | None = None,
+        behind_s: float = BEHIND_S,
     ) -> None:
         self._on_close = on_close
         self._on_part, self._on_stop = on_part, on_stop
+        self._on_lag, self._behind_s = on_lag, behind_s
+        self.behind: str | None = None  # why the file is behind what was sent, while it is
         self._file: PipedFile | None = None
         self._reserve: Reserve | None = None
         self.rec: rr.RecordingStream | None = None
@@ -265,7 +285,11 @@ class Telemetry:
         if self.base is not None:
             first = part_path(self.base, 1) if self._rolls else self.base
             self._reserve = Reserve(reserve_path(first), MIN_RESERVE)
+        self._unwatched = threading.Event()  # set at close: the lag watchdog ends
+        self._sending: float | None = None  # perf_counter at the start of the send in progress
+        self._waited = 0.0  # s the loop spent in sends and flushes, in all
         self._open_part()
+        threading.Thread(target=self._watch_lag, name="rrd-lag", daemon=True).start()
         sim.listeners.append(self)
         _open.add(self)
         self._ready = True
@@ -328,6 +352,46 @@ class Telemetry:
             self._request_stop(problem)
         elif self._rolls and (f.written >= self._max_bytes or self._next_ns - self._part_start_ns >= self._max_ns):
             self._rollover()
+
+    def _watch_lag(self) -> None:
+        """The lag watchdog's thread: the loop's own cannot say it, since on a slow disk it waits in
+        rerun's send or flush. Samples the loop's waiting time, judged over the last `behind_s`."""
+        every = min(1.0, self._behind_s / 10)
+        samples: collections.deque[tuple[float, float, float]] = collections.deque()
+        while not self._unwatched.wait(every):
+            now, sending, f = time.perf_counter(), self._sending, self._file
+            waited = self._waited + (now - sending if sending is not None else 0.0)
+            samples.append((now, waited, f.lag_s() if f is not None else 0.0))
+            while samples[0][0] < now - self._behind_s:
+                samples.popleft()
+            span = now - samples[0][0]
+            if span < 0.8 * self._behind_s or self._stopping:
+                continue
+            share = (waited - samples[0][1]) / span
+            self._check_lag(samples[-1][2], max(lag for _, _, lag in samples), share)
+
+    def _check_lag(self, lag: float, worst: float, share: float) -> None:
+        """Say once when the file falls behind (`lag` s since it held all that was sent, or the loop
+        waited on it `share` of the last `behind_s`), and once it has caught up: its `worst` lag and
+        the loop's waiting small over that whole window (between rerun's messages the pipe can be
+        empty for a moment while a queue still waits)."""
+        if self.behind is None and (lag > self._behind_s or share > BEHIND_SHARE):
+            held_back = f"; the simulation waited on it {share:.0%} of the last {self._behind_s:g} s" if share else ""
+            self.behind = (
+                f"the disk takes the recording's data slower than it comes: the file is {lag:.0f} s behind "
+                f"({self.written / 1e6:.1f} MB written){held_back}. Nothing is lost: the rest waits in memory "
+                "and, once rerun's queue is full, the simulation runs at the disk's pace"
+            )
+        elif self.behind is not None and worst < self._behind_s / 4 and share < CAUGHT_UP_SHARE:
+            self.behind = None
+        else:
+            return
+        log.warning("recording: %s", self.behind or "the file has caught up")
+        if self._on_lag is not None:
+            try:
+                self._on_lag(self.behind)
+            except Exception:
+                log.exception("recording: on_lag failed")
 
     def _request_stop(self, problem: str) -> None:
         """Stop recording soon: queued on the simulation, so that no listener list changes mid-step.
@@ -458,11 +522,16 @@ class Telemetry:
         with held(), self._lock:
             if self._closed:
                 return
-            self._send(check_clock)
-            if wait:
-                self._wait_for_sinks()
-            else:
-                self._start_flush()
+            self._sending = time.perf_counter()  # the lag watchdog counts a wait in progress too
+            try:
+                self._send(check_clock)
+                if wait:
+                    self._wait_for_sinks()
+                else:
+                    self._start_flush()
+            finally:
+                self._waited += time.perf_counter() - self._sending
+                self._sending = None
             self._check_file()
 
     def _start_flush(self) -> None:
@@ -626,6 +695,7 @@ class Telemetry:
                     self._send_limits([max(self._start_ns, self._next_ns - self._dt_ns)])
                 self._wait_for_sinks()
             finally:
+                self._unwatched.set()
                 self.rec.disconnect()  # writes the .rrd footer, stops a gRPC server sink
                 self._blueprints.close()
                 self._finish_file()

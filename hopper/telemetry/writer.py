@@ -19,8 +19,10 @@ import contextlib
 import errno
 import logging
 import os
+import select
 import struct
 import threading
+import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -98,6 +100,8 @@ class PipedFile:
     """One .rrd file: `sink` is the rerun FileSink to attach; a thread copies its bytes to `path`.
 
     `written` counts bytes on disk (in the page cache: they survive the process being killed).
+    `lag_s()` is how long since the thread last found the pipe empty, i.e. had written everything
+    rerun had encoded: near 0 while the disk keeps up, growing while the pipe stays full.
     `full` is set at the first "no room" error (after which the reserve's space is used);
     `error` when a write fails for good: the thread then drains the pipe and drops the bytes, so
     that rerun never blocks on a file it can no longer write.
@@ -110,6 +114,7 @@ class PipedFile:
         self.full: str | None = None
         self.error: str | None = None
         self._reserve = reserve
+        self._caught_up = time.monotonic()  # the last moment the pipe was found empty
         self._fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
         self._read, self._write_end = os.pipe()
         self.sink = rr.FileSink(f"/dev/fd/{self._write_end}")  # opens its own descriptor of the pipe
@@ -128,11 +133,15 @@ class PipedFile:
         self._thread.join(timeout)
         return not self._thread.is_alive()
 
+    def lag_s(self) -> float:
+        """Seconds since the pipe was last found empty (about 0 while the disk keeps up)."""
+        return time.monotonic() - self._caught_up
+
     def _pump(self) -> None:
         """Copy the pipe to the file, whole rrd messages at a time (framing below) until the sink closes it."""
         pending, framed, header_done = bytearray(), True, False
         try:
-            while data := os.read(self._read, CHUNK_READ):
+            while data := self._next():
                 if self.error is not None:
                     continue  # drain: rerun must never block on a file we can no longer write
                 if not framed:
@@ -153,6 +162,15 @@ class PipedFile:
             with contextlib.suppress(OSError):
                 os.fsync(self._fd)  # a finished part is on disk, not only in the page cache
             os.close(self._fd)
+
+    def _next(self) -> bytes:
+        """The pipe's next bytes (b"" once the sink closed it); an empty pipe means caught up."""
+        if not select.select([self._read], [], [], 0)[0]:
+            self._caught_up = time.monotonic()  # everything rerun encoded so far is in the file
+            data = os.read(self._read, CHUNK_READ)  # waits for rerun's next bytes: not behind meanwhile
+            self._caught_up = time.monotonic()
+            return data
+        return os.read(self._read, CHUNK_READ)
 
     def _store(self, data: memoryview) -> None:
         while data:

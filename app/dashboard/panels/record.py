@@ -21,7 +21,7 @@ class RecordPanel:
 
     def show(self, state: str, path: Path | None, message: str = "", viewer_url: str | None = None) -> None:
         self._state = (state, path, message, viewer_url)
-        recording = state in ("recording", "starting")
+        recording = state in ("recording", "starting", "behind")
         self.record.visible, self.stop.visible = not recording, recording
         self.refresh()
 
@@ -30,7 +30,7 @@ class RecordPanel:
         state, path, message, viewer_url = self._state
         where = html.escape(str(path)) if path is not None else "the rerun viewer"
         size = ""
-        if state == "recording" and path is not None and self.recorder is not None:
+        if state in ("recording", "behind") and path is not None and self.recorder is not None:
             current, written, parts = self.recorder.progress()
             if current is not None:
                 where = html.escape(str(current))
@@ -41,8 +41,10 @@ class RecordPanel:
             "recording": f"<b class='hd-rec'>●</b> Recording to <code>{where}</code>{size}",
             "saved": f"Saved <code>{where}</code>",
             "failed": f"Recording failed: {html.escape(message)}",
+            "behind": f"<b class='hd-rec'>●</b> Recording to <code>{where}</code>{size}<br>"
+            f"<b class='hd-behind'>Behind:</b> {html.escape(message)}",
         }[state]
-        if viewer_url and state in ("recording", "starting"):
+        if viewer_url and state in ("recording", "starting", "behind"):
             text += f"<br>Viewer: <a href='{html.escape(viewer_url)}' target='_blank'>{html.escape(viewer_url)}</a>"
         content = f"<div class='hd-record'>{text}</div>"
         if content != self.info.content:
