@@ -22,7 +22,7 @@ from hopper.logs.io import read_log, write_log
 from hopper.logs.replay import DELAY_TICKS, Errors, hops, replay_hops, simulate, world_model
 from hopper.logs.schema import Log
 from hopper.logs.sysid import PROFILE_SIGMAS, STAGES
-from hopper.logs.world import resolve
+from hopper.logs.world import World, resolve
 from hopper.mismatch import Nominal
 from hopper.model import MODEL_XML
 
@@ -119,11 +119,11 @@ def truth_pair(text: str) -> tuple[str, float]:
     return mismatch_pair(text)
 
 
-def robot_model(args: argparse.Namespace, log: Log):  # noqa: ANN201
-    """(the robot compiled in the log's world, its terrain window); says which world that is."""
+def replay_world(args: argparse.Namespace, log: Log) -> World:
+    """The world to fly the log in (the flags, else the log's: hopper.logs.world.resolve); says which."""
     world, origin = resolve(log.world, args.terrain, args.seed, args.gravity, args.model)
     print(f"world: {world.describe()} ({origin})")
-    return world_model(world)
+    return world
 
 
 def run(args: argparse.Namespace) -> int:
@@ -170,7 +170,7 @@ def error_line(label: str, e: Errors) -> str:
 
 def command_replay(args: argparse.Namespace) -> int:
     log = read_log(args.log)
-    model, window = robot_model(args, log)
+    model, window = world_model(replay_world(args, log))
     if args.start is not None:
         t = log.time
         if not t[0] <= args.start < t[-1]:
@@ -236,9 +236,9 @@ def command_identify(args: argparse.Namespace) -> int:
     if args.hops < 1:
         fail(f"--hops must be at least 1, got {args.hops}")
     log = read_log(args.log)
-    model, _ = robot_model(args, log)
+    world = replay_world(args, log)
+    (model, _), (fresh, _) = world_model(world), world_model(world)  # the fit edits `model`
     span = sysid.hop_span(log, 0, args.hops)
-    fresh, _ = world_model(resolve(log.world, args.terrain, args.seed, args.gravity, args.model)[0])
     before = sysid.replay_error(fresh, log, 0, args.hops, args.delay_ticks)
     fit = sysid.identify(
         model, log, span, names, stages=args.windows, delay_ticks=args.delay_ticks,

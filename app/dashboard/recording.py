@@ -85,6 +85,9 @@ class Recorder:
     def _changed(self, sim: Simulation, state: str, message: str = "") -> None:
         where = str(self.path) if self.path is not None else None
         sim.emit(RecordingEvent({"recording": "started", "saved": "stopped"}.get(state, "failed"), where, message))
+        self._tell(state, message)
+
+    def _tell(self, state: str, message: str) -> None:
         for listener in self.listeners:
             try:
                 listener(state, self.path, message)
@@ -144,15 +147,10 @@ class Recorder:
         self._changed(sim, "failed", message)
 
     def _lagging(self, mine: list[Any], message: str | None) -> None:
-        """The file fell behind (a slow disk) or caught up (on the loop thread): "behind" or "recording"."""
-        if not mine or mine[0] is not self._telemetry:
-            return
-        state = "behind" if message is not None else "recording"
-        for listener in self.listeners:
-            try:
-                listener(state, self.path, message or "")
-            except Exception:
-                log.exception("recording listener failed")
+        """The file fell behind (a slow disk) or caught up, from the recording's watchdog thread:
+        "behind" or "recording" to the listeners (no event: the recording itself goes on)."""
+        if mine and mine[0] is self._telemetry:
+            self._tell("behind" if message is not None else "recording", message or "")
 
     def start_now(self, sim: Simulation, path: Path | None, viewer: Viewer = "off", name: str | None = None) -> None:
         """Attach at once, raising on failure; only while the simulation loop is not running (startup)."""

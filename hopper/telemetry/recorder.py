@@ -376,11 +376,14 @@ class Telemetry:
         the loop's waiting small over that whole window (between rerun's messages the pipe can be
         empty for a moment while a queue still waits)."""
         if self.behind is None and (lag > self._behind_s or share > BEHIND_SHARE):
-            held_back = f"; the simulation waited on it {share:.0%} of the last {self._behind_s:g} s" if share else ""
+            why = (
+                f"the file is {lag:.0f} s behind" if lag > self._behind_s
+                else f"the simulation waited on it {share:.0%} of the last {self._behind_s:g} s"
+            )  # fmt: skip
             self.behind = (
-                f"the disk takes the recording's data slower than it comes: the file is {lag:.0f} s behind "
-                f"({self.written / 1e6:.1f} MB written){held_back}. Nothing is lost: the rest waits in memory "
-                "and, once rerun's queue is full, the simulation runs at the disk's pace"
+                f"the disk takes the recording's data slower than it comes: {why} ({self.written / 1e6:.1f} MB "
+                "written). Nothing is lost: the rest waits in memory and, once rerun's queue is full, the "
+                "simulation runs at the disk's pace"
             )
         elif self.behind is not None and worst < self._behind_s / 4 and share < CAUGHT_UP_SHARE:
             self.behind = None

@@ -37,7 +37,7 @@ from hopper.logs.replay import (
     world_model,
 )
 from hopper.logs.schema import Log
-from hopper.logs.world import World, resolve
+from hopper.logs.world import World, of_config, resolve
 
 if TYPE_CHECKING:
     from hopper.sim import Simulation
@@ -80,8 +80,7 @@ def world_for(recorded: Log, config: SimConfig) -> tuple[World, str]:
     for a log that names none (a real robot's). With a line saying which."""
     if recorded.world is not None:
         return resolve(recorded.world, model=config.model)
-    here = World(terrain=config.terrain, seed=config.seed, gravity=config.gravity, model=config.model)
-    return here, "the log names none: this dashboard's"
+    return of_config(config), "the log names none: this dashboard's"
 
 
 def replay_log(path: str, config: SimConfig) -> LogReplay:
