@@ -177,7 +177,7 @@ def test_typed_numbers_are_clamped_with_the_range_and_units() -> None:
 
 # -- charts ----------------------------------------------------------------------------------------
 def test_the_torque_and_speed_charts_draw_the_wheel_limits() -> None:
-    server = viser.ViserServer(port=free_port(), verbose=False)
+    server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
     try:
         plots = LivePlots(server)
         rpm_limit = WHEEL_NO_LOAD_SPEED * RAD_S_TO_RPM
@@ -266,3 +266,44 @@ def test_a_controller_given_at_start_gets_its_own_loop_analysis(tmp_path: Path, 
         assert wait_until(lambda: shown in dashboard.layout.analysis.html.content), (
             dashboard.layout.analysis.html.content
         )
+
+
+# -- trail -----------------------------------------------------------------------------------------
+def test_the_trail_creates_each_node_once_then_sends_only_its_points() -> None:
+    """A growing or recycled chunk is one points update, not a new node; the page draws the whole path,
+    also when fast-forward samples several chunks between two publishes."""
+    from hopper.app.dashboard.scene import TRAIL_CHUNK, TRAIL_CHUNKS, TRAIL_SAMPLE_S, Trail
+
+    step = 2.0 ** math.ceil(math.log2(TRAIL_SAMPLE_S))  # s between samples: exact, so none is skipped
+    server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
+    probe = ProbeClient(f"http://127.0.0.1:{server.get_port()}")
+    try:
+        trail = Trail(server.scene)
+        path = [(0.01 * k, 0.3 + 0.1 * math.sin(0.2 * k)) for k in range(3 * TRAIL_CHUNK * TRAIL_CHUNKS + 7)]
+        burst = 4 * TRAIL_CHUNK  # the last samples come between two publishes, as at 64x
+        for k, (x, z) in enumerate(path):
+            trail.sample(k * step, x, z)
+            if k % 4 == 3 and k < len(path) - burst:  # 4 samples a publish, as at 1x
+                trail.publish()
+        trail.publish()
+        segments = len(path) - 1
+        newest = (segments - 1) // TRAIL_CHUNK  # the chunk the last segment is in
+        names = [f"/world/trail/{c % TRAIL_CHUNKS}" for c in range(newest - TRAIL_CHUNKS + 1, newest + 1)]
+        last = np.float32(path[-1][0])
+
+        def arrived() -> bool:
+            shown = probe.scene_points.get(names[-1])
+            return shown is not None and bool((shown[:, 1, 0] == last).any())
+
+        assert wait_until(arrived), "the newest point never reached the page"
+        assert all(probe.scene_counts["LineSegmentsMessage", name] == 1 for name in names)  # created once each
+        chunks = [probe.scene_points[name] for name in names]
+        assert all(chunk.shape == (TRAIL_CHUNK, 2, 3) for chunk in chunks)
+        drawn = np.concatenate(chunks)
+        drawn = drawn[np.linalg.norm(drawn[:, 1] - drawn[:, 0], axis=1) > 0]  # the newest chunk's unreached ones
+        assert len(drawn) == (TRAIL_CHUNKS - 1) * TRAIL_CHUNK + (segments - 1) % TRAIL_CHUNK + 1
+        expected = np.array([(x, 0.0, z) for x, z in path], np.float32)[-len(drawn) - 1 :]
+        assert np.array_equal(drawn[:, 0], expected[:-1]) and np.array_equal(drawn[:, 1], expected[1:])
+    finally:
+        probe.close()
+        server.stop()

@@ -30,7 +30,7 @@ pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: t
 # What a refresh carries is tests/test_chart_feed.py's; here, when refreshes go out.
 def test_charts_refresh_on_a_fixed_grid_of_publish_periods() -> None:
     """30 frames a second for 3 s, a new sample each: 3 / PLOT_PUBLISH_S refreshes, not one per 7 frames."""
-    server = viser.ViserServer(port=free_port(), verbose=False)
+    server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
     try:
         plots = LivePlots(server)
         client = ProbeClient(f"http://127.0.0.1:{server.get_port()}")

@@ -19,6 +19,7 @@ import time
 from typing import Any
 
 import msgspec
+import numpy as np
 import websockets.sync.client as ws_client
 import zstandard
 from hopper.app.dashboard.chart_feed import apply_push, decode_push
@@ -115,6 +116,8 @@ class ProbeClient:
         self.notifications: list[dict[str, Any]] = []
         self.gui: dict[str, dict[str, Any]] = {}  # uuid -> creation message
         self.gui_updates: dict[str, dict[str, Any]] = {}  # uuid -> latest value of each property updated (not charts)
+        self.scene_counts: collections.Counter[tuple[str, str]] = collections.Counter()  # (type, node name) -> messages
+        self.scene_points: dict[str, np.ndarray] = {}  # node name -> its latest `points` (float32)
         self.closed = False
         self._thread = threading.Thread(target=self._receive, name="probe", daemon=True)
         self._thread.start()
@@ -237,11 +240,22 @@ class ProbeClient:
                     self.gui_log.append((message["uuid"], message["updates"]))
                 if "uuid" in message and "props" in message and kind.startswith("Gui"):
                     self.gui[message["uuid"]] = message
+                if "name" in message:
+                    self._scene(kind, message, raw, compressed, lengths)
             self.pose_frames += moved
             if moved:
                 self.last_pose_frame = poses
                 self.traffic.scene_updates += 1
             self._account(raw, compressed, messages, lengths)
+
+    def _scene(self, kind: str, message: dict[str, Any], raw: bytes, compressed: int, lengths: list[int]) -> None:
+        """Count a scene node's message; keep its points (line segments, arrows) as the page would draw them."""
+        name = str(message["name"])
+        self.scene_counts[kind, name] += 1
+        points = {**message.get("props", {}), **message.get("updates", {})}.get("points")
+        if isinstance(points, dict):
+            dtype, data = self._resolve(points, raw, compressed, lengths)
+            self.scene_points[name] = np.frombuffer(data, dtype=dtype).reshape(-1, 2, 3)
 
     def shown_html(self, container: str) -> str:
         """The HTML elements of a container as the page shows them: the visible ones, by order, their content."""
