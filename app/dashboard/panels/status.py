@@ -34,19 +34,16 @@ def gauge_html(fraction: float, capacity_nms: float) -> str:
 
     The fill grows from the middle toward the side the wheel spins; the ticks at +-50 % and the
     colour (green, amber from 50 %, red from 80 %) say how much of the next flight's authority is gone.
+    It is re-sent with the strip 5 times a second, so it carries no text the help already gives.
     """
     f = max(-1.0, min(1.0, fraction))
     level = "hd-ok" if abs(f) < 0.5 else "hd-warn" if abs(f) < 0.8 else "hd-bad"
-    side = "left" if f >= 0 else "right"  # the fill starts at the centre line
-    start = 50.0 if f >= 0 else 50.0 + f * 50.0
+    start = 50.0 if f >= 0 else 50.0 + f * 50.0  # the fill starts at the centre line
     return (
-        "<div class='hd-gauge' title='wheel momentum / capacity; a kick the other way has the rest'>"
-        f"<span>−{capacity_nms:.2f}</span>"
-        f"<div class='hd-gauge-bar'><div class='hd-gauge-fill {level}' data-side='{side}' "
+        f"<div class='hd-gauge'><span>−{capacity_nms:.2f}</span>"
+        f"<div class='hd-gauge-bar'><div class='hd-gauge-fill {level}' "
         f"style='left:{start:.1f}%;width:{abs(f) * 50:.1f}%'></div><i></i></div>"
         f"<span>+{capacity_nms:.2f} N m s</span></div>"
-        f"<div class='hd-gauge-text'>wheel momentum {f * capacity_nms:+.2f} N m s "
-        f"({abs(f) * 100:.0f} % of capacity)</div>"
     )
 
 
@@ -70,8 +67,7 @@ def status_html(s: Status) -> str:
         f"<tr><td>wheel</td><td>{s.wheel_rpm:+5.0f} rpm</td>"
         f"<td>limit used</td><td>{s.saturation * 100:3.0f} %</td></tr>"
         f"<tr><td>gravity</td><td>{s.gravity:g} m/s²</td>"
-        f"<td title='wheel momentum / (I_w + armature) w_max: what is left for the next flight'>capacity</td>"
-        f"<td>{s.capacity * 100:+4.0f} %</td></tr>"
+        f"<td>capacity</td><td>{s.capacity * 100:+4.0f} % · {s.capacity * s.capacity_nms:+.2f} N m s</td></tr>"
         "</table>"
         f"{gauge_html(s.capacity, s.capacity_nms)}"
         "</div>"
