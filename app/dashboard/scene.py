@@ -28,11 +28,12 @@ TRAIL_COLOR = (255, 176, 59)
 SATURATION_COLORS = ((70, 200, 120), (245, 190, 40), (235, 60, 50))  # free, half, saturated
 RING_STEP = 0.1  # of saturation: the ring's colour steps (10 from free to saturated; finer re-sent it 9 times a second)
 LABEL_POSITION = (0.0, 0.0, 0.42)  # m above the torso's origin: the phase label clears the wheel
-# Poses go on binary grids finer than the eye can tell apart (2^-16 of a quaternion's unit: 0.002 deg;
-# 2^-14 m: 0.06 mm): the float64s msgpack carries then end in zero bytes, which the frame's zstd
-# squeezes out (0.33 -> 0.26 kB a frame on the default session).
-QUAT_GRID = 2.0**-16
-POSITION_GRID = 2.0**-14  # m
+# Poses go on binary grids finer than the eye can tell apart (2^-12 of a quaternion's unit: 0.03 deg;
+# 2^-12 m: 0.24 mm, under a pixel with half a metre in view): the float64s msgpack carries then end in
+# zero bytes, which the frame's zstd squeezes out, and a body holding still within a step is not re-sent
+# (the torso's orientation in stance: 24 updates a second instead of 30).
+QUAT_GRID = 2.0**-12
+POSITION_GRID = 2.0**-12  # m
 CAMERA_OFFSET = np.array([0.0, -4.4, 1.9])  # m from the look-at point: side view from 23 deg above
 LOOK_OFFSET = np.array([0.3, 0.0, -0.3])  # m from the followed torso: a little ahead (it hops toward +x), down
 CAMERA_FOV = math.radians(45.0)  # vertical; about 4 m of height in view at the default distance
