@@ -19,10 +19,10 @@ from hopper.app.cli_common import EXIT_FELL, EXIT_OK, add_model_flag, fail, fini
 from hopper.config import GRAVITY_PRESETS, MISMATCH_FACTORS, MISMATCH_OFFSETS, SensingParams, SimConfig, check_mismatch
 from hopper.errors import HopperError
 from hopper.logs.io import read_log, write_log
-from hopper.logs.replay import DELAY_TICKS, Errors, hops, replay_hops, simulate, world_model
+from hopper.logs.replay import Errors, hops, replay_hops, simulate, world_model
 from hopper.logs.schema import Log
 from hopper.logs.sysid import PROFILE_SIGMAS, STAGES
-from hopper.logs.world import World, resolve
+from hopper.logs.world import DEFAULT_DELAY_TICKS, World, resolve
 from hopper.mismatch import Nominal
 from hopper.model import MODEL_XML
 
@@ -98,7 +98,10 @@ def add_commands(commands: argparse._SubParsersAction) -> None:  # noqa: SLF001 
 
 def add_model_flags(p: argparse.ArgumentParser) -> None:
     add_world_flags(p, "the ground the log was recorded on", from_log=True)
-    p.add_argument("--delay-ticks", type=int, default=DELAY_TICKS, help=f"wheel command delay (default {DELAY_TICKS})")
+    p.add_argument(
+        "--delay-ticks", type=int, metavar="N",
+        help=f"ticks (1 ms) from a logged wheel command to the motor (default the log's, else {DEFAULT_DELAY_TICKS})",
+    )  # fmt: skip
     add_model_flag(p)
 
 
@@ -121,7 +124,10 @@ def truth_pair(text: str) -> tuple[str, float]:
 
 def replay_world(args: argparse.Namespace, log: Log) -> World:
     """The world to fly the log in (the flags, else the log's: hopper.logs.world.resolve); says which."""
-    world, origin = resolve(log.world, args.terrain, args.seed, args.gravity, args.model)
+    try:
+        world, origin = resolve(log.world, args.terrain, args.seed, args.gravity, args.model, args.delay_ticks)
+    except ValueError as exc:  # a delay the kernel's line cannot hold
+        fail(f"--delay-ticks: {exc}")
     print(f"world: {world.describe()} ({origin})")
     return world
 
@@ -170,7 +176,8 @@ def error_line(label: str, e: Errors) -> str:
 
 def command_replay(args: argparse.Namespace) -> int:
     log = read_log(args.log)
-    model, window = world_model(replay_world(args, log))
+    world = replay_world(args, log)
+    model, window = world_model(world)
     if args.start is not None:
         t = log.time
         if not t[0] <= args.start < t[-1]:
@@ -182,7 +189,7 @@ def command_replay(args: argparse.Namespace) -> int:
             fail(f"--to {args.stop:g} s leaves nothing to replay after --from {args.start:g} s")
         from hopper.logs.replay import errors
 
-        traj = simulate(model, log, a, b, delay_ticks=args.delay_ticks, window=window)
+        traj = simulate(model, log, a, b, delay_ticks=world.command_delay, window=window)
         parts = [(f"from {t[a]:.3f} s", errors(log, traj))]
     else:
         if args.hops is not None and args.hops < 1:
@@ -190,7 +197,7 @@ def command_replay(args: argparse.Namespace) -> int:
         found = len(hops(log))
         if args.hops is not None and args.hops > found:
             fail(f"--hops {args.hops}: the log has {found} hop(s)")
-        done = replay_hops(model, log, args.hops, delay_ticks=args.delay_ticks, window=window)
+        done = replay_hops(model, log, args.hops, delay_ticks=world.command_delay, window=window)
         parts = [(f"hop {i + 1} from {tr.time[0]:.3f} s", e) for i, (tr, e) in enumerate(done)]
     for label, e in parts:
         print(error_line(label, e))
@@ -239,12 +246,12 @@ def command_identify(args: argparse.Namespace) -> int:
     world = replay_world(args, log)
     (model, _), (fresh, _) = world_model(world), world_model(world)  # the fit edits `model`
     span = sysid.hop_span(log, 0, args.hops)
-    before = sysid.replay_error(fresh, log, 0, args.hops, args.delay_ticks)
+    before = sysid.replay_error(fresh, log, 0, args.hops, world.command_delay)
     fit = sysid.identify(
-        model, log, span, names, stages=args.windows, delay_ticks=args.delay_ticks,
+        model, log, span, names, stages=args.windows, delay_ticks=world.command_delay,
         max_evaluations=args.max_evaluations,
     )  # fmt: skip
-    after = sysid.replay_error(model, log, 0, args.hops, args.delay_ticks)
+    after = sysid.replay_error(model, log, 0, args.hops, world.command_delay)
     truth = truth_values(fresh, args.truth)
     print(table(fit, truth))
     print(error_line(f"replay of hops 1..{args.hops} before", before))

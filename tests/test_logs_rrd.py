@@ -138,4 +138,5 @@ def test_the_recordings_world_is_its_config_property(recorded) -> None:  # noqa:
     from hopper.logs.world import World
 
     path, _ = recorded
-    assert rrd_log.read(path).world == World(terrain="flat", seed=0, gravity=SimConfig().gravity)
+    # Its torques are the applied ones, after the motor's delay: a replay delays them no more.
+    assert rrd_log.read(path).world == World(terrain="flat", seed=0, gravity=SimConfig().gravity, delay_ticks=0)

@@ -20,7 +20,7 @@ from hopper.logs.io import read_log, write_log
 from hopper.logs.schema import Log
 from hopper.logs.world import World, resolve
 
-WORLD = World(terrain="crater", seed=5, gravity=1.625)
+WORLD = World(terrain="crater", seed=5, gravity=1.625, delay_ticks=3)  # realistic sensing: 3 ms late
 
 
 @pytest.fixture(scope="module")
@@ -61,13 +61,22 @@ def test_a_bad_world_is_refused_in_one_line(cratered: Log, tmp_path: Path) -> No
     wrong = Log(cratered.time[:100], {k: v[:100] for k, v in cratered.signals.items()}, "t", (), World(seed=2))
     path = mcap_log.write(wrong, tmp_path / "seed.mcap")
     assert mcap_log.read(path).world == World(seed=2)
+    for delay in ("-1", "17", "3.5", "three"):  # the kernel's delay line holds 0..16 ticks
+        arrays["world"] = np.array(json.dumps({"terrain": "flat", "seed": "0", "gravity": "1", "delay_ticks": delay}))
+        with bad.open("wb") as out:
+            np.savez_compressed(out, **arrays)
+        assert f"delay_ticks must be a whole number 0..16, got {delay!r}" in bad_logs.refused(npz.read, bad)
 
 
 def test_the_world_is_the_flags_then_the_logs_then_the_defaults() -> None:
     assert resolve(WORLD) == (WORLD, "the log's")
     world, origin = resolve(WORLD, terrain="flat", model="robot.xml")
-    assert world == World(terrain="flat", seed=5, gravity=1.625, model="robot.xml")
-    assert origin == "as asked (terrain); the log's is crater seed 5, 1.625 m/s^2"
+    assert world == World(terrain="flat", seed=5, gravity=1.625, model="robot.xml", delay_ticks=3)
+    assert origin == "as asked (terrain); the log's is crater seed 5, 1.625 m/s^2, wheel commands 3 ticks late"
+    assert resolve(WORLD, delay_ticks=0)[0].command_delay == 0
+    with pytest.raises(ValueError, match="0..16 ticks, got 20"):
+        resolve(WORLD, delay_ticks=20)
+    assert World().command_delay == 3  # a log that does not say: realistic sensing's
     assert resolve(None) == (World(), "the log names no world: the defaults")
     # The log's robot is the one compared with, never the model replayed.
     assert resolve(World(model="truth.xml"))[0].model is None
@@ -77,17 +86,42 @@ def test_the_cli_and_the_dashboard_replay_in_the_logs_world(cratered: Log, tmp_p
     path = write_log(cratered, tmp_path / "crater.npz")
     assert main(["replay", str(path)]) == 0
     out = capsys.readouterr().out
-    assert "world: crater seed 5, 1.625 m/s^2 (the log's)" in out
+    assert "world: crater seed 5, 1.625 m/s^2, wheel commands 3 ticks late (the log's)" in out
     assert "all (3 replay(s)" in out and "pitch RMS 0.000 deg" in out.splitlines()[-1]
     assert main(["replay", str(path), "--terrain", "flat"]) == 0  # the wrong ground, asked for: it shows
     flat = capsys.readouterr().out.splitlines()[-1]
     assert float(flat.split("pitch RMS ")[1].split()[0]) > 1.0, flat
     # The dashboard stands on other ground; the log's world is used, and the same errors come out.
     done = replay_log(str(path), SimConfig(terrain="flat", seed=0))
-    assert done.world == "crater seed 5, 1.625 m/s^2 (the log's)"
+    assert done.world == "crater seed 5, 1.625 m/s^2, wheel commands 3 ticks late (the log's)"
     assert math.degrees(done.errors.rms("pitch")) < 1e-3 and done.errors.rms("wheel_speed") < 1e-3
     # A log that names no world (a CSV, a real robot's) replays in the dashboard's.
     csv = write_log(cratered, tmp_path / "crater.csv")
     here = replay_log(str(csv), SimConfig(terrain="crater", seed=5))
-    assert here.world == "crater seed 5, 1.625 m/s^2 (the log names none: this dashboard's)"
+    assert (
+        here.world == "crater seed 5, 1.625 m/s^2, wheel commands 3 ticks late (the log names none: this dashboard's)"
+    )
     assert math.degrees(here.errors.rms("pitch")) < 1e-3
+
+
+def test_a_log_carries_its_command_delay_and_a_replay_uses_it(tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    """Ideal sensing sends the wheel's commands at once: its log says so, and replays exactly without
+    --delay-ticks (it had replayed 3 ticks late, the realistic default, unless told)."""
+    ideal = capture(SimConfig(terrain="flat", sensing="ideal"), 2).log
+    assert ideal.world is not None and ideal.world.delay_ticks == 0
+    path = write_log(ideal, tmp_path / "ideal.mcap")
+    assert read_log(path).world == ideal.world
+    assert main(["replay", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "wheel commands 0 ticks late (the log's)" in out.splitlines()[0], out
+    exact = float(out.splitlines()[-1].split("pitch RMS ")[1].split()[0])
+    assert main(["replay", str(path), "--delay-ticks", "3"]) == 0  # as it was replayed before
+    out = capsys.readouterr().out
+    assert "as asked (delay)" in out.splitlines()[0], out
+    late = float(out.splitlines()[-1].split("pitch RMS ")[1].split()[0])
+    assert exact < 1e-3 < late, (exact, late)
+    with pytest.raises(SystemExit) as exit_:
+        main(["replay", str(path), "--delay-ticks", "40"])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert err == "hopper-sim: error: --delay-ticks: the wheel command delay must be 0..16 ticks, got 40", err

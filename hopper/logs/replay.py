@@ -17,16 +17,14 @@ import math
 import mujoco
 import numpy as np
 
-from hopper.config import SensingParams
 from hopper.errors import HopperError
 from hopper.layout import LEG_JOINTS, ModelLayout
 from hopper.logs.schema import STATE, Log
-from hopper.logs.world import World
+from hopper.logs.world import DEFAULT_DELAY_TICKS, World
 from hopper.model import build_model, set_terrain, terrain_window
 from hopper.robot import PACKAGED, Robot
 
 MIN_FLIGHT_S = 0.1  # s: both feet off the ground this long is a flight (a stance's flicker is shorter)
-DELAY_TICKS = SensingParams().motor_delay_ticks  # the realistic sensing's wheel command delay (capture's)
 LEG_COMMANDS = tuple(f"{j}_torque_cmd" for j in LEG_JOINTS)
 SIMULATED = ("pitch", "pitch_rate", "wheel_speed", "x", "z", *LEG_JOINTS, "foot_L_force", "foot_R_force")
 
@@ -117,7 +115,7 @@ def simulate(
     start: int,
     stop: int,
     *,
-    delay_ticks: int = DELAY_TICKS,
+    delay_ticks: int = DEFAULT_DELAY_TICKS,
     data: mujoco.MjData | None = None,
     window=None,  # noqa: ANN001 (a terrain.Window: moved under the start if given)
     drive: Robot = PACKAGED,
@@ -254,7 +252,7 @@ def replay_spans(
     log: Log,
     spans: list[tuple[int, int]],
     *,
-    delay_ticks: int = DELAY_TICKS,
+    delay_ticks: int = DEFAULT_DELAY_TICKS,
     window=None,  # noqa: ANN001 (a terrain.Window)
 ) -> list[tuple[Trajectory, Errors]]:
     """Replay each (start, stop) span of rows from the log's state at its start."""
@@ -274,7 +272,7 @@ def replay_hops(
     count: int | None = None,
     *,
     first: int = 0,
-    delay_ticks: int = DELAY_TICKS,
+    delay_ticks: int = DEFAULT_DELAY_TICKS,
     window=None,  # noqa: ANN001 (a terrain.Window)
 ) -> list[tuple[Trajectory, Errors]]:
     """Replay hops first..first+count-1 of the log (all from `first` by default), each from its liftoff

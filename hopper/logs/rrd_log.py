@@ -7,7 +7,8 @@ the body poses (`world/tf`). It does not keep the commands: the torques the actu
 says. Nor the IMU as the controller read it: `gyro_pitch` is MuJoCo's gyro (noise-free). The
 state: `pitch` and `pitch_rate` at 1 kHz; `x`, `z` the torso frame's position (its CoM in
 models/hopper.xml) and `vx`, `vz` its central differences, at the 50 Hz poses interpolated.
-The world (terrain, seed, gravity, model) is the recording's `config` property, if it never changed.
+The world (terrain, seed, gravity, model) is the recording's `config` property, if it never changed;
+its command delay is 0 ticks (the torques are the applied ones).
 """
 
 from __future__ import annotations
@@ -69,7 +70,9 @@ def _world(path: Path) -> World | None:
         return None
     terrain, seed, gravity, model = seen.pop()
     try:
-        return from_meta({"terrain": str(terrain), "seed": str(seed), "gravity": str(gravity), "model": str(model)})
+        # Its wheel "commands" are the torques applied, after the motor's delay: a replay adds none.
+        meta = {"terrain": str(terrain), "seed": str(seed), "gravity": str(gravity), "model": str(model)}
+        return from_meta(meta | {"delay_ticks": "0"})
     except ValueError as exc:
         raise LogError(f"{path}: the recording's config property: {exc}") from None
 

@@ -31,8 +31,9 @@ from scipy.optimize import least_squares
 
 from hopper.errors import HopperError
 from hopper.layout import LEG_JOINTS
-from hopper.logs.replay import DELAY_TICKS, Errors, ReplayError, hops, replay_hops, simulate
+from hopper.logs.replay import Errors, ReplayError, hops, replay_hops, simulate
 from hopper.logs.schema import Log
+from hopper.logs.world import DEFAULT_DELAY_TICKS
 from hopper.mismatch import Nominal, pitch_inertia
 
 NOT_SEPARABLE = 0.999  # |correlation| of two estimates beyond which only their combination is identified
@@ -402,7 +403,7 @@ def identify(
     names: Sequence[str] = DEFAULT_FIT,
     *,
     stages: Sequence[float] = STAGES,
-    delay_ticks: int = DELAY_TICKS,
+    delay_ticks: int = DEFAULT_DELAY_TICKS,
     max_evaluations: int = 60,
 ) -> Fit:
     """Fit `names` (PARAMS) of `model` (compiled in the log's world; left at the estimates) to rows
@@ -463,6 +464,8 @@ def identify(
     )
 
 
-def replay_error(model: mujoco.MjModel, log: Log, first: int, count: int, delay_ticks: int = DELAY_TICKS) -> Errors:
+def replay_error(
+    model: mujoco.MjModel, log: Log, first: int, count: int, delay_ticks: int = DEFAULT_DELAY_TICKS
+) -> Errors:
     """The whole-hop replay error of hops first..first+count-1 (each from its liftoff)."""
     return Errors.concat([e for _, e in replay_hops(model, log, count, first=first, delay_ticks=delay_ticks)])

@@ -80,7 +80,8 @@ def world_for(recorded: Log, config: SimConfig) -> tuple[World, str]:
     for a log that names none (a real robot's). With a line saying which."""
     if recorded.world is not None:
         return resolve(recorded.world, model=config.model)
-    return of_config(config), "the log names none: this dashboard's"
+    # A real robot's delay is not this dashboard's sensing mode's: the default is assumed.
+    return dataclasses.replace(of_config(config), delay_ticks=None), "the log names none: this dashboard's"
 
 
 def replay_log(path: str, config: SimConfig) -> LogReplay:
@@ -90,7 +91,7 @@ def replay_log(path: str, config: SimConfig) -> LogReplay:
     world, origin = world_for(recorded, config)
     model, window = world_model(world)
     found = len(hops(recorded))
-    parts = replay_hops(model, recorded, MAX_HOPS, window=window)
+    parts = replay_hops(model, recorded, MAX_HOPS, window=window, delay_ticks=world.command_delay)
     first, last = parts[0][0], parts[-1][0]
     rows = slice(first.first, last.first + len(last.time))
     s = recorded.signals
