@@ -19,7 +19,7 @@ from hopper.app.cli_common import EXIT_FELL, EXIT_OK, add_model_flag, fail, fini
 from hopper.config import GRAVITY_PRESETS, MISMATCH_FACTORS, MISMATCH_OFFSETS, SensingParams, SimConfig, check_mismatch
 from hopper.errors import HopperError
 from hopper.logs.io import read_log, write_log
-from hopper.logs.replay import Errors, hops, replay_hops, simulate, world_model
+from hopper.logs.replay import REANCHOR_S, Errors, hops, replay_hops, simulate, world_model
 from hopper.logs.schema import Log
 from hopper.logs.sysid import PROFILE_SIGMAS, STAGES
 from hopper.logs.world import DEFAULT_DELAY_TICKS, World, resolve
@@ -77,6 +77,11 @@ def add_commands(commands: argparse._SubParsersAction) -> None:  # noqa: SLF001 
     rep.add_argument("--from", dest="start", type=finite, metavar="T", help="one replay from the log's state at T s")
     rep.add_argument("--to", dest="stop", type=finite, metavar="T", help="...until T s (default: the log's end)")
     rep.add_argument("--hops", type=int, metavar="N", help="replay hops 1..N, each from its liftoff (default all)")
+    rep.add_argument(
+        "--every", type=finite, metavar="S",
+        help=f"re-anchor each hop on the log's state every S s (multiple shooting; {REANCHOR_S:g} measures a "
+        "model where a whole open-loop stance drifts off; default: each hop whole)",
+    )  # fmt: skip
     rep.add_argument("--out", type=Path, metavar="DIR", help="write replay.png and .pdf (errors over time) here")
 
     ide = commands.add_parser("identify", help="fit the model to a log; print estimates, write the MJCF")
@@ -194,11 +199,16 @@ def command_replay(args: argparse.Namespace) -> int:
     else:
         if args.hops is not None and args.hops < 1:
             fail(f"--hops must be at least 1, got {args.hops}")
+        if args.every is not None and args.every <= 0.0:
+            fail(f"--every must be a positive number of seconds, got {args.every:g}")
         found = len(hops(log))
         if args.hops is not None and args.hops > found:
             fail(f"--hops {args.hops}: the log has {found} hop(s)")
-        done = replay_hops(model, log, args.hops, delay_ticks=world.command_delay, window=window)
-        parts = [(f"hop {i + 1} from {tr.time[0]:.3f} s", e) for i, (tr, e) in enumerate(done)]
+        anchored = "" if args.every is None else f", re-anchored every {args.every:g} s"
+        parts = []
+        for i, (a, _) in enumerate(hops(log)[: args.hops]):
+            done = replay_hops(model, log, 1, first=i, delay_ticks=world.command_delay, window=window, every=args.every)
+            parts.append((f"hop {i + 1} from {log.time[a]:.3f} s{anchored}", Errors.concat([e for _, e in done])))
     for label, e in parts:
         print(error_line(label, e))
     total = Errors.concat([e for _, e in parts])
@@ -246,16 +256,20 @@ def command_identify(args: argparse.Namespace) -> int:
     world = replay_world(args, log)
     (model, _), (fresh, _) = world_model(world), world_model(world)  # the fit edits `model`
     span = sysid.hop_span(log, 0, args.hops)
-    before = sysid.replay_error(fresh, log, 0, args.hops, world.command_delay)
+    measures = ((f"re-anchored every {REANCHOR_S:g} s", REANCHOR_S), ("whole, each from its liftoff", None))
+    before = [sysid.replay_error(fresh, log, 0, args.hops, world.command_delay, every) for _, every in measures]
     fit = sysid.identify(
         model, log, span, names, stages=args.windows, delay_ticks=world.command_delay,
         max_evaluations=args.max_evaluations,
     )  # fmt: skip
-    after = sysid.replay_error(model, log, 0, args.hops, world.command_delay)
+    after = [sysid.replay_error(model, log, 0, args.hops, world.command_delay, every) for _, every in measures]
     truth = truth_values(fresh, args.truth)
     print(table(fit, truth))
-    print(error_line(f"replay of hops 1..{args.hops} before", before))
-    print(error_line(f"replay of hops 1..{args.hops} after ", after))
+    for (what, _), e0, e1 in zip(measures, before, after, strict=True):
+        print(error_line(f"replay of hops 1..{args.hops} ({what}) before", e0))
+        print(error_line(f"replay of hops 1..{args.hops} ({what}) after ", e1))
+        ratio = e0.rms("pitch") / e1.rms("pitch") if e1.rms("pitch") > 0 else math.inf
+        print(f"  pitch RMS before / after: {ratio:.3g}x")
     print(
         f"fit: {fit.windows} windows of {args.windows[-1]:g} s at the last stage, {fit.evaluations} simulations, "
         f"{fit.seconds:.0f} s; "

@@ -30,6 +30,9 @@ def test_replay_prints_each_hop_and_writes_its_figure(logged: Path, tmp_path: Pa
     assert (tmp_path / "replay.png").stat().st_size > 10_000 and (tmp_path / "replay.pdf").exists()
     assert main(["replay", str(logged), "--from", "2.0", "--to", "2.5"]) == 0
     assert "from 2.000 s" in capsys.readouterr().out
+    assert main(["replay", str(logged), "--every", "0.3"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[1].startswith("hop 1 from") and lines[1].split(":")[0].endswith("re-anchored every 0.3 s"), lines
 
 
 def test_identify_prints_the_table_and_writes_the_mjcf(logged: Path, tmp_path: Path, capsys) -> None:  # noqa: ANN001
@@ -41,7 +44,8 @@ def test_identify_prints_the_table_and_writes_the_mjcf(logged: Path, tmp_path: P
     row = next(line for line in text.splitlines() if line.startswith("motor_torque"))
     estimate = float(row.split()[4])
     assert estimate == pytest.approx(0.9, rel=0.01)
-    assert "replay of hops 1..1 before" in text and "after" in text
+    for measure in ("re-anchored every 0.3 s", "whole, each from its liftoff"):
+        assert f"replay of hops 1..1 ({measure}) before" in text and f"({measure}) after" in text
     model = mujoco.MjModel.from_xml_path(str(out))
     assert model.actuator_gainprm[model.actuator("wheel").id, 0] == pytest.approx(0.9833 * estimate, rel=1e-5)
     # usable with --model: the identified robot replays the first flight's half second far closer
@@ -59,6 +63,7 @@ def test_identify_prints_the_table_and_writes_the_mjcf(logged: Path, tmp_path: P
         (["replay", "missing.csv"], "missing.csv: no such file"),
         (["replay", "LOG", "--from", "999"], "--from 999 s is outside the log"),
         (["replay", "LOG", "--hops", "9"], "--hops 9: the log has 2 hop"),
+        (["replay", "LOG", "--every", "0"], "--every must be a positive number of seconds, got 0"),
         (["identify", "LOG", "--out", "OUT", "--params", "leg_length"], "unknown parameter(s) leg_length"),
         (["identify", "LOG", "--out", "OUT", "--hops", "5"], "has 2 hop(s), the fit asks for hops 1..5"),
         (["identify", "LOG", "--out", "OUT", "--windows", "0.1,-1"], "window lengths must be positive"),

@@ -31,7 +31,7 @@ from scipy.optimize import least_squares
 
 from hopper.errors import HopperError
 from hopper.layout import LEG_JOINTS
-from hopper.logs.replay import Errors, ReplayError, hops, replay_hops, simulate
+from hopper.logs.replay import Errors, ReplayError, hops, replay_hops, simulate, windows
 from hopper.logs.schema import Log
 from hopper.logs.world import DEFAULT_DELAY_TICKS
 from hopper.mismatch import Nominal, pitch_inertia
@@ -241,14 +241,6 @@ class Fit:
         sig = np.array([self.estimates[i].sigma for i in idx])
         cov = self.correlation[np.ix_(idx, idx)] * np.outer(sig, sig)
         return float(sum(self.estimates[i].value for i in idx)), float(math.sqrt(max(cov.sum(), 0.0)))
-
-
-def windows(log: Log, span: tuple[int, int], window_s: float) -> list[tuple[int, int]]:
-    """Rows span[0]..span[1] cut into consecutive windows of about window_s (s)."""
-    a, b = span
-    step = max(int(round(window_s / log.period)), 2)
-    cuts = list(range(a, b, step))
-    return [(c, min(c + step, b)) for c in cuts if min(c + step, b) - c >= 2]
 
 
 def hop_span(log: Log, first: int, count: int) -> tuple[int, int]:
@@ -465,7 +457,14 @@ def identify(
 
 
 def replay_error(
-    model: mujoco.MjModel, log: Log, first: int, count: int, delay_ticks: int = DEFAULT_DELAY_TICKS
+    model: mujoco.MjModel,
+    log: Log,
+    first: int,
+    count: int,
+    delay_ticks: int = DEFAULT_DELAY_TICKS,
+    every: float | None = None,
 ) -> Errors:
-    """The whole-hop replay error of hops first..first+count-1 (each from its liftoff)."""
-    return Errors.concat([e for _, e in replay_hops(model, log, count, first=first, delay_ticks=delay_ticks)])
+    """The replay error of hops first..first+count-1, each from its liftoff: whole, or re-anchored on
+    the log's state every `every` s (hopper.logs.replay.replay_hops)."""
+    parts = replay_hops(model, log, count, first=first, delay_ticks=delay_ticks, every=every)
+    return Errors.concat([e for _, e in parts])
