@@ -85,6 +85,16 @@ def test_a_log_replays_beside_the_simulation(browser, dashboard: Dashboard, tmp_
             ".scrollIntoView()"
         )
         _shot(page, tmp_path, "logreplay.png")
+        # Re-anchored, ticked in the page: the same hops in windows, each from the log's state.
+        _input(page, panel.reanchor).check()
+        assert wait_until(lambda: panel.reanchor.value, timeout=30)
+        _load(page, dashboard, str(path))
+        windows = panel.last
+        assert windows.every == 0.3 and windows.shown == 2 and len(windows.parts) > 2 * len(done.parts)
+        page.wait_for_function(
+            "() => [...document.querySelectorAll('.hd-record')].some(e => e.innerText.includes('re-anchored every'))"
+        )
+        _shot(page, tmp_path, "logreplay_reanchored.png")
         page.get_by_role("button", name="Stop log replay").click()
         assert wait_until(lambda: not panel.logged_ghost.playing and not panel.simulated_ghost.playing, timeout=30)
         assert panel.watched() is None and not panel.watch.value

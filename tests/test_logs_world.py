@@ -10,7 +10,7 @@ from pathlib import Path
 import bad_logs
 import numpy as np
 import pytest
-from hopper.app.dashboard.panels.logreplay import replay_log
+from hopper.app.dashboard.panels.logreplay import replay_log, summary_html
 from hopper.app.sim_cli import main
 
 from hopper.config import SimConfig
@@ -102,6 +102,11 @@ def test_the_cli_and_the_dashboard_replay_in_the_logs_world(cratered: Log, tmp_p
         here.world == "crater seed 5, 1.625 m/s^2, wheel commands 3 ticks late (the log names none: this dashboard's)"
     )
     assert math.degrees(here.errors.rms("pitch")) < 1e-3
+    # Re-anchored (the panel's checkbox): the same hops, in windows each from the log's state.
+    windows = replay_log(str(path), SimConfig(), every=0.3)
+    assert windows.shown == done.shown == 3 and len(windows.parts) > 3 * len(done.parts)
+    assert windows.logged.shape == done.logged.shape == windows.simulated.shape
+    assert "3 hop(s) re-anchored every 0.3 s" in summary_html(windows)
 
 
 def test_a_log_carries_its_command_delay_and_a_replay_uses_it(tmp_path: Path, capsys) -> None:  # noqa: ANN001

@@ -27,6 +27,7 @@ from hopper.config import SimConfig
 from hopper.errors import HopperError
 from hopper.logs.io import read_log
 from hopper.logs.replay import (
+    REANCHOR_S,
     Errors,
     Trajectory,
     check_replayable,
@@ -62,7 +63,9 @@ class LogReplay:
     source: str
     world: str  # where it was replayed, and why there
     found: int  # hops in the log
-    parts: list[tuple[Trajectory, Errors]]
+    shown: int  # hops replayed
+    every: float | None  # s: each hop re-anchored on the log's state this often (None: whole)
+    parts: list[tuple[Trajectory, Errors]]  # a replay each hop, or each window of one
     logged: np.ndarray  # qpos rows every `frame_s` of log time
     simulated: np.ndarray  # likewise
     frame_s: float  # s
@@ -84,30 +87,33 @@ def world_for(recorded: Log, config: SimConfig) -> tuple[World, str]:
     return dataclasses.replace(of_config(config), delay_ticks=None), "the log names none: this dashboard's"
 
 
-def replay_log(path: str, config: SimConfig) -> LogReplay:
-    """Read the log at `path` and replay its first MAX_HOPS hops in its world (world_for); HopperError if it cannot."""
+def replay_log(path: str, config: SimConfig, every: float | None = None) -> LogReplay:
+    """Read the log at `path` and replay its first MAX_HOPS hops in its world (world_for), whole or
+    re-anchored on the log's state every `every` s; HopperError if it cannot."""
     recorded = read_log(path)
     check_replayable(recorded)  # before the hops: a log without the state says so, not 'no hop'
     world, origin = world_for(recorded, config)
     model, window = world_model(world)
     found = len(hops(recorded))
-    parts = replay_hops(model, recorded, MAX_HOPS, window=window, delay_ticks=world.command_delay)
+    parts = replay_hops(model, recorded, MAX_HOPS, window=window, delay_ticks=world.command_delay, every=every)
     first, last = parts[0][0], parts[-1][0]
     rows = slice(first.first, last.first + len(last.time))
     s = recorded.signals
     simulated = {k: np.concatenate([tr.signals[k] for tr, _ in parts]) for k in first.signals}
-    every = max(1, round(GHOST_FRAME_S / recorded.period))
+    stride = max(1, round(GHOST_FRAME_S / recorded.period))  # log rows a ghost frame
     return LogReplay(
         source=str(path),
         world=f"{world.describe()} ({origin})",
         found=found,
+        shown=min(found, MAX_HOPS),
+        every=every,
         parts=parts,
-        logged=poses(model, {k: v[rows] for k, v in s.items()}, every),
-        simulated=poses(model, simulated, every),
-        frame_s=every * recorded.period,
+        logged=poses(model, {k: v[rows] for k, v in s.items()}, stride),
+        simulated=poses(model, simulated, stride),
+        frame_s=stride * recorded.period,
         logged_on=contact(s["foot_L_force"][rows], s["foot_R_force"][rows]),
         simulated_on=contact(simulated["foot_L_force"], simulated["foot_R_force"]),
-        track=np.column_stack([s["x"][rows][::every], s["z"][rows][::every]]),
+        track=np.column_stack([s["x"][rows][::stride], s["z"][rows][::stride]]),
     )
 
 
@@ -123,8 +129,9 @@ def summary_html(done: LogReplay | None) -> str:
     td = e.touchdown[np.isfinite(e.touchdown)]
     timing = f"{1e3 * np.abs(td).mean():.0f} ms mean |touchdown error| over {td.size}" if td.size else "no touchdown"
     rms_pitch, rms_wheel = math.degrees(e.rms("pitch")), e.rms("wheel_speed")
-    shown = len(done.parts)
+    shown = done.shown
     of = f"{shown} of {done.found} hops" if shown < done.found else f"{shown} hop(s)"
+    of += "" if done.every is None else f" re-anchored every {done.every:g} s"
     return (
         f"<div class='hd-record'><b>{html.escape(done.source)}</b>: {of}, {e.time[0]:.2f}–{e.time[-1]:.2f} s · "
         f"pitch RMS {rms_pitch:.3f}° · wheel speed RMS {rms_wheel:.3f} rad/s · {timing} · "
@@ -139,6 +146,7 @@ class LogReplayPanel:
     path: viser.GuiTextHandle
     load: viser.GuiButtonHandle
     watch: viser.GuiCheckboxHandle
+    reanchor: viser.GuiCheckboxHandle
     stop_button: viser.GuiButtonHandle
     summary: viser.GuiHtmlHandle
     logged_ghost: GhostRobot
@@ -165,9 +173,9 @@ class LogReplayPanel:
 
     def _run(self, path: str, client: viser.ClientHandle | None) -> None:
         try:
-            done = replay_log(path, self.host.sim.config)
+            done = replay_log(path, self.host.sim.config, REANCHOR_S if self.reanchor.value else None)
             self.show(done)
-            notify(client, "Log replayed", f"{path}: {len(done.parts)} hop(s)")
+            notify(client, "Log replayed", f"{path}: {done.shown} hop(s)")
         except HopperError as exc:
             notify(client, "Log not replayed", str(exc), "error")
         except Exception as exc:  # a reader's own failure on a corrupt file: said, never raised into the thread
@@ -219,12 +227,18 @@ def build_logreplay_panel(gui: viser.GuiApi, scene: viser.SceneApi, host: LogRep
             hint="Fly the log's commands open loop from its state at each liftoff, on the log's ground "
             "(this one's if it names none)",
         )
+        reanchor = gui.add_checkbox(
+            f"Re-anchor every {REANCHOR_S:g} s",
+            False,
+            hint="Start the simulated robot again from the log's state every "
+            f"{REANCHOR_S:g} s: a whole open-loop stance drifts off with any model error",
+        )
         watch = gui.add_checkbox(
             "Camera on the ghosts", False, hint="Follow the replayed log's ghosts; untick to follow the live robot"
         )
         stop_button = gui.add_button("Stop log replay", icon=viser.Icon.PLAYER_STOP, color="gray")
         summary = gui.add_html(summary_html(None))
-    panel = LogReplayPanel(host, path, load, watch, stop_button, summary, logged, simulated)
+    panel = LogReplayPanel(host, path, load, watch, reanchor, stop_button, summary, logged, simulated)
     stop_button.on_click(guarded(lambda _: panel.stop()))
     load.on_click(guarded(lambda event: panel.request(path.value, event.client)))
     return panel
