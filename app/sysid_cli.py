@@ -268,8 +268,9 @@ def command_identify(args: argparse.Namespace) -> int:
     for (what, _), e0, e1 in zip(measures, before, after, strict=True):
         print(error_line(f"replay of hops 1..{args.hops} ({what}) before", e0))
         print(error_line(f"replay of hops 1..{args.hops} ({what}) after ", e1))
-        ratio = e0.rms("pitch") / e1.rms("pitch") if e1.rms("pitch") > 0 else math.inf
-        print(f"  pitch RMS before / after: {ratio:.3g}x")
+        r0, r1 = e0.rms("pitch"), e1.rms("pitch")
+        ratio = "both diverged" if math.isinf(r0) and math.isinf(r1) else f"{r0 / r1 if r1 > 0 else math.inf:.3g}x"
+        print(f"  pitch RMS before / after: {ratio}")
     print(
         f"fit: {fit.windows} windows of {args.windows[-1]:g} s at the last stage, {fit.evaluations} simulations, "
         f"{fit.seconds:.0f} s; "

@@ -49,6 +49,7 @@ CHANNELS = {
 }
 DIVERGED = 100.0  # the residual of a sample after a window's replay diverged (non-finite)
 STAGES = (0.05, 0.1, 0.3)  # s, the windows of the fit's stages
+FLIGHT_WINDOW_S = 0.3  # s, the windows of the flights' fit before the stages (no contact: no chaos)
 
 
 class IdentifyError(HopperError, ValueError):
@@ -409,10 +410,10 @@ def identify(
         raise IdentifyError(f"window lengths must be positive seconds, got {list(stages)}")
     robot = Robot(model)
     profile: dict[str, tuple[float, float]] = {}
-    z = None
     evaluations = 0  # of the stages before the last
     start = {}  # the flights' estimates, where the stages begin
-    airborne = [w for a, b in flights(log) if span[0] <= a < span[1] for w in windows(log, (a, min(b, span[1])), 0.3)]
+    aloft = [(a, min(b, span[1])) for a, b in flights(log) if span[0] <= a < span[1]]
+    airborne = [w for flight in aloft for w in windows(log, flight, FLIGHT_WINDOW_S)]
     free = [n for n in names if n != "friction"]
     if "friction" in names and free and airborne:
         # Without a contact nothing is piecewise: the torso and the wheel are fitted on the flights
