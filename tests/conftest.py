@@ -11,9 +11,16 @@ from hopper.app.dashboard.config import DashboardConfig
 from hopper.app.dashboard.probe import ProbeClient
 from hopper.app.dashboard.server import Dashboard
 from net import free_port
+from pages import launch_chromium
 
 from hopper.config import SimConfig
 from hopper.sim import Simulation
+
+
+@pytest.fixture(scope="module")
+def browser():
+    """Chromium for a module's browser tests (tests/pages.py: frames capped, skips without it)."""
+    yield from launch_chromium()
 
 
 @pytest.fixture
@@ -69,9 +76,10 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         if item.path.name.endswith("_e2e.py"):
             item.add_marker(pytest.mark.browser)
-            # Under `-n 2 --dist loadgroup` the browser tests share one worker: each page keeps
-            # Chromium's software WebGL busy on about a core, and two at once on two cores starved
-            # the servers they were testing (a page load once took over 30 s).
+            # Under `--dist loadgroup` the browser tests share one worker: each page keeps Chromium's
+            # software WebGL busy on about a core, and two at once on two cores starved the servers
+            # they were testing (a page load once took over 30 s; split over two workers, the
+            # suite took 599 s against 565 s).
             item.add_marker(pytest.mark.xdist_group("browser"))
         elif SERVED & set(getattr(item, "fixturenames", ())):
             item.add_marker(pytest.mark.integration)

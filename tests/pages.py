@@ -2,6 +2,52 @@
 
 from __future__ import annotations
 
+import os
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+CHROMIUM = Path("/usr/bin/chromium")
+CHROMIUM_ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
+# The page's own animation frames, at most SCENE_FPS a second. Software WebGL draws the lit,
+# shadowed scene at about 5 frames/s on this machine with both cores busy (SwiftShader's workers
+# took 1.7 cores), and every playwright action waits on frames: a tab click took 2 s. Capped at
+# 2 frames/s, the page takes 0.8 cores and a click 0.2-0.3 s; the scene still draws, the server
+# under test keeps a core. Only the page's scripts see the cap: playwright's own checks run in
+# their isolated world, on Chromium's real frames.
+SCENE_FPS = 2
+CAP_FRAMES_JS = """(() => {
+    const period = PERIOD_MS, raf = window.requestAnimationFrame.bind(window);
+    const caf = window.cancelAnimationFrame.bind(window), pending = new Map();
+    let next = 0, last = 0;
+    window.requestAnimationFrame = (callback) => {
+        const id = ++last, wait = Math.max(0, next - performance.now());
+        const timer = setTimeout(() => pending.set(id, raf((stamp) => {
+            pending.delete(id);
+            next = Math.max(next, performance.now() + period);
+            callback(stamp);
+        })), wait);
+        pending.set(id, -timer - 1);
+        return id;
+    };
+    window.cancelAnimationFrame = (id) => {
+        const handle = pending.get(id);
+        pending.delete(id);
+        if (handle === undefined) return;
+        if (handle < 0) clearTimeout(-handle - 1); else caf(handle);
+    };
+})();""".replace("PERIOD_MS", f"{1000 / SCENE_FPS:g}")
+
 # A click from a script: the notice's own handler closes it, as a user's click does, but playwright
 # does not then wait for "scheduled navigations" (that wait timed out at 30 s with both cores busy,
 # after the click itself was done).
@@ -11,3 +57,38 @@ CLOSE_NOTICES_JS = "() => document.querySelectorAll('.mantine-Notification-root 
 def close_notices(page) -> None:  # noqa: ANN001 (a playwright Page)
     """Close the notifications on the page (viser's notice about software WebGL covers the scene)."""
     page.evaluate(CLOSE_NOTICES_JS)
+
+
+class CappedBrowser:
+    """A playwright Browser whose new pages run their animation frames at SCENE_FPS."""
+
+    def __init__(self, browser) -> None:  # noqa: ANN001 (a playwright Browser)
+        self._browser = browser
+
+    def new_page(self, **options):  # noqa: ANN003, ANN201
+        page = self._browser.new_page(**options)
+        page.add_init_script(CAP_FRAMES_JS)
+        return page
+
+    def __getattr__(self, name: str):  # noqa: ANN204 (the rest of Browser, unchanged)
+        return getattr(self._browser, name)
+
+
+def launch_chromium() -> Iterator[CappedBrowser]:
+    """Debian's Chromium, headless; skips without it or playwright, except under CI=true (a failure)."""
+
+    def unavailable(reason: str) -> None:
+        if os.environ.get("CI") == "true":
+            pytest.fail(f"{reason}: CI must run the browser test")
+        pytest.skip(reason)
+
+    if not CHROMIUM.exists():
+        unavailable(f"no Chromium at {CHROMIUM}")
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError as exc:
+        unavailable(f"playwright is not installed ({exc})")
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+        yield CappedBrowser(browser)
+        browser.close()

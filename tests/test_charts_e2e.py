@@ -14,7 +14,7 @@ from hopper.app.dashboard.server import Dashboard
 from hopper.app.dashboard.viser_compat import CHART_INSTANCE_JS
 from net import wait_until
 from test_chart_feed import expected
-from test_dashboard_e2e import PAGE_LOAD_MS, browser  # noqa: F401  (browser: the Chromium fixture)
+from test_dashboard_e2e import PAGE_LOAD_MS
 from test_dashboard_inputs_e2e import VIEWPORT, start
 
 

@@ -10,7 +10,7 @@ from pathlib import Path
 from hopper.app.dashboard.server import Dashboard
 from net import wait_until
 from test_controllers import readme_example
-from test_dashboard_e2e import PAGE_LOAD_MS, browser  # noqa: F401  (the Chromium fixture)
+from test_dashboard_e2e import PAGE_LOAD_MS
 from test_replay_e2e import NOTES_JS, WORK_VIEWPORT, _shot
 
 from hopper.events import EventKind

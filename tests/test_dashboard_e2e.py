@@ -6,11 +6,9 @@ Skips without /usr/bin/chromium, except under CI=true, where a missing browser i
 from __future__ import annotations
 
 import math
-import os
 import time
 from pathlib import Path
 
-import pytest
 from calls import Call
 from hopper.app.dashboard.config import DashboardConfig
 from hopper.app.dashboard.server import Dashboard
@@ -21,41 +19,10 @@ from PIL import Image
 from hopper.events import Disturbance, Event, EventKind
 from hopper.sim import Simulation
 
-CHROMIUM = Path("/usr/bin/chromium")
-CHROMIUM_ARGS = [
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-]
 # A page's first load is bounded, not paced: its software WebGL shares two cores with the servers
 # and the other tests (one browser test at a time: conftest.py's xdist group).
 PAGE_LOAD_MS = 120_000
 MIN_CANVAS_COLOURS = 500  # a blank or single-colour canvas has a handful; the scene has thousands
-
-
-def _unavailable(reason: str) -> None:
-    if os.environ.get("CI") == "true":
-        pytest.fail(f"{reason}: CI must run the browser test")
-    pytest.skip(reason)
-
-
-@pytest.fixture(scope="module")
-def browser():
-    if not CHROMIUM.exists():
-        _unavailable(f"no Chromium at {CHROMIUM}")
-    try:
-        from playwright.sync_api import sync_playwright
-    except ImportError as exc:
-        _unavailable(f"playwright is not installed ({exc})")
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
-        yield browser
-        browser.close()
 
 
 def open_workbench(browser, dashboard: Dashboard, viewport: dict | None = None):

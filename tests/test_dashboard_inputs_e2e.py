@@ -16,7 +16,7 @@ from hopper.app.dashboard.server import Dashboard
 from net import free_port, wait_until
 from pages import close_notices
 from PIL import Image
-from test_dashboard_e2e import LARGEST_CANVAS_JS, PAGE_LOAD_MS, browser  # noqa: F401  (browser: the Chromium fixture)
+from test_dashboard_e2e import LARGEST_CANVAS_JS, PAGE_LOAD_MS
 
 from hopper.config import Gains
 

@@ -12,7 +12,6 @@ from pathlib import Path
 import numpy as np
 from hopper.app.dashboard.server import Dashboard
 from net import wait_until
-from test_dashboard_e2e import browser  # noqa: F401  (the Chromium fixture)
 from test_replay_e2e import NOTES_JS, _input, _open, _shot
 
 from hopper.logs.capture import capture

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 from hopper.app.dashboard.server import Dashboard
 from PIL import Image
-from test_dashboard_e2e import browser, open_workbench  # noqa: F401  (the Chromium fixture)
+from test_dashboard_e2e import open_workbench
 
 MEASURED_JS = "() => document.querySelector('.hd-measured') ? document.querySelector('.hd-measured').innerText : ''"
 # viser shows a GUI image from a blob URL: read its bytes back (base64) from the page itself.

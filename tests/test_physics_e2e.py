@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 from net import wait_until
 from rrd import verify
-from test_dashboard_e2e import browser, open_workbench  # noqa: F401  (the Chromium fixture)
+from test_dashboard_e2e import open_workbench
 from test_telemetry import cells, read
 
 from hopper.events import Dragged

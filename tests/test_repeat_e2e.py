@@ -9,7 +9,7 @@ import time
 from hopper.app.dashboard.server import Dashboard
 from net import wait_until
 from pages import close_notices
-from test_dashboard_e2e import PAGE_LOAD_MS, browser  # noqa: F401  (the Chromium fixture)
+from test_dashboard_e2e import PAGE_LOAD_MS
 from test_workbench_e2e import _type
 
 from hopper.schedule import KickSchedule

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 from hopper.app.dashboard.server import Dashboard
 from net import wait_until
-from test_dashboard_e2e import PAGE_LOAD_MS, browser  # noqa: F401  (the Chromium fixture)
+from test_dashboard_e2e import PAGE_LOAD_MS
 from test_workbench_e2e import _type
 
 from hopper import keyframes

@@ -12,7 +12,7 @@ from hopper.app.dashboard.access import page_url
 from hopper.app.dashboard.server import Dashboard
 from net import wait_until
 from pages import close_notices
-from test_dashboard_e2e import MIN_CANVAS_COLOURS, PAGE_LOAD_MS, browser, distinct_colours  # noqa: F401  (browser: a fixture)
+from test_dashboard_e2e import MIN_CANVAS_COLOURS, PAGE_LOAD_MS, distinct_colours
 from test_dashboard_inputs_e2e import HIDE_SCENE, box, notice, start, type_into
 
 from hopper.events import EventKind

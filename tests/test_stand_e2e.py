@@ -12,7 +12,7 @@ from pathlib import Path
 from hopper.app.dashboard.server import Dashboard
 from net import wait_until
 from pages import close_notices
-from test_dashboard_e2e import PAGE_LOAD_MS, browser  # noqa: F401  (browser: the Chromium fixture)
+from test_dashboard_e2e import PAGE_LOAD_MS
 from test_dashboard_inputs_e2e import box, notice, type_into
 from test_replay_e2e import WORK_VIEWPORT
 

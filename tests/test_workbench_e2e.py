@@ -9,7 +9,7 @@ import re
 
 from hopper.app.dashboard.server import Dashboard
 from net import wait_until
-from test_dashboard_e2e import browser, open_workbench  # noqa: F401  (the Chromium fixture)
+from test_dashboard_e2e import open_workbench
 
 from hopper.analysis.loop import analyse
 
