@@ -1,5 +1,6 @@
 """End to end in a real headless Chromium: a bad path is a notification and the simulation keeps running;
-a captured log of two hops is replayed beside the simulation: two ghosts in step and the error charts.
+a captured log of two hops is replayed beside the simulation: two ghosts in step, on the log's ground, and
+the error charts.
 Skips without /usr/bin/chromium, except under CI=true. The screenshot goes to the test's tmp_path
 (and to $HOPPER_SHOTS when set).
 """
@@ -61,6 +62,10 @@ def test_a_log_replays_beside_the_simulation(browser, dashboard: Dashboard, tmp_
         # Both ghosts play in step: the loop sends them the same frame.
         assert wait_until(lambda: 5 < panel.logged_ghost.shown_frame == panel.simulated_ghost.shown_frame, timeout=60)
         page.wait_for_function(f"() => ({NOTES_JS})().includes('Log replayed')")
+        # They stand on the log's ground (another seed's), drawn in place of the live ground while watched.
+        assert wait_until(lambda: panel.grounded is done, timeout=30)
+        assert set(panel.ground.tiles) == set(done.ground) and dashboard.terrain.hidden
+        assert not any(tile.visible for tile in dashboard.terrain.tiles.values())
         # The camera goes to the ghosts (where the log was recorded), and back to the live robot when unticked.
         assert panel.watch.value and panel.watched() is not None
         assert wait_until(lambda: abs(dashboard.camera.robot[0] - dashboard.sim.state().x) < 0.5, timeout=30)
@@ -97,5 +102,7 @@ def test_a_log_replays_beside_the_simulation(browser, dashboard: Dashboard, tmp_
         page.get_by_role("button", name="Stop log replay").click()
         assert wait_until(lambda: not panel.logged_ghost.playing and not panel.simulated_ghost.playing, timeout=30)
         assert panel.watched() is None and not panel.watch.value
+        assert wait_until(lambda: panel.grounded is None, timeout=30), "the log's ground stayed"
+        assert not panel.ground.tiles and all(tile.visible for tile in dashboard.terrain.tiles.values())
     finally:
         page.close()

@@ -11,6 +11,7 @@ import bad_logs
 import numpy as np
 import pytest
 from hopper.app.dashboard.panels.logreplay import replay_log, summary_html
+from hopper.app.dashboard.terrain_view import terrain_glb
 from hopper.app.sim_cli import main
 
 from hopper.config import SimConfig
@@ -19,6 +20,7 @@ from hopper.logs.capture import capture
 from hopper.logs.io import read_log, write_log
 from hopper.logs.schema import Log
 from hopper.logs.world import World, resolve
+from hopper.model import terrain_window
 
 WORLD = World(terrain="crater", seed=5, gravity=1.625, delay_ticks=3)  # realistic sensing: 3 ms late
 
@@ -95,6 +97,12 @@ def test_the_cli_and_the_dashboard_replay_in_the_logs_world(cratered: Log, tmp_p
     done = replay_log(str(path), SimConfig(terrain="flat", seed=0))
     assert done.world == "crater seed 5, 1.625 m/s^2, wheel commands 3 ticks late (the log's)"
     assert math.degrees(done.errors.rms("pitch")) < 1e-3 and done.errors.rms("wheel_speed") < 1e-3
+    # The ghosts are drawn on the log's ground: its field's tiles under the whole track, not the dashboard's.
+    log_field = terrain_window(resolve(cratered.world)[0].config()).field
+    tile = log_field.params.tile
+    assert min(done.ground) * tile < done.track[:, 0].min() and done.track[:, 0].max() < (max(done.ground) + 1) * tile
+    k = int(done.track[0, 0] // tile)
+    assert done.ground[k] == terrain_glb(log_field, k) != terrain_glb(terrain_window(SimConfig(seed=0)).field, k)
     # A log that names no world (a CSV, a real robot's) replays in the dashboard's.
     csv = write_log(cratered, tmp_path / "crater.csv")
     here = replay_log(str(csv), SimConfig(terrain="crater", seed=5))

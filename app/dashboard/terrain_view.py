@@ -4,10 +4,13 @@ Each tile of the field (hopper.terrain.field, 4 m) is one mesh node, sent when i
 window and removed when it leaves, so a move sends only the ground that is new (41 kB a tile as
 hopper.app.dashboard.tile_glb writes it: ~10 kB per metre travelled, whatever the window's
 length); a new terrain replaces them all. The plain ground either side of the strip moves with
-the window (a pose, not a mesh).
+the window (a pose, not a mesh). A replayed log's ground (another world's) is drawn by LogGround
+in place of these while its ghosts are watched.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 import viser
@@ -35,8 +38,15 @@ class TerrainView:
         self.tiles: dict[int, viser.GlbHandle] = {}  # tile index -> its node
         self.sent = 0  # tile meshes sent, for tests and the benchmark
         self.sent_bytes = 0  # their GLBs' bytes, which every client receives (benchmarks/bench_dashboard.py)
+        self.hidden = False  # while another world's ground is shown in its place (LogGround)
         self.ground = _add_ground(scene, sim.config.craters)
         self.sync(sim)
+
+    def hide(self, hidden: bool) -> None:
+        """Hide (or show again) the live ground; the window keeps following the simulation meanwhile."""
+        self.hidden = hidden
+        for handle in (*self.tiles.values(), self.ground):
+            handle.visible = not hidden
 
     def sync(self, sim: Simulation) -> None:
         """Send the tiles that entered the window, remove those that left (cheap when it did not move)."""
@@ -54,18 +64,49 @@ class TerrainView:
         self.ground.position = (window.x0, 0.0, GROUND_Z)
 
     def _send(self, field: Field, k: int) -> viser.GlbHandle:
-        mesh = terrain_tile(field, k)
-        colors = np.asarray(mesh.visual.vertex_colors).copy()
-        colors[:, :3] = (colors[:, :3] * TERRAIN_DIM).astype(np.uint8)
+        glb = terrain_glb(field, k)
         self.sent += 1
-        nrow = field.params.shape[0]  # hopper.meshes' grid: row-major, rows along y
-        glb = tile_glb(mesh.vertices, (nrow, len(mesh.vertices) // nrow), colors)
         self.sent_bytes += len(glb)
-        return self._scene.add_glb(f"{WORLD}/terrain/{k}", glb, cast_shadow=False)
+        return self._scene.add_glb(f"{WORLD}/terrain/{k}", glb, cast_shadow=False, visible=not self.hidden)
 
     def _remove(self, tiles: list[int]) -> None:
         for k in tiles:
             self.tiles.pop(k).remove()
+
+
+class LogGround:
+    """A replayed log's ground, when its world is not the live one: the tiles under its track, drawn
+    while its ghosts are watched (TerrainView hides the live ground meanwhile)."""
+
+    def __init__(self, scene: viser.SceneApi) -> None:
+        self._scene = scene
+        self.tiles: dict[int, viser.GlbHandle] = {}
+
+    def show(self, glbs: dict[int, bytes]) -> None:
+        """Draw these tiles (index -> GLB, ground_glbs), in place of any drawn before."""
+        self.hide()
+        add = self._scene.add_glb
+        self.tiles = {k: add(f"{WORLD}/log_terrain/{k}", glb, cast_shadow=False) for k, glb in glbs.items()}
+
+    def hide(self) -> None:
+        for handle in self.tiles.values():
+            handle.remove()
+        self.tiles = {}
+
+
+def terrain_glb(field: Field, k: int) -> bytes:
+    """Tile k of `field` as the scene draws it (hopper.meshes.terrain_tile, dimmed, as a GLB)."""
+    mesh = terrain_tile(field, k)
+    colors = np.asarray(mesh.visual.vertex_colors).copy()
+    colors[:, :3] = (colors[:, :3] * TERRAIN_DIM).astype(np.uint8)
+    nrow = field.params.shape[0]  # hopper.meshes' grid: row-major, rows along y
+    return tile_glb(mesh.vertices, (nrow, len(mesh.vertices) // nrow), colors)
+
+
+def ground_glbs(field: Field, x_lo: float, x_hi: float) -> dict[int, bytes]:
+    """The tiles of `field` under world x from `x_lo` to `x_hi` (m), a tile more each side: index -> GLB."""
+    tile = field.params.tile
+    return {k: terrain_glb(field, k) for k in range(math.floor(x_lo / tile) - 1, math.floor(x_hi / tile) + 2)}
 
 
 def _add_ground(scene: viser.SceneApi, craters: CraterParams) -> viser.MeshHandle:

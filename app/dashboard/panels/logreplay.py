@@ -1,6 +1,7 @@
 """Log replay panel: load a recorded log, fly its hops open loop in the log's world (hopper.logs.replay; the
 dashboard's terrain, seed and gravity for a log that names none),
 and show the log's robot and the simulated one as two ghosts side by side, in step, with the errors charted.
+While the ghosts are watched, the ground under them is the log's world's, in place of the live one.
 
 A load runs on a thread of its own (never the 1 kHz loop's, never viser's): the simulation keeps running,
 and a bad path or a log that cannot be replayed is a notification to the one who asked.
@@ -22,6 +23,7 @@ import viser
 from hopper.app.dashboard.feedback import guarded, notify
 from hopper.app.dashboard.plots import LogReplayPlots
 from hopper.app.dashboard.scene import GhostRobot
+from hopper.app.dashboard.terrain_view import LogGround, TerrainView, ground_glbs
 
 from hopper.config import SimConfig
 from hopper.errors import HopperError
@@ -53,7 +55,8 @@ BESIDE_M = 0.5  # m: the log's ghost stands this far behind the simulated one (y
 
 
 class LogReplayHost(Protocol):
-    sim: Simulation  # its config is the world the log is replayed in
+    sim: Simulation  # its config is the world the log is replayed in when the log names none
+    terrain: TerrainView  # the live ground, hidden while the log's is shown
 
 
 @dataclasses.dataclass(frozen=True)
@@ -72,6 +75,7 @@ class LogReplay:
     logged_on: np.ndarray  # either foot down, per sample
     simulated_on: np.ndarray
     track: np.ndarray  # (frames, 2): the log's torso CoM x, z (m) at each ghost pose, for the camera
+    ground: dict[int, bytes]  # the log's world's terrain tiles under the track: index -> GLB
 
     @property
     def errors(self) -> Errors:
@@ -114,6 +118,7 @@ def replay_log(path: str, config: SimConfig, every: float | None = None) -> LogR
         logged_on=contact(s["foot_L_force"][rows], s["foot_R_force"][rows]),
         simulated_on=contact(simulated["foot_L_force"], simulated["foot_R_force"]),
         track=np.column_stack([s["x"][rows][::stride], s["z"][rows][::stride]]),
+        ground=ground_glbs(window.field, float(s["x"][rows].min()), float(s["x"][rows].max())),
     )
 
 
@@ -151,9 +156,11 @@ class LogReplayPanel:
     summary: viser.GuiHtmlHandle
     logged_ghost: GhostRobot
     simulated_ghost: GhostRobot
+    ground: LogGround
     plots: LogReplayPlots | None = None  # set once the left panel exists
     last: LogReplay | None = None
     finished: int = 0  # loads ended (replayed or refused), for tests to wait on
+    grounded: LogReplay | None = None  # the replay whose ground is drawn (the loop thread's)
     _lock: threading.Lock = dataclasses.field(default_factory=threading.Lock, repr=False)
 
     def request(self, text: str, client: viser.ClientHandle | None) -> threading.Thread | None:
@@ -210,7 +217,16 @@ class LogReplayPanel:
         self.simulated_ghost.hide()
 
     def update(self, now: float) -> None:
-        """Send both ghosts' poses due at wall time `now` (the loop calls it inside server.atomic())."""
+        """Send both ghosts' poses due at wall time `now` (the loop calls it inside server.atomic()), and
+        the log's ground in place of the live one while they are watched (the live one back after)."""
+        watched = self.last if self.watch.value else None
+        if watched is not self.grounded:
+            if watched is None:
+                self.ground.hide()
+            else:
+                self.ground.show(watched.ground)
+            self.host.terrain.hide(watched is not None)
+            self.grounded = watched
         self.logged_ghost.update(now)
         self.simulated_ghost.update(now)
 
@@ -238,7 +254,7 @@ def build_logreplay_panel(gui: viser.GuiApi, scene: viser.SceneApi, host: LogRep
         )
         stop_button = gui.add_button("Stop log replay", icon=viser.Icon.PLAYER_STOP, color="gray")
         summary = gui.add_html(summary_html(None))
-    panel = LogReplayPanel(host, path, load, watch, reanchor, stop_button, summary, logged, simulated)
+    panel = LogReplayPanel(host, path, load, watch, reanchor, stop_button, summary, logged, simulated, LogGround(scene))
     stop_button.on_click(guarded(lambda _: panel.stop()))
     load.on_click(guarded(lambda event: panel.request(path.value, event.client)))
     return panel
