@@ -27,7 +27,6 @@ from collections.abc import Callable, Sequence
 
 import mujoco
 import numpy as np
-from scipy.optimize import least_squares
 
 from hopper.errors import HopperError
 from hopper.layout import LEG_JOINTS
@@ -328,6 +327,8 @@ class Problem:
 
 
 def _least_squares(problem: Problem, z: np.ndarray, max_evaluations: int):  # noqa: ANN202 (scipy's result)
+    from scipy.optimize import least_squares  # here: scipy.optimize took a third of every hopper-sim start
+
     return least_squares(
         problem.residuals,
         np.clip(z, problem.lower, problem.upper),
