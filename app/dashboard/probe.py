@@ -173,7 +173,11 @@ class ProbeClient:
                 return uuid
         return None
 
-    def wait_for(self, predicate: Any, timeout: float = 10.0) -> bool:
+    def wait_for(self, predicate: Any, timeout: float = 60.0) -> bool:
+        """Poll `predicate(self)` until it is truthy or `timeout` s pass; True if it became truthy.
+
+        `timeout` bounds a failure only (it was 10 s: under a busy loop per core beside two test
+        workers, five pose frames took longer than that to arrive)."""
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             with self._lock:
