@@ -64,12 +64,13 @@ BATCH_TICKS = 4000
 FLUSH_WALL_S = 1.0
 SINK_TIMEOUT_S = 60.0  # s a flush may wait for the sinks before it is reported as failed
 # The recording is behind when the file's writer has not found rerun's pipe empty for BEHIND_S of
-# wall time (the disk takes the bytes slower than they come: they wait in rerun's memory), or the
-# loop spent more than BEHIND_SHARE of the last BEHIND_S waiting in rerun's send and flush (rerun's
-# channel to the file is full: the disk holds the simulation to its pace). Nothing is lost either
-# way. A batch is written in milliseconds on a disk that keeps up and its send costs ~1 ms. Caught
-# up once, over a whole BEHIND_S, the pipe was never full for a quarter of it and the loop waited
-# less than CAUGHT_UP_SHARE: a slow disk's bursts are no flapping.
+# wall time (the disk takes the bytes slower than they come), or the disk was busy more than
+# BEHIND_SHARE of the last BEHIND_S: for a file alone, the writer thread's time in its writes; with
+# a live viewer, the loop's time waiting in rerun's send and flush (rerun's channel to the file is
+# full: the disk holds the simulation to its pace). Nothing is lost either way. A batch is written
+# in milliseconds on a disk that keeps up and its send costs ~1 ms. Caught up once, over a whole
+# BEHIND_S, the pipe was never full for a quarter of it and that share was under CAUGHT_UP_SHARE:
+# a slow disk's bursts are no flapping.
 BEHIND_S, BEHIND_SHARE, CAUGHT_UP_SHARE = 5.0, 0.5, 0.1
 LIMIT_EVERY_BATCHES = 5  # the torque limit lines only need a point now and then
 POSE_EVERY_TICKS = 20  # 50 Hz body poses
@@ -206,10 +207,15 @@ class Telemetry:
         if self._rolls and sinks:
             raise ValueError("a size or duration limit (rollover) cannot be combined with a live rerun viewer")
         self._max_bytes = max_bytes if max_bytes is not None else math.inf
-        # A size limit is checked against the bytes on disk, which trail what was sent by however
-        # many batches rerun and the writer are behind: on a loaded machine a 2 MB part grew to
-        # 3.1 MB. With a size limit each batch waits until it is written (~1 ms a batch).
-        self._wait_each_batch = max_bytes is not None
+        # A file-only recording waits for each batch to be written (~1 ms a batch on a disk that
+        # keeps up; a 40-hop headless run took 3.9 s either way). Without the wait, a disk slower
+        # than the data let rerun queue it in memory out of our sight: under a busy loop per core,
+        # 57 MB piled up over 64 s before the lag showed (the pipe kept emptying between rerun's
+        # writes), then the loop stalled for over a minute in one flush. With it, the loop runs at
+        # the disk's pace from the first slow batch. A size limit needs it too: it is checked
+        # against the bytes on disk (a 2 MB part grew to 3.1 MB without). A live viewer must not
+        # pace the simulation: with one, batches are not waited on.
+        self._wait_each_batch = path is not None and not sinks
         self._max_ns = round(max_seconds * 1e9) if max_seconds is not None else math.inf
         self._flush_s = flush_s
 
@@ -355,12 +361,17 @@ class Telemetry:
 
     def _watch_lag(self) -> None:
         """The lag watchdog's thread: the loop's own cannot say it, since on a slow disk it waits in
-        rerun's send or flush. Samples the loop's waiting time, judged over the last `behind_s`."""
+        rerun's send or flush. Samples the disk's busy time, judged over the last `behind_s`: the
+        file's writes when each batch is waited on (the loop's waits then include encoding, which a
+        busy CPU stretches), else the loop's waits."""
         every = min(1.0, self._behind_s / 10)
         samples: collections.deque[tuple[float, float, float]] = collections.deque()
         while not self._unwatched.wait(every):
             now, sending, f = time.perf_counter(), self._sending, self._file
-            waited = self._waited + (now - sending if sending is not None else 0.0)
+            if self._wait_each_batch and f is not None:
+                waited = f.busy_s
+            else:
+                waited = self._waited + (now - sending if sending is not None else 0.0)
             samples.append((now, waited, f.lag_s() if f is not None else 0.0))
             while samples[0][0] < now - self._behind_s:
                 samples.popleft()
@@ -376,14 +387,17 @@ class Telemetry:
         the loop's waiting small over that whole window (between rerun's messages the pipe can be
         empty for a moment while a queue still waits)."""
         if self.behind is None and (lag > self._behind_s or share > BEHIND_SHARE):
+            busy = "the disk was busy" if self._wait_each_batch else "the simulation waited on it"
             why = (
                 f"the file is {lag:.0f} s behind" if lag > self._behind_s
-                else f"the simulation waited on it {share:.0%} of the last {self._behind_s:g} s"
+                else f"{busy} {share:.0%} of the last {self._behind_s:g} s"
             )  # fmt: skip
+            pace = "the simulation runs at the disk's pace"
+            if not self._wait_each_batch:  # with a live viewer rerun queues what the disk has not taken
+                pace = f"the rest waits in memory and, once rerun's queue is full, {pace}"
             self.behind = (
                 f"the disk takes the recording's data slower than it comes: {why} ({self.written / 1e6:.1f} MB "
-                "written). Nothing is lost: the rest waits in memory and, once rerun's queue is full, the "
-                "simulation runs at the disk's pace"
+                f"written). Nothing is lost: {pace}"
             )
         elif self.behind is not None and worst < self._behind_s / 4 and share < CAUGHT_UP_SHARE:
             self.behind = None

@@ -111,6 +111,7 @@ class PipedFile:
         self.path = path
         self._on_full = on_full  # called once, on this file's thread, at the first "no room"
         self.written = 0
+        self.busy_s = 0.0  # s this file's thread spent storing bytes: the disk's busy time
         self.full: str | None = None
         self.error: str | None = None
         self._reserve = reserve
@@ -145,15 +146,15 @@ class PipedFile:
                 if self.error is not None:
                     continue  # drain: rerun must never block on a file we can no longer write
                 if not framed:
-                    self._store(memoryview(data))
+                    self._timed_store(memoryview(data))
                     continue
                 pending += data
                 end, header_done, framed = _complete(pending, header_done)
                 if end:
-                    self._store(memoryview(bytes(pending[:end])))
+                    self._timed_store(memoryview(bytes(pending[:end])))
                     del pending[:end]
                 if not framed and pending:
-                    self._store(memoryview(bytes(pending)))
+                    self._timed_store(memoryview(bytes(pending)))
                     pending.clear()
             if pending and self.error is None:
                 self._store(memoryview(bytes(pending)))  # a torn end: only if the sink stopped mid-message
@@ -171,6 +172,11 @@ class PipedFile:
             self._caught_up = time.monotonic()
             return data
         return os.read(self._read, CHUNK_READ)
+
+    def _timed_store(self, data: memoryview) -> None:
+        start = time.monotonic()
+        self._store(data)
+        self.busy_s += time.monotonic() - start
 
     def _store(self, data: memoryview) -> None:
         while data:
