@@ -75,8 +75,8 @@ class TerrainView:
 
 
 class LogGround:
-    """A replayed log's ground, when its world is not the live one: the tiles under its track, drawn
-    while its ghosts are watched (TerrainView hides the live ground meanwhile)."""
+    """A replayed log's ground (its own world's, whichever seed and terrain): the tiles under its
+    track, drawn while its ghosts are watched (TerrainView hides the live ground meanwhile)."""
 
     def __init__(self, scene: viser.SceneApi) -> None:
         self._scene = scene
