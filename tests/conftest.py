@@ -11,7 +11,7 @@ from hopper.app.dashboard.config import DashboardConfig
 from hopper.app.dashboard.probe import ProbeClient
 from hopper.app.dashboard.server import Dashboard
 from net import free_port
-from pages import launch_chromium
+from pages import BROWSER_LIGHTING, launch_chromium
 
 from hopper.config import SimConfig
 from hopper.sim import Simulation
@@ -28,20 +28,28 @@ def flat_sim() -> Simulation:
     return Simulation(SimConfig(terrain="flat"))
 
 
+def _lit(request: pytest.FixtureRequest, settings: dict[str, object]) -> dict[str, object]:
+    """`settings`, lit as tests/pages.py says for a browser test's dashboard unless they say otherwise."""
+    if request.node.get_closest_marker("browser") is not None:
+        settings.setdefault("lighting", BROWSER_LIGHTING)
+    return settings
+
+
 @pytest.fixture
-def dashboard(tmp_path: Path):
-    d = Dashboard(DashboardConfig(port=free_port(), sessions_dir=tmp_path / "sessions"), verbose=False).start()
+def dashboard(request: pytest.FixtureRequest, tmp_path: Path):
+    config = DashboardConfig(port=free_port(), sessions_dir=tmp_path / "sessions", **_lit(request, {}))  # type: ignore[arg-type]
+    d = Dashboard(config, verbose=False).start()
     yield d
     d.stop()
 
 
 @pytest.fixture
-def start(tmp_path: Path):
+def start(request: pytest.FixtureRequest, tmp_path: Path):
     """Start dashboards with the given DashboardConfig settings on free loopback ports; all stop after the test."""
     dashboards: list[Dashboard] = []
 
     def make(**settings: object) -> Dashboard:
-        config = DashboardConfig(port=free_port(), sessions_dir=tmp_path / "sessions", **settings)  # type: ignore[arg-type]
+        config = DashboardConfig(port=free_port(), sessions_dir=tmp_path / "sessions", **_lit(request, settings))  # type: ignore[arg-type]
         dashboards.append(Dashboard(config, verbose=False).start())
         return dashboards[-1]
 

@@ -48,6 +48,11 @@ CAP_FRAMES_JS = """(() => {
     };
 })();""".replace("PERIOD_MS", f"{1000 / SCENE_FPS:g}")
 
+# The dashboards the browser tests open light their scene as a user without a GPU would
+# (DashboardConfig.lighting): software WebGL then draws 18 frames/s instead of 5, and the capped
+# page takes 0.26 cores instead of 0.8. test_dashboard_e2e keeps the shipped lighting.
+BROWSER_LIGHTING = "simple"
+
 # A click from a script: the notice's own handler closes it, as a user's click does, but playwright
 # does not then wait for "scheduled navigations" (that wait timed out at 30 s with both cores busy,
 # after the click itself was done).
@@ -57,6 +62,22 @@ CLOSE_NOTICES_JS = "() => document.querySelectorAll('.mantine-Notification-root 
 def close_notices(page) -> None:  # noqa: ANN001 (a playwright Page)
     """Close the notifications on the page (viser's notice about software WebGL covers the scene)."""
     page.evaluate(CLOSE_NOTICES_JS)
+
+
+def wait_for_ab_table(page, *texts: str, timeout_ms: float = 30_000) -> None:  # noqa: ANN001 (a Page)
+    """Wait for a re-fly table (table.hd-ab) holding every one of `texts`; on a timeout, fail with the
+    tables the page holds, so a miss says whether the table came late, came wrong or never came."""
+    from playwright.sync_api import TimeoutError as PlaywrightTimeout
+
+    wanted = " && ".join(f"t.innerText.includes({text!r})" for text in texts)
+    try:
+        page.wait_for_function(
+            f"() => [...document.querySelectorAll('table.hd-ab')].some(t => {wanted})", timeout=timeout_ms
+        )
+    except PlaywrightTimeout:
+        held = page.evaluate("() => [...document.querySelectorAll('table.hd-ab')].map(t => t.innerText)")
+        waited = f"{timeout_ms / 1000:g} s"
+        raise AssertionError(f"no re-fly table with {texts} after {waited}; the page holds {held}") from None
 
 
 class CappedBrowser:

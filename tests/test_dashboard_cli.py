@@ -80,6 +80,7 @@ def dashboard_process(*args: str, cwd: Path = REPO) -> subprocess.Popen[str]:
         (["--rrd", "/nonexistent/dir/run.rrd"], "does not exist"),
         (["--rrd", "run.txt"], "must name a .rrd file"),
         (["--rerun-viewer", "sometimes"], "invalid choice"),
+        (["--lighting", "dim"], "invalid choice 'dim' (choose from full, no-shadows, simple)"),
         (["--bogus"], "unrecognized arguments: --bogus"),
         (["--sessions-dir", "/proc/foo"], "cannot use sessions folder '/proc/foo'"),
         (["--sessions-dir", "README.md/sessions"], "cannot use sessions folder 'README.md/sessions'"),

@@ -14,7 +14,7 @@ from hopper.app.dashboard.config import DashboardConfig
 from hopper.app.dashboard.plots import LIMIT_COLOR
 from hopper.app.dashboard.server import Dashboard
 from net import free_port, wait_until
-from pages import close_notices
+from pages import BROWSER_LIGHTING, close_notices
 from PIL import Image
 from test_dashboard_e2e import LARGEST_CANVAS_JS, PAGE_LOAD_MS
 
@@ -24,6 +24,7 @@ VIEWPORT = {"width": 1440, "height": 900}
 
 
 def start(tmp_path: Path, **config: object) -> Dashboard:
+    config.setdefault("lighting", BROWSER_LIGHTING)
     d = Dashboard(DashboardConfig(port=free_port(), sessions_dir=tmp_path / "sessions", **config), verbose=False)
     d.start()
     # Paused: commands still apply (between frames), and a software-rendered page stays responsive.

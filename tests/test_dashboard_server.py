@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from calls import Call
+from clients import connect
 from hopper.app.dashboard.config import DashboardConfig
 from hopper.app.dashboard.feedback import notify_all
 from hopper.app.dashboard.pacing import MAX, MAX_LAG_S, MAX_ROUND_STEPS, Pacer, chart_scale
@@ -229,6 +230,21 @@ def test_the_phase_label_and_the_status_badge_show_the_same_phase_in_every_frame
         assert resent <= status_frames + phase_changes, (resent, status_frames, phase_changes)
     finally:
         d.stop()
+
+
+def test_the_lighting_given_at_start_and_chosen_in_the_view_tab_reaches_the_browser(start) -> None:
+    dashboard = start(lighting="simple")
+    client = connect(dashboard)
+    simple = {"environment": False, "lights": True, "shadows": False, "ambient": True}
+    full = {"environment": True, "lights": True, "shadows": True, "ambient": False}
+    assert client.wait_for(lambda p: p.lighting == simple)
+    client.set_gui_value("Lighting", "full")
+    assert client.wait_for(lambda p: p.lighting == full)
+    client.set_gui_value("Lighting", "no-shadows")
+    assert client.wait_for(lambda p: p.lighting == {**full, "shadows": False})
+    dashboard.layout.view.reset()  # Default view: the session's own lighting again
+    assert client.wait_for(lambda p: p.lighting == simple)
+    client.close()
 
 
 # -- simulation trouble ----------------------------------------------------------------------------

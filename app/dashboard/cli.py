@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
 
 from hopper.app.cli_common import add_controller_flags, add_model_flag
-from hopper.app.dashboard.config import DashboardConfig, check_sessions_dir
+from hopper.app.dashboard.config import LIGHTING, DashboardConfig, check_sessions_dir
 from hopper.app.dashboard.pacing import MAX
 
 from hopper.config import GAIN_RANGES
@@ -146,6 +146,13 @@ def parser() -> Parser:
         default=DEFAULTS.rrd_flush_s,
         metavar="S",
         help="wall seconds between recording flushes: the most a killed server loses",
+    )
+    p.add_argument(
+        "--lighting",
+        type=choice(*LIGHTING),
+        default=DEFAULTS.lighting,
+        metavar="{" + ",".join(LIGHTING) + "}",
+        help="the scene's lighting; simple (no environment light, no shadows) for browsers without a GPU",
     )
     add_controller_flags(p)
     add_model_flag(p)

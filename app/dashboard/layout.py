@@ -87,6 +87,7 @@ def build_layout(
     controller: str = "pid",
     controller_choices: tuple[str, ...] = (),
     flown: Robot = PACKAGED,
+    lighting: str = "full",
 ) -> Layout:
     configure_theme(server)
     gui, theme = server.gui, assets.theme()
@@ -114,7 +115,7 @@ def build_layout(
         terrain_panel = build_terrain_panel(gui, ctx, seed, terrain, gravity)
         with gui.add_folder("Test stand"):
             stand = build_stand_panel(gui, ctx)
-        view = build_view_panel(gui, server.scene, camera, trail, robot, physics)
+        view = build_view_panel(gui, server.scene, camera, trail, robot, physics, lighting)
     with tabs.add_tab("Record", viser.Icon.PLAYER_RECORD):
         record = build_record_panel(gui, recorder)
     replay = logreplay = None

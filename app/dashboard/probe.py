@@ -23,6 +23,7 @@ import numpy as np
 import websockets.sync.client as ws_client
 import zstandard
 from hopper.app.dashboard.chart_feed import apply_push, decode_push
+from hopper.app.dashboard.scene import AMBIENT
 
 ROBOT = "/world/robot"  # scene nodes under this prefix are the robot: a frame that moves one is a scene update
 TERRAIN = "/world/terrain"  # the terrain's tiles: sent as the simulation's window reaches them (terrain_view)
@@ -114,6 +115,10 @@ class ProbeClient:
         self.gui_log: list[tuple[str, dict[str, Any]]] = []  # every GUI update (not charts): (uuid, updates)
         self.scripts: list[str] = []  # the sources of the RunJavascriptMessages received, in order
         self.notifications: list[dict[str, Any]] = []
+        # The scene's lighting as last sent: {"environment": an environment map is on, "lights": ...,
+        # "shadows": ..., "ambient": ...} (viser's EnvironmentMapMessage, EnableLightsMessage, and the
+        # visibility of the ambient light the simple lighting adds)
+        self.lighting: dict[str, bool] = {}
         self.gui: dict[str, dict[str, Any]] = {}  # uuid -> creation message
         self.gui_updates: dict[str, dict[str, Any]] = {}  # uuid -> latest value of each property updated (not charts)
         self.scene_counts: collections.Counter[tuple[str, str]] = collections.Counter()  # (type, node name) -> messages
@@ -239,6 +244,14 @@ class ProbeClient:
                     self.chart_data[uuid] = self._resolve(message["updates"]["data"], raw, compressed, lengths)
                 elif kind == "RunJavascriptMessage":
                     self._script(message["source"])
+                elif kind == "EnvironmentMapMessage":
+                    self.lighting["environment"] = message.get("hdri_data") is not None
+                elif kind == "EnableLightsMessage":
+                    self.lighting["lights"], self.lighting["shadows"] = message["enabled"], message["cast_shadow"]
+                elif kind == "AmbientLightMessage":
+                    self.lighting["ambient"] = True  # until a visibility message says otherwise
+                elif kind == "SetSceneNodeVisibilityMessage" and message["name"] == AMBIENT:
+                    self.lighting["ambient"] = message["visible"]
                 elif kind == "GuiUpdateMessage":
                     self.gui_updates.setdefault(message["uuid"], {}).update(message["updates"])
                     self.gui_log.append((message["uuid"], message["updates"]))

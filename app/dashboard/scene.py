@@ -38,16 +38,22 @@ CAMERA_OFFSET = np.array([0.0, -4.4, 1.9])  # m from the look-at point: side vie
 LOOK_OFFSET = np.array([0.3, 0.0, -0.3])  # m from the followed torso: a little ahead (it hops toward +x), down
 CAMERA_FOV = math.radians(45.0)  # vertical; about 4 m of height in view at the default distance
 ENVIRONMENT_INTENSITY = 0.25
+AMBIENT, SIMPLE_AMBIENT = "/ambient", 2.0  # the simple lighting's stand-in for the environment
 FOLLOW_TAU_X, FOLLOW_TAU_Z = 0.25, 1.5  # s, camera smoothing; slow in z so hops do not bob it
 
 
-def configure_lighting(scene: viser.SceneApi, shadows: bool = True) -> None:
-    """A dim environment so the hillshaded craters read: viser's default studio light flattens them.
-
-    Shadows show the hop height, but cost a software (GPU-less) renderer a lot.
-    """
-    scene.configure_environment_map("warehouse", environment_intensity=ENVIRONMENT_INTENSITY)
-    scene.configure_default_lights(enabled=True, cast_shadow=shadows)
+def configure_lighting(scene: viser.SceneApi, lighting: str = "full") -> None:
+    """Light the scene: `full` a dim environment (viser's default studio light flattens the hillshaded
+    craters) and shadowed lights (they show the hop height); `no-shadows` the same unshadowed;
+    `simple` the lights and an ambient light in place of the environment, for software-rendered
+    browsers (without either the robot is near black)."""
+    simple = lighting == "simple"
+    if simple:
+        scene.configure_environment_map(None)
+    else:
+        scene.configure_environment_map("warehouse", environment_intensity=ENVIRONMENT_INTENSITY)
+    scene.configure_default_lights(enabled=True, cast_shadow=lighting == "full")
+    scene.add_light_ambient(AMBIENT, intensity=SIMPLE_AMBIENT, visible=simple)  # the same node, replaced
 
 
 def on_grid(values: np.ndarray, grid: float) -> np.ndarray:

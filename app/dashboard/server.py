@@ -127,7 +127,7 @@ class Dashboard:
         start = sim.state()
         self.camera = CameraFollow(self.server.scene, start.x, start.z)  # the parent frame first
         self.camera.configure_initial(self.server)
-        configure_lighting(self.server.scene)
+        configure_lighting(self.server.scene, config.lighting)
         self.terrain = TerrainView(self.server.scene, sim)
         self.robot = RobotView(self.server.scene, sim.model)
         self.trail = Trail(self.server.scene)
@@ -154,6 +154,7 @@ class Dashboard:
             controller=sim.config.controller,
             controller_choices=config.controller_choice,
             flown=sim.robot,
+            lighting=config.lighting,
         )
         self.layout.controller.show(sim.law)
         self.layout.analysis.show_law(sim.law, sim.config)  # a controller given at start: its analysis, or why none
