@@ -9,6 +9,7 @@ from pathlib import Path
 
 from hopper.app.dashboard.server import Dashboard
 from net import wait_until
+from pages import wait_for_ab_table
 from test_controllers import readme_example
 from test_dashboard_e2e import PAGE_LOAD_MS
 from test_replay_e2e import NOTES_JS, WORK_VIEWPORT, _shot
@@ -72,10 +73,7 @@ def test_the_selector_switches_to_a_users_controller_and_back(browser, start, tm
         assert wait_until(lambda: dashboard.layout.replay.last is not None, timeout=60)
         c = dashboard.layout.replay.last
         assert c.recorded.controller == spec and c.after.controller == "lqr" and c.before_identical
-        page.wait_for_function(
-            "() => [...document.querySelectorAll('table.hd-ab')].some(t => "
-            "t.innerText.includes('my_controller.py:LandLevel') && t.innerText.includes('lqr'))"
-        )
+        wait_for_ab_table(page, "my_controller.py:LandLevel", "lqr", timeout_ms=60_000)
         _shot(page, tmp_path, "controller-refly.png")
         dashboard.layout.simulation.set_paused(False)
         page.get_by_role("tab", name="Gains").click()

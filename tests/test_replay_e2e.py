@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 from hopper.app.dashboard.server import Dashboard
 from net import wait_until
+from pages import wait_for_ab_table
 from test_dashboard_e2e import PAGE_LOAD_MS
 from test_workbench_e2e import _type
 
@@ -96,11 +97,7 @@ def test_refly_overlays_before_and_after(browser, dashboard: Dashboard, tmp_path
         assert np.abs(c.after.pitch[:n] - c.recorded.pitch[:n]).max() > 1e-5  # other gains: another flight
         # Both traces reach the page: hovering the middle of the re-fly pitch chart, its legend shows a
         # value for "before" and for "after" (uPlot shows "--" where a series has no data).
-        page.wait_for_function(
-            "() => [...document.querySelectorAll('table.hd-ab')].some(t => t.innerText.includes('identical to the "
-            "recorded flight') && t.innerText.includes('450/50/30') && t.innerText.includes('450/50/70'))",
-            timeout=30_000,
-        )
+        wait_for_ab_table(page, "identical to the recorded flight", "450/50/30", "450/50/70")
         x, y = page.evaluate(REFLY_CHART_JS)
         page.mouse.move(x, y)
         page.wait_for_function(
