@@ -85,9 +85,9 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
         if item.path.name.endswith("_e2e.py"):
             item.add_marker(pytest.mark.browser)
             # Under `--dist loadgroup` the browser tests share one worker: each page keeps Chromium's
-            # software WebGL busy on about a core, and two at once on two cores starved the servers
-            # they were testing (a page load once took over 30 s; split over two workers, the
-            # suite took 599 s against 565 s).
+            # software WebGL busy (0.26 cores with the simple lighting, 0.8 before), and two at once
+            # on two cores starved the servers they were testing (a page load once took over 30 s;
+            # split over two workers, the suite took 599 s against 565 s, with the full lighting).
             item.add_marker(pytest.mark.xdist_group("browser"))
         elif SERVED & set(getattr(item, "fixturenames", ())):
             item.add_marker(pytest.mark.integration)
