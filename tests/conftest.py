@@ -93,3 +93,16 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
             item.add_marker(pytest.mark.integration)
         if not any(item.get_closest_marker(m) for m in ("browser", "integration")):
             item.add_marker(pytest.mark.unit)
+
+
+# A flake hunt: `--repeat 20 -m "integration or browser"` runs every test that waits on a server
+# or a browser 20 times, each a test of its own (`[repeat 7/20]`), so one failure names its run.
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption("--repeat", type=int, default=1, metavar="N", help="run each test N times")
+
+
+def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
+    n = metafunc.config.getoption("repeat")
+    if n > 1:
+        metafunc.fixturenames.append("_repeat")
+        metafunc.parametrize("_repeat", range(1, n + 1), ids=lambda i: f"repeat {i}/{n}")
