@@ -93,6 +93,15 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
             item.add_marker(pytest.mark.integration)
         if not any(item.get_closest_marker(m) for m in ("browser", "integration")):
             item.add_marker(pytest.mark.unit)
+    # Repeated, the suite runs pass after pass (each test once, then each test again): a hunt cut
+    # short has run every test about as often.
+    items.sort(key=_pass)
+
+
+def _pass(item: pytest.Item) -> int:
+    """Which repetition `item` is (0 without --repeat)."""
+    callspec = getattr(item, "callspec", None)
+    return callspec.params.get("_repeat", 0) if callspec is not None else 0
 
 
 # A flake hunt: `--repeat 20 -m "integration or browser"` runs every test that waits on a server
