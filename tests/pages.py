@@ -49,7 +49,7 @@ CAP_FRAMES_JS = """(() => {
 })();""".replace("PERIOD_MS", f"{1000 / SCENE_FPS:g}")
 
 # The dashboards the browser tests open light their scene as a user without a GPU would
-# (DashboardConfig.lighting): software WebGL then draws 18 frames/s instead of 5, and the capped
+# (DashboardConfig.lighting): software WebGL then draws about 20 frames/s instead of 5, and the capped
 # page takes 0.26 cores instead of 0.8. test_dashboard_e2e keeps the shipped lighting.
 BROWSER_LIGHTING = "simple"
 

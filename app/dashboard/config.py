@@ -8,7 +8,7 @@ import math
 import os
 import tempfile
 from pathlib import Path
-from typing import Literal
+from typing import Literal, get_args
 
 from hopper.app.dashboard.access import AUTO, check_token, generate_token, is_loopback
 from hopper.app.dashboard.pacing import MAX, MAX_SPEED, MIN_SPEED
@@ -22,8 +22,9 @@ MIN_PART_MB = 2.0  # MB: a part starts with ~1.1 MB of terrain and robot meshes
 MIN_PART_MIN = 0.05  # min (3 s of simulation)
 # The scene's lighting, lightest last (hopper.app.dashboard.scene.configure_lighting). A software
 # (GPU-less) WebGL renderer drew the crater scene at 5 frames/s with the environment map and
-# shadows, 8.7 without shadows and 18 with neither, in headless Chromium on a 2-core machine.
-LIGHTING = ("full", "no-shadows", "simple")
+# shadows, 8.7 without shadows and about 20 with simple, in headless Chromium on a 2-core machine.
+Lighting = Literal["full", "no-shadows", "simple"]
+LIGHTING: tuple[str, ...] = get_args(Lighting)
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
@@ -72,7 +73,7 @@ class DashboardConfig:
     """The controller's declared params, (NAME, VALUE) pairs (for pid: kp, ki, kd)."""
     controller_choice: tuple[str, ...] = ()
     """More controllers the Gains tab's selector offers (the built-ins always are)."""
-    lighting: Literal["full", "no-shadows", "simple"] = "full"
+    lighting: Lighting = "full"
     """The scene's lighting: simple (no environment light, no shadows) for browsers without a GPU."""
     model: str | None = None
     """A user's MJCF of the robot (absolute path; README: Your own model), or None: the packaged one."""

@@ -48,7 +48,7 @@ def build_view_panel(
             "Lighting",
             LIGHTING,
             initial_value=lighting,
-            hint="simple: no environment light and no shadows, for browsers without a GPU (3x the frame rate)",
+            hint="simple: no environment light and no shadows, for browsers without a GPU (about 4x the frame rate)",
         ),
         physics=gui.add_checkbox(
             "Forces and flight",
