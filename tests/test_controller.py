@@ -9,11 +9,14 @@ import pytest
 from hopper.config import WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT, Gains, InvalidConfig, SimConfig
 from hopper.control import HopController, control_tick
 from hopper.control.contact import debounce
+from hopper.control.kernel import PUSH_ATTEMPTS
 from hopper.control.legs import RIGID_KNEE, leg_state
 from hopper.control.memory import MEMORY
+from hopper.control.phases import Phase
 from hopper.control.wheel import WHEEL_DAMPING, wheel_ctrl, wheel_pid
 from hopper.layout import ModelLayout
 from hopper.model import MODEL_XML, build_model
+from hopper.sim import Simulation
 
 
 def _memory(gains: Gains) -> np.ndarray:
@@ -129,3 +132,46 @@ def test_the_kernel_finds_its_sensors_by_name_in_any_order() -> None:
 def test_invalid_gains_raise_with_the_allowed_range(bad: dict) -> None:
     with pytest.raises(InvalidConfig, match=r"must be a finite number in \["):
         Gains(**bad)
+
+
+def _step_until(sim: Simulation, done, limit_s: float = 10.0) -> None:  # noqa: ANN001 (a predicate on sim)
+    end = sim.time + limit_s
+    while not done(sim):
+        assert sim.time < end, "the state never came"
+        sim.step()
+
+
+def test_a_push_that_loses_a_foot_is_counted_as_failed() -> None:
+    """A push that ends with a foot still down (here the right one leaves early) is a failed attempt."""
+    sim = Simulation(SimConfig(terrain="flat"))
+    mem = sim.controller.mem
+    _step_until(sim, lambda s: s.phase == Phase.PUSH)
+    assert mem["failed_pushes"][0] == 0 and not mem["recovering"][0]
+    sensors = sim.data.sensordata.copy()
+    sensors[mem["s_foot_r"][0]] = 0.0  # the right foot's touch sensor reads nothing from now on
+    d = sim.data
+    for _ in range(40):  # longer than the contact's off debounce
+        control_tick(d.qpos, d.qvel, sensors, d.ctrl, mem)
+        if mem["phase"][0] != Phase.PUSH:
+            break
+    assert mem["phase"][0] == Phase.STANCE
+    assert mem["failed_pushes"][0] == 1
+
+
+def test_after_failed_pushes_the_next_push_is_a_recovery_hop_that_re_places_the_feet() -> None:
+    """A foot that unloads as every push begins aborted each push from the same feet, for an hour of
+    Ceres (seed 1 of the falls benchmark): after PUSH_ATTEMPTS failures the push is a recovery hop,
+    which has no one-foot abort and lands the feet elsewhere; its liftoff clears the count."""
+    sim = Simulation(SimConfig(terrain="flat"))
+    mem = sim.controller.mem
+    _step_until(sim, lambda s: s.phase == Phase.CROUCH)
+    mem["failed_pushes"] = PUSH_ATTEMPTS - 1
+    _step_until(sim, lambda s: s.phase == Phase.PUSH)
+    assert not mem["recovering"][0]  # one failure short: the gait's own push
+    _step_until(sim, lambda s: s.phase != Phase.PUSH)
+    _step_until(sim, lambda s: s.phase == Phase.CROUCH)
+    mem["failed_pushes"] = PUSH_ATTEMPTS
+    _step_until(sim, lambda s: s.phase == Phase.PUSH)
+    assert mem["recovering"][0]
+    _step_until(sim, lambda s: s.phase == Phase.FLIGHT)
+    assert mem["failed_pushes"][0] == 0

@@ -31,6 +31,7 @@ LIMP_DAMPING = 0.5  # N m s/rad on each leg joint between the end of the push an
 # push: it sits the push out and the other leg pushes alone. Ending the push when that leg is
 # "done" would end it at once and leave the body on limp legs.
 PUSH_MIN_STROKE = 0.03  # m
+PUSH_ATTEMPTS = 2  # pushes that ended on the ground from the same feet before a recovery hop re-places them
 # A leg sweep runs at constant speed between ramps of this share of its time: a steady reaction on
 # the torso, its momentum above the wheel's capacity for most of the sweep (a minimum-jerk path
 # peaks briefly and gives a sharper, shorter excursion for the same peak deviation).
@@ -259,6 +260,7 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
             if time - m.last_contact >= confirm:
                 enter(m, FLIGHT, time)
                 m.integral = 0.0  # integral reset at liftoff
+                m.failed_pushes = 0
                 m.land_l = m.land_r = m.flight_length  # until the apex plans the landing
                 m.sweep_from_l, m.sweep_from_r = leg_angle(left), leg_angle(right)  # a sweep starts here
                 m.sweep_len_l, m.sweep_len_r = math.hypot(left.px, left.pz), math.hypot(right.px, right.pz)
@@ -291,6 +293,9 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
             loaded = abs(height - m.crouch) < 0.03 and abs(offset_x - m.lean) < 0.04 and elapsed > m.crouch_min
             if both and (loaded or elapsed > m.crouch_max):
                 enter(m, PUSH, time)
+                # The same push failed from these feet before: a small recovery hop re-places them
+                # (a foot that unloads as the push begins would abort every push from here on).
+                m.recovering = m.failed_pushes >= PUSH_ATTEMPTS
             elif elapsed > m.crouch_max:
                 enter(m, STANCE, time)
         elif phase == PUSH and (
@@ -302,6 +307,8 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
             # under it): stand and try again rather than leave spinning off one foot. A push that
             # ran out of leg with the body sinking (a leg already long over a crater floor) has
             # failed too: limp legs would let the body fall onto the feet.
+            if not m.recovering:
+                m.failed_pushes += 1
             enter(m, STANCE, time)
     if m.phase == PUSH and phase != PUSH:
         m.push_skip_l = left.on and math.hypot(left.px, left.pz) > m.push - PUSH_MIN_STROKE
