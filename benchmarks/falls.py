@@ -7,8 +7,9 @@ Each run is `hopper-sim run --hops N --gravity BODY --seed S` (the default robot
 stepped one tick at a time so that the last TRACE_S seconds before a fall can be kept. Per run it
 prints hops done, fell or stuck (the time limit ran out short of N hops) and the torso's world x;
 per fall, the phases before it (phase letter L S C P F X, then the feet down, l and r, @ the time
-in s). Then the totals: hops, falls, stuck runs and hops per fall, per body. With --traces, each
-fall's or stuck run's last TRACE_S s go to DIR/BODY_SEED.npy, one row a tick (columns TRACE).
+in s). Then the totals: hops, falls, stuck runs, hops per fall and metres a hop, per body. With
+--traces, each fall's or stuck run's last TRACE_S s go to DIR/BODY_SEED.npy, one row a tick
+(columns TRACE).
 
 The runs are chaotic: any change to the ground controller moves where the falls happen, so compare
 variants over many seeds (a few thousand hops, seeds the change was not made on), not run by run.
@@ -116,7 +117,12 @@ def main(argv: list[str] | None = None) -> int:
         mine = [r for r in results if body is None or r["body"] == body]
         hops, falls, stuck = (sum(r[k] for r in mine) for k in ("hops", "fell", "stuck"))
         per = f"{hops / (falls + stuck):.0f}" if falls + stuck else "-"
-        print(f"{body or 'all':>6}: {hops} hops, {falls} falls, {stuck} stuck, {per} hops per fall or stop")
+        # Metres a hop: a robot trapped in a crater, hopping back and forth, hops on without falling.
+        travel = sum(r["x"] for r in mine) / max(hops, 1)
+        print(
+            f"{body or 'all':>6}: {hops} hops, {falls} falls, {stuck} stuck, {per} hops per fall or stop, "
+            f"{travel:.2f} m a hop"
+        )
     return 0
 
 

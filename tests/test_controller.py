@@ -6,10 +6,10 @@ import mujoco
 import numpy as np
 import pytest
 
-from hopper.config import WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT, Gains, InvalidConfig, SimConfig
+from hopper.config import WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT, Gains, GaitParams, InvalidConfig, SimConfig
 from hopper.control import HopController, control_tick
 from hopper.control.contact import debounce
-from hopper.control.kernel import PUSH_ATTEMPTS
+from hopper.control.kernel import PUSH_ATTEMPTS, STALL_HOPS
 from hopper.control.legs import RIGID_KNEE, leg_state
 from hopper.control.memory import MEMORY
 from hopper.control.phases import Phase
@@ -175,3 +175,30 @@ def test_after_failed_pushes_the_next_push_is_a_recovery_hop_that_re_places_the_
     assert mem["recovering"][0]
     _step_until(sim, lambda s: s.phase == Phase.FLIGHT)
     assert mem["failed_pushes"][0] == 0
+
+
+def _liftoff_vz(sim: Simulation) -> float:
+    """Step to the next liftoff; the CoM's vertical speed there (m/s)."""
+    _step_until(sim, lambda s: s.phase == Phase.PUSH)
+    _step_until(sim, lambda s: s.phase == Phase.FLIGHT)
+    return float(sim.data.sensordata[sim.controller.mem["s_com_vel"][0] + 2])
+
+
+@pytest.mark.parametrize("forward", [0.4, 0.0])
+def test_a_robot_that_keeps_landing_back_hops_out_harder_unless_it_hops_in_place(forward: float) -> None:
+    """Mars seed 3 hopped 300 times in one crater: each hop landed on its far wall, the stance slid
+    off it and a recovery hop took it back. After STALL_HOPS liftoffs that get no further than the
+    furthest one, the next push goes twice as high and fast; asked to hop in place, the robot does."""
+    sim = Simulation(SimConfig(terrain="flat", gait=GaitParams(forward_speed=forward)))
+    mem = sim.controller.mem
+    normal = _liftoff_vz(sim)
+    mem["progress_x"] = 100.0 if forward else 0.0  # far ahead: none of these liftoffs is progress
+    mem["stalled"] = STALL_HOPS - 1
+    assert _liftoff_vz(sim) == pytest.approx(normal, rel=0.1)  # the STALL_HOPS-th stall: still the gait's
+    boosted = _liftoff_vz(sim)
+    if forward:
+        assert mem["stalled"][0] == STALL_HOPS + 1
+        assert boosted > 1.3 * normal
+        assert boosted == pytest.approx(mem["vz_boost"][0], rel=0.15)
+    else:
+        assert boosted == pytest.approx(normal, rel=0.1)

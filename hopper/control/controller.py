@@ -108,7 +108,7 @@ class HopController:
         for name in (
             "phase_start", "push_done", "integral", "saturated", "wheel_command", "prev_vz",
             "last_contact", "last_both", "push_skip_l", "push_skip_r", "fall_cause", "fall_height",
-            "failed_pushes",
+            "failed_pushes", "boost", "progress_x", "stalled",
         ):  # fmt: skip
             m[name] = 0
         m["phase"], m["phase_start"], m["clock"] = int(Phase.STANCE), time, time

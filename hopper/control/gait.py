@@ -53,6 +53,9 @@ MOMENTUM_GAIN = 10.0  # 1/s on the Moon
 # A push that carries the capture point off the feet is caught by a small hop that lands around
 # it: low (leg clearance, not speed, sets it), quick, through the CoM.
 RECOVERY_APEX = 0.08  # m
+# A hop out of a place the robot keeps landing back in (hopper.control.kernel, STALL_HOPS) goes this
+# times as high, as far as the legs' margin allows (at Earth it does not: the apex is at it already).
+BOOST_APEX = 2.0
 # On the ground the wheel holds the torso's attitude: an internal torque whose loop does not
 # depend on g, stiff enough to catch a 1.5 N m s kick within a few degrees.
 HOLD_WN, HOLD_ZETA = 20.0, 1.0  # rad/s
@@ -102,6 +105,7 @@ class Gait:
 
     vz_liftoff: float  # m/s, push-off vertical speed
     recovery_vz: float  # m/s, push-off speed of a recovery hop (to catch the capture point)
+    vz_boost: float  # m/s, push-off speed of a hop out of a place the robot keeps landing back in
     apex: float  # m, the hop's apex above the liftoff height
     push_accel: float  # m/s^2, cap on the vertical push acceleration
     push_x_gain: float  # 1/s
@@ -164,6 +168,7 @@ def derive(gravity: float, gait: GaitParams, robot: Robot = PACKAGED) -> Gait:
     return Gait(
         vz_liftoff=math.sqrt(2.0 * g * apex),
         recovery_vz=math.sqrt(2.0 * g * min(RECOVERY_APEX, apex)),
+        vz_boost=math.sqrt(2.0 * g * max(apex, min(BOOST_APEX * apex, LEG_MARGIN * strength * stroke / g))),
         apex=apex,
         push_accel=min(PUSH_ACCEL_G * g, LEG_MARGIN * strength),
         push_x_gain=PUSH_X_GAIN * r,

@@ -31,6 +31,11 @@ LIMP_DAMPING = 0.5  # N m s/rad on each leg joint between the end of the push an
 # push: it sits the push out and the other leg pushes alone. Ending the push when that leg is
 # "done" would end it at once and leave the body on limp legs.
 PUSH_MIN_STROKE = 0.03  # m
+# A robot that keeps landing back where it was (a crater wall it cannot hop onto: the hop lands
+# on the wall, the stance slides off it and a recovery hop takes it back) hops out harder: the
+# forward speed stance.BOOST_SPEED times, the push-off to the apex the legs' margin allows (Gait.vz_boost).
+STALL_PROGRESS = 0.1  # m along the forward speed's direction: a liftoff beyond the furthest by this is progress
+STALL_HOPS = 4  # liftoffs without progress before a hop is boosted
 PUSH_ATTEMPTS = 2  # pushes that ended on the ground from the same feet before a recovery hop re-places them
 # A leg sweep runs at constant speed between ramps of this share of its time: a steady reaction on
 # the torso, its momentum above the wheel's capacity for most of the sweep (a minimum-jerk path
@@ -50,7 +55,7 @@ SETTLE_BAND = math.radians(1.0)  # rad: settled within 1 deg
 def enter(m, phase: int, time: float) -> None:  # noqa: ANN001 (a MEMORY record)
     m.phase, m.phase_start, m.push_done = phase, time, False
     if phase != PUSH and phase != FLIGHT:
-        m.recovering = False
+        m.recovering = m.boost = False
 
 
 @njit(cache=True)
@@ -261,6 +266,11 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
                 enter(m, FLIGHT, time)
                 m.integral = 0.0  # integral reset at liftoff
                 m.failed_pushes = 0
+                ahead = (qpos[m.q_x] - m.progress_x) * (1.0 if m.forward_speed >= 0.0 else -1.0)
+                if ahead > STALL_PROGRESS:
+                    m.progress_x, m.stalled = qpos[m.q_x], 0
+                else:
+                    m.stalled += 1
                 m.land_l = m.land_r = m.flight_length  # until the apex plans the landing
                 m.sweep_from_l, m.sweep_from_r = leg_angle(left), leg_angle(right)  # a sweep starts here
                 m.sweep_len_l, m.sweep_len_r = math.hypot(left.px, left.pz), math.hypot(right.px, right.pz)
@@ -296,6 +306,7 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
                 # The same push failed from these feet before: a small recovery hop re-places them
                 # (a foot that unloads as the push begins would abort every push from here on).
                 m.recovering = m.failed_pushes >= PUSH_ATTEMPTS
+                m.boost = not m.recovering and m.stalled >= STALL_HOPS and m.forward_speed != 0.0
             elif elapsed > m.crouch_max:
                 enter(m, STANCE, time)
         elif phase == PUSH and (

@@ -93,6 +93,9 @@ _STATE = [
     ("phase_start", "f8"),  # s
     ("push_done", "?"),  # the push reached its speed or length; the legs now swing
     ("recovering", "?"),  # this push is a recovery hop (the capture point left the feet)
+    ("boost", "?"),  # this push is a stronger hop out of a place the robot keeps landing back in
+    ("progress_x", "f8"),  # m, the furthest liftoff along the forward speed's direction so far
+    ("stalled", "i8"),  # liftoffs since the last that beat progress_x by STALL_PROGRESS
     ("failed_pushes", "i8"),  # pushes since the last liftoff that ended with the feet still down
     ("last_both", "f8"),  # s, when both feet last touched the ground
     ("push_skip_l", "?"),  # the leg began this push with no stroke left (hopper.control.kernel)

@@ -18,6 +18,7 @@ MIN_SUPPORT = 0.4  # fraction of the weight the stance legs always carry
 BALANCE_MOMENT = 8.0  # N m, of the wheel's 29.5: the most the feet may stray from the momentum's wish
 SUPPORT_MARGIN = 0.05  # least share of the vertical force on either of two feet: both stay loaded
 CONTACT_LOAD = 2.0  # x the contact threshold: the least force either of two feet is asked for
+BOOST_SPEED = 2.0  # x the forward speed of a boosted hop (hopper.control.kernel)
 REACH_FORCE = 0.2  # fraction of the weight a free leg may push with while it reaches for the ground
 
 
@@ -72,11 +73,12 @@ def stance(m, phase: int, body: Body, left: Leg, right: Leg) -> tuple[float, flo
             reach = math.hypot(left.px, left.pz)
         if right.on:
             reach = max(reach, math.hypot(right.px, right.pz))
-        vz_lo = m.recovery_vz if m.recovering else m.vz_liftoff
+        vz_lo = m.recovery_vz if m.recovering else (m.vz_boost if m.boost else m.vz_liftoff)
         remaining = max(m.push - reach, 0.02)
         az = min(max((vz_lo * vz_lo - vz * abs(vz)) / (2 * remaining), 0.0), m.push_accel)
         # A recovery hop keeps the speed it has: the landing, not the push, takes it out.
-        ax = 0.0 if m.recovering else clamp(m.push_x_gain * (m.forward_speed - vx), m.push_x_accel)
+        speed = m.forward_speed * (BOOST_SPEED if m.boost else 1.0)
+        ax = 0.0 if m.recovering else clamp(m.push_x_gain * (speed - vx), m.push_x_accel)
         if vz >= vz_lo or reach >= m.push:
             m.push_done = True
     elif phase == CROUCH:
