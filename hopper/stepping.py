@@ -9,13 +9,21 @@ threads run beside it.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
 
+from hopper.control import KERNEL_SOURCES, drop_stale_compiled
 from hopper.control.kernel import control_tick
 from hopper.mujoco_compat import MJ_STEP
+
+# _burst inlines the control kernel: its cache is stale when any of the kernel's sources changed,
+# though numba would reload it while this file is unchanged.
+_HERE = Path(__file__)
+drop_stale_compiled((*KERNEL_SOURCES, _HERE), _HERE.parent / "__pycache__", "stepping.*.nb[ic]", "numba-stepping.sha1")
 
 
 @intrinsic

@@ -8,31 +8,37 @@ phases, actuation, metrics) and `controller` (its Python face).
 """
 
 import hashlib
+from collections.abc import Iterable
 from pathlib import Path
 
+# Every source the compiled kernel is built from: numba inlines the functions a jitted one calls.
+KERNEL_SOURCES = tuple(sorted(Path(__file__).parent.glob("*.py")))
 
-def _drop_stale_compiled_kernel() -> None:
-    """numba's cache=True checks only the cached function's own source file, so an edit to
-    stance.py (or an upgrade that changes it) would leave control_tick compiled with the old
-    stance. Drop this package's compiled cache whenever any of its sources changed."""
-    here = Path(__file__).parent
-    digest = hashlib.sha1(b"".join(p.read_bytes() for p in sorted(here.glob("*.py")))).hexdigest()
-    cache, stamp = here / "__pycache__", here / "__pycache__" / "numba-sources.sha1"
+
+def drop_stale_compiled(sources: Iterable[Path], cache: Path, pattern: str, stamp: str) -> None:
+    """Remove the numba cache files `pattern` in `cache` unless `sources` are byte for byte those
+    they were compiled from (a digest kept in `cache`/`stamp`).
+
+    numba's cache=True checks only the cached function's own source file, so an edit to stance.py
+    (or an upgrade that changes it) would leave control_tick, or hopper.stepping's burst that
+    inlines it, compiled with the old stance: run() and step() would then fly different robots.
+    """
+    digest = hashlib.sha1(b"".join(p.read_bytes() for p in sources)).hexdigest()
     try:
-        if stamp.read_text() == digest:
+        if (cache / stamp).read_text() == digest:
             return
     except OSError:
         pass
     try:
-        for compiled in cache.glob("*.nb[ic]"):
+        for compiled in cache.glob(pattern):
             compiled.unlink()
         cache.mkdir(exist_ok=True)
-        stamp.write_text(digest)
+        (cache / stamp).write_text(digest)
     except OSError:
         pass  # a read-only install: numba then caches elsewhere, or not at all
 
 
-_drop_stale_compiled_kernel()
+drop_stale_compiled(KERNEL_SOURCES, Path(__file__).parent / "__pycache__", "*.nb[ic]", "numba-sources.sha1")
 
 from hopper.control.controller import HopController  # noqa: E402
 from hopper.control.kernel import EV_APEX, EV_FALL, EV_LIFTOFF, EV_TOUCHDOWN, control_tick  # noqa: E402
