@@ -75,7 +75,7 @@ def test_a_bad_schedule_command_is_refused_and_the_simulation_goes_on() -> None:
 
 
 # -- the response metrics on a known response ------------------------------------------------------
-@njit(cache=True)
+@njit  # not cached: numba would keep an old kernel.respond while this file is unchanged
 def _feed(mem: np.ndarray, times: np.ndarray, pitches: np.ndarray, torques: np.ndarray, speeds: np.ndarray) -> None:
     m = mem[0]
     for i in range(times.size):
