@@ -1,7 +1,7 @@
 """How often the robot falls on crater ground: N hops per (body, seed), the falls and where.
 
 Run: python -m benchmarks.falls [--hops 300] [--seeds 0-7] [--bodies moon,mars,ceres,earth]
-         [--workers 2] [--traces DIR]
+         [--workers 2] [--traces DIR] [--model PATH.xml]
 
 Each run is `hopper-sim run --hops N --gravity BODY --seed S` (the default robot and controller),
 stepped one tick at a time so that the last TRACE_S seconds before a fall can be kept. Per run it
@@ -57,13 +57,13 @@ def sequence(rows: np.ndarray) -> str:
     return " ".join(changes[-SEQUENCE:])
 
 
-def run(job: tuple[str, int, int, str | None]) -> dict:
+def run(job: tuple[str, int, int, str | None, str | None]) -> dict:
     """One run: its result, and the phases before its fall (or its stop short of the hops)."""
     from hopper.config import SimConfig
     from hopper.sim import Simulation
 
-    body, seed, hops, traces = job
-    sim = Simulation(SimConfig(seed=seed, gravity=GRAVITY_PRESETS[body]))
+    body, seed, hops, traces, model = job
+    sim = Simulation(SimConfig(seed=seed, gravity=GRAVITY_PRESETS[body], model=model))
     mem, lay, q, v = sim.controller.mem, sim.layout, sim.data.qpos, sim.data.qvel
     keep = round(TRACE_S / sim.model.opt.timestep)
     ring = np.zeros((keep, len(TRACE)))
@@ -94,6 +94,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--bodies", default="moon,mars,ceres,earth", help="gravity presets (default all four)")
     parser.add_argument("--workers", type=int, default=2, help="processes (default 2)")
     parser.add_argument("--traces", type=Path, default=None, help="keep each fall's last seconds here (.npy)")
+    parser.add_argument("--model", type=Path, default=None, help="your own MJCF of the robot (hopper-sim --model)")
     args = parser.parse_args(argv)
     bodies = args.bodies.split(",")
     unknown = [b for b in bodies if b not in GRAVITY_PRESETS]
@@ -103,7 +104,10 @@ def main(argv: list[str] | None = None) -> int:
         args.traces.mkdir(parents=True, exist_ok=True)
     traces = str(args.traces) if args.traces is not None else None
     # The slowest bodies first: the pool ends with short runs, not one long one.
-    jobs = sorted(((b, s, args.hops, traces) for b in bodies for s in args.seeds), key=lambda j: GRAVITY_PRESETS[j[0]])
+    model = str(args.model.resolve()) if args.model is not None else None
+    jobs = sorted(
+        ((b, s, args.hops, traces, model) for b in bodies for s in args.seeds), key=lambda j: GRAVITY_PRESETS[j[0]]
+    )
     results = []
     with Pool(args.workers) as pool:
         for r in pool.imap_unordered(run, jobs):

@@ -177,28 +177,34 @@ def test_after_failed_pushes_the_next_push_is_a_recovery_hop_that_re_places_the_
     assert mem["failed_pushes"][0] == 0
 
 
-def _liftoff_vz(sim: Simulation) -> float:
-    """Step to the next liftoff; the CoM's vertical speed there (m/s)."""
+def _liftoff(sim: Simulation) -> tuple[float, float]:
+    """Step to the next liftoff; the CoM's (vx, vz) there (m/s)."""
     _step_until(sim, lambda s: s.phase == Phase.PUSH)
     _step_until(sim, lambda s: s.phase == Phase.FLIGHT)
-    return float(sim.data.sensordata[sim.controller.mem["s_com_vel"][0] + 2])
+    s = sim.controller.mem["s_com_vel"][0]
+    return float(sim.data.sensordata[s]), float(sim.data.sensordata[s + 2])
 
 
 @pytest.mark.parametrize("forward", [0.4, 0.0])
 def test_a_robot_that_keeps_landing_back_hops_out_harder_unless_it_hops_in_place(forward: float) -> None:
     """Mars seed 3 hopped 300 times in one crater: each hop landed on its far wall, the stance slid
     off it and a recovery hop took it back. After STALL_HOPS liftoffs that get no further than the
-    furthest one, the next push goes twice as high and fast; asked to hop in place, the robot does."""
+    furthest one, the next push goes twice as high and faster, but no faster than the landing can
+    still place the feet around the capture point; asked to hop in place, the robot does."""
     sim = Simulation(SimConfig(terrain="flat", gait=GaitParams(forward_speed=forward)))
     mem = sim.controller.mem
-    normal = _liftoff_vz(sim)
+    vx, vz = _liftoff(sim)
     mem["progress_x"] = 100.0 if forward else 0.0  # far ahead: none of these liftoffs is progress
     mem["stalled"] = STALL_HOPS - 1
-    assert _liftoff_vz(sim) == pytest.approx(normal, rel=0.1)  # the STALL_HOPS-th stall: still the gait's
-    boosted = _liftoff_vz(sim)
+    assert _liftoff(sim)[1] == pytest.approx(vz, rel=0.1)  # the STALL_HOPS-th stall: still the gait's
+    boosted_vx, boosted_vz = _liftoff(sim)
     if forward:
+        m = mem[0]
+        reach = (m["reach_limit"] + m["capture_margin"]) / m["capture_time"]  # m/s
         assert mem["stalled"][0] == STALL_HOPS + 1
-        assert boosted > 1.3 * normal
-        assert boosted == pytest.approx(mem["vz_boost"][0], rel=0.15)
+        assert boosted_vz > 1.3 * vz
+        assert boosted_vz == pytest.approx(m["vz_boost"], rel=0.15)
+        assert 1.2 * vx < boosted_vx < 1.1 * reach < 2.0 * forward
     else:
-        assert boosted == pytest.approx(normal, rel=0.1)
+        assert boosted_vz == pytest.approx(vz, rel=0.1)
+        assert boosted_vx == pytest.approx(vx, abs=0.03)  # the same hop as the first
