@@ -18,7 +18,7 @@ MIN_SUPPORT = 0.4  # fraction of the weight the stance legs always carry
 BALANCE_MOMENT = 8.0  # N m, of the wheel's 29.5: the most the feet may stray from the momentum's wish
 SUPPORT_MARGIN = 0.05  # least share of the vertical force on either of two feet: both stay loaded
 CONTACT_LOAD = 2.0  # x the contact threshold: the least force either of two feet is asked for
-BOOST_SPEED = 2.0  # x the forward speed of a boosted hop at most (hopper.control.kernel)
+BOOST_SPEED = 2.0  # x the forward speed of a boosted hop (hopper.control.kernel)
 REACH_FORCE = 0.2  # fraction of the weight a free leg may push with while it reaches for the ground
 
 
@@ -77,10 +77,7 @@ def stance(m, phase: int, body: Body, left: Leg, right: Leg) -> tuple[float, flo
         remaining = max(m.push - reach, 0.02)
         az = min(max((vz_lo * vz_lo - vz * abs(vz)) / (2 * remaining), 0.0), m.push_accel)
         # A recovery hop keeps the speed it has: the landing, not the push, takes it out.
-        speed = m.forward_speed
-        if m.boost:  # faster, but not beyond the speed whose capture point the landing still reaches
-            reach = (m.reach_limit + m.capture_margin) / m.capture_time
-            speed = math.copysign(min(BOOST_SPEED * abs(speed), max(abs(speed), reach)), speed)
+        speed = m.forward_speed * (BOOST_SPEED if m.boost else 1.0)
         ax = 0.0 if m.recovering else clamp(m.push_x_gain * (speed - vx), m.push_x_accel)
         if vz >= vz_lo or reach >= m.push:
             m.push_done = True
