@@ -9,11 +9,11 @@ import pytest
 from hopper.config import WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT, Gains, GaitParams, InvalidConfig, SimConfig
 from hopper.control import HopController, control_tick
 from hopper.control.contact import debounce
+from hopper.control.gait import BOOST_SPEED
 from hopper.control.kernel import PUSH_ATTEMPTS, STALL_HOPS
 from hopper.control.legs import RIGID_KNEE, leg_state
 from hopper.control.memory import MEMORY
 from hopper.control.phases import Phase
-from hopper.control.stance import BOOST_SPEED
 from hopper.control.wheel import WHEEL_DAMPING, wheel_ctrl, wheel_pid
 from hopper.layout import ModelLayout
 from hopper.model import MODEL_XML, build_model

@@ -53,9 +53,10 @@ MOMENTUM_GAIN = 10.0  # 1/s on the Moon
 # A push that carries the capture point off the feet is caught by a small hop that lands around
 # it: low (leg clearance, not speed, sets it), quick, through the CoM.
 RECOVERY_APEX = 0.08  # m
-# A hop out of a place the robot keeps landing back in (hopper.control.kernel, STALL_HOPS) goes this
-# times as high, as far as the legs' margin allows (at Earth it does not: the apex is at it already).
-BOOST_APEX = 2.0
+# A hop out of a place the robot keeps landing back in (hopper.control.kernel, STALL_HOPS) goes
+# BOOST_APEX times as high, as far as the legs' margin allows (at Earth it does not: the apex is at
+# it already), and BOOST_SPEED times as fast (hopper.control.stance).
+BOOST_APEX, BOOST_SPEED = 2.0, 2.0
 # On the ground the wheel holds the torso's attitude: an internal torque whose loop does not
 # depend on g, stiff enough to catch a 1.5 N m s kick within a few degrees.
 HOLD_WN, HOLD_ZETA = 20.0, 1.0  # rad/s

@@ -33,7 +33,7 @@ LIMP_DAMPING = 0.5  # N m s/rad on each leg joint between the end of the push an
 PUSH_MIN_STROKE = 0.03  # m
 # A robot that keeps landing back where it was (a crater wall it cannot hop onto: the hop lands
 # on the wall, the stance slides off it and a recovery hop takes it back) hops out harder: the
-# forward speed stance.BOOST_SPEED times, the push-off to the apex the legs' margin allows (Gait.vz_boost).
+# forward speed and the apex gait.BOOST_SPEED and BOOST_APEX times (the apex within the legs' margin).
 STALL_PROGRESS = 0.1  # m along the forward speed's direction: a liftoff beyond the furthest by this is progress
 STALL_HOPS = 4  # liftoffs without progress before a hop is boosted
 PUSH_ATTEMPTS = 2  # pushes that ended on the ground from the same feet before a recovery hop re-places them

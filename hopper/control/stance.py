@@ -7,6 +7,7 @@ from typing import NamedTuple
 
 from numba import njit
 
+from hopper.control.gait import BOOST_SPEED
 from hopper.control.legs import Leg, clamp, push_torques, swing_torques
 from hopper.control.phases import Phase
 from hopper.control.wheel import wheel_torque_bound
@@ -18,7 +19,6 @@ MIN_SUPPORT = 0.4  # fraction of the weight the stance legs always carry
 BALANCE_MOMENT = 8.0  # N m, of the wheel's 29.5: the most the feet may stray from the momentum's wish
 SUPPORT_MARGIN = 0.05  # least share of the vertical force on either of two feet: both stay loaded
 CONTACT_LOAD = 2.0  # x the contact threshold: the least force either of two feet is asked for
-BOOST_SPEED = 2.0  # x the forward speed of a boosted hop (hopper.control.kernel)
 REACH_FORCE = 0.2  # fraction of the weight a free leg may push with while it reaches for the ground
 
 
