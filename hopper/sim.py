@@ -541,6 +541,7 @@ class Simulation:
         if events & (EV_TOUCHDOWN | EV_FALL):
             self.pending.kick_at = math.inf  # a flight shorter than the delay goes unkicked
         if events & EV_TOUCHDOWN:
+            self.controller.feel_ground(self.data, self._ground)
             self._emit(Touchdown(self.metrics.touchdown(s.time, s.x, s.pitch)))
         if events & EV_FALL:
             hop = self.metrics.touchdown(s.time, s.x, s.pitch, completed=False)

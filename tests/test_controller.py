@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import mujoco
 import numpy as np
 import pytest
@@ -207,3 +209,56 @@ def test_a_robot_that_keeps_landing_back_hops_out_harder_unless_it_hops_in_place
     else:
         assert boosted_vz == pytest.approx(vz, rel=0.1)
         assert boosted_vx == pytest.approx(vx, abs=0.03)  # the same hop as the first
+
+
+def _foot_forces(mem: np.ndarray, qpos: np.ndarray, ctrl: np.ndarray) -> list[np.ndarray]:
+    """The ground forces (fx, fz) (N) the leg torques in `ctrl` ask for at each foot: tau = -J^T f, solved."""
+    m = mem[0]
+    forces = []
+    for side in ("l", "r"):
+        leg = leg_state(m, qpos[m["q_pitch"]], qpos[m[f"q_hip_{side}"]], qpos[m[f"q_knee_{side}"]], 0.0, 0.0, True)
+        jacobian_t = np.array([[-leg.pz, leg.px], [-leg.jx, -leg.jz]])  # (hip, knee) per (fx, fz)
+        forces.append(np.linalg.solve(jacobian_t, [ctrl[m[f"a_hip_{side}"]], ctrl[m[f"a_knee_{side}"]]]))
+    return forces
+
+
+@pytest.mark.parametrize("slope_deg", [20.0, -20.0, 0.0])
+def test_the_stance_keeps_each_foots_force_inside_its_friction_cone_turned_with_the_ground(slope_deg: float) -> None:
+    """On a crater wall the stance asked for as much horizontal force as level ground holds
+    (|fx| = mu fz in world axes), and the feet slid at the full friction ratio (Moon seed 1, Mars
+    seed 2: falls on 25-35 deg walls). Standing on `slope_deg` ground and drifting downhill, each
+    foot is asked for a force inside its cone about the ground's normal, at its edge."""
+    sim = Simulation(SimConfig(terrain="flat"))
+    mem = sim.controller.mem
+    mu, slope = float(mem["friction"][0]), math.radians(slope_deg)
+    mem["slope_l"] = mem["slope_r"] = slope
+    d = sim.data
+    qvel, ctrl = d.qvel.copy(), d.ctrl.copy()
+    # Landing, drifting downhill (backwards on rising ground): the braking force points uphill, the
+    # way the cone limits. (In STANCE that drift would start a recovery hop.)
+    mem["phase"], mem["phase_start"] = Phase.LANDING, mem["clock"]
+    qvel[mem["v_x"][0]] = -0.3 if slope_deg >= 0 else 0.3
+    control_tick(d.qpos, qvel, d.sensordata, ctrl, mem)
+    assert mem["phase"][0] == Phase.LANDING
+    normal, tangent = np.array([-math.sin(slope), math.cos(slope)]), np.array([math.cos(slope), math.sin(slope)])
+    for force in _foot_forces(mem, d.qpos, ctrl):
+        along, across = float(force @ tangent), float(force @ normal)
+        assert across > 0.0
+        assert abs(along) <= mu * across * (1 + 1e-9)
+        assert abs(along) == pytest.approx(mu * across, rel=1e-6)  # the demand is at the cone's edge
+
+
+def test_each_touchdown_reads_the_ground_slope_under_each_foot() -> None:
+    """The kernel's slopes are the terrain's under the feet at touchdown (rad, rising along +x)."""
+    sim = Simulation(SimConfig(seed=3))
+    mem, r = sim.controller.mem, sim.robot.foot_radius
+    steep = 0
+    for _ in range(6):
+        _step_until(sim, lambda s: s.phase == Phase.FLIGHT, limit_s=30.0)
+        _step_until(sim, lambda s: s.phase == Phase.LANDING, limit_s=30.0)
+        for side, y in (("L", sim.robot.foot_y), ("R", -sim.robot.foot_y)):
+            x = float(sim.data.geom(f"foot_{side}").xpos[0])
+            expected = math.atan((sim.terrain.height(x + r, y) - sim.terrain.height(x - r, y)) / (2 * r))
+            assert mem[f"slope_{side.lower()}"][0] == pytest.approx(expected, abs=math.radians(0.1))
+            steep += abs(expected) > math.radians(3.0)
+    assert steep > 0  # crater ground, not the level start pad only

@@ -108,7 +108,7 @@ class HopController:
         for name in (
             "phase_start", "push_done", "integral", "saturated", "wheel_command", "prev_vz",
             "last_contact", "last_both", "push_skip_l", "push_skip_r", "fall_cause", "fall_height",
-            "failed_pushes", "boost", "progress_x", "stalled",
+            "failed_pushes", "boost", "progress_x", "stalled", "slope_l", "slope_r",
         ):  # fmt: skip
             m[name] = 0
         m["phase"], m["phase_start"], m["clock"] = int(Phase.STANCE), time, time
@@ -130,6 +130,14 @@ class HopController:
             self.robot.foot_radius,
         )  # fmt: skip
         m["land_l"], m["land_r"] = lengths
+
+    def feel_ground(self, data: mujoco.MjData, ground: Callable[[float, int], float]) -> None:
+        """At touchdown: the ground's slope under each foot (rad, rising along +x), for the stance's
+        friction cones. Taken across the foot's own width, the ground its sphere rests on."""
+        m, r = self.mem, self.robot.foot_radius
+        for foot, name in ((0, "L"), (1, "R")):
+            x = float(data.geom(f"foot_{name}").xpos[0])
+            m[f"slope_{name.lower()}"] = math.atan((ground(x + r, foot) - ground(x - r, foot)) / (2.0 * r))
 
     def _hip_and_feet_ahead(
         self, data: mujoco.MjData, layout: ModelLayout

@@ -98,6 +98,8 @@ _STATE = [
     ("stalled", "i8"),  # liftoffs since the last that beat progress_x by STALL_PROGRESS
     ("failed_pushes", "i8"),  # pushes since the last liftoff that ended with the feet still down
     ("last_both", "f8"),  # s, when both feet last touched the ground
+    ("slope_l", "f8"),  # rad, the ground's slope under each foot, rising along +x (written at touchdown)
+    ("slope_r", "f8"),
     ("push_skip_l", "?"),  # the leg began this push with no stroke left (hopper.control.kernel)
     ("push_skip_r", "?"),
     ("sweep_from_l", "f8"),  # rad, each virtual leg's world angle at liftoff (where a sweep starts)

@@ -49,6 +49,20 @@ def leg_capacity(m, leg: Leg, k: float) -> float:  # noqa: ANN001 (a MEMORY reco
 
 
 @njit(cache=True)
+def cone(slope: float, mu: float) -> tuple[float, float]:
+    """The horizontal-to-vertical force ratios (fx / fz) a foot on ground rising at `slope` (rad)
+    holds without slipping: the friction cone turned with the ground's normal.
+
+    A vertical force is always allowed: on a wall steeper than the friction angle the foot slides
+    whatever it is asked, and pushing off the wall instead would throw the body back.
+    """
+    half = math.atan(mu)
+    lo = math.tan(max(-slope - half, -1.4))  # 80 deg: tan stays finite
+    hi = math.tan(min(-slope + half, 1.4))
+    return min(lo, 0.0), max(hi, 0.0)
+
+
+@njit(cache=True)
 def stance(m, phase: int, body: Body, left: Leg, right: Leg) -> tuple[float, float, float, float, float]:  # noqa: ANN001
     """Returns (wheel, hip_L, knee_L, hip_R, knee_R) torques (N m) for the feet in contact.
 
@@ -109,7 +123,19 @@ def stance(m, phase: int, body: Body, left: Leg, right: Leg) -> tuple[float, flo
         wheel = 0.0
         feet = -(m.kp_stance * pitch + m.kd_stance * rate)
 
-    mu = m.friction
+    # Each foot's friction cone, turned with the ground under it: on a slope the same force that
+    # holds on level ground slides the foot (a world-frame cone let landings on crater walls slip
+    # at the full friction ratio). Two feet share one direction, so inside both cones.
+    lo_l, hi_l = cone(m.slope_l, m.friction)
+    lo_r, hi_r = cone(m.slope_r, m.friction)
+    if left.on and right.on:
+        k_lo, k_hi = max(lo_l, lo_r), min(hi_l, hi_r)
+        if k_lo > k_hi:  # feet on walls facing each other: no direction suits both; the least slip
+            k_lo = k_hi = 0.5 * (k_lo + k_hi)
+    elif left.on:
+        k_lo, k_hi = lo_l, hi_l
+    else:
+        k_lo, k_hi = lo_r, hi_r
     # Balancing (not pushing), the CoM comes first: the feet may make up to `stray` N m more or
     # less than the momentum asks; the wheel keeps the torso upright and holds the difference
     # until both feet can take it out again.
@@ -122,7 +148,7 @@ def stance(m, phase: int, body: Body, left: Leg, right: Leg) -> tuple[float, flo
         # feet = fz (c0 + s c1). The share can only go from SUPPORT_MARGIN to 1 - SUPPORT_MARGIN;
         # beyond, the horizontal force yields to the moment.
         rza, rzb = hip_z + left.pz, hip_z + right.pz
-        k = clamp(fx / fz, mu)
+        k = min(max(fx / fz, k_lo), k_hi)
         want = feet / fz
         c0, c1 = rzb * k - rbx, (rza - rzb) * k - (rax - rbx)
         s = (want - c0) / c1
@@ -139,7 +165,7 @@ def stance(m, phase: int, body: Body, left: Leg, right: Leg) -> tuple[float, flo
             s = min(max(s, lo), hi)
             if balance:  # keep the force the CoM needs, within `stray` of the moment wanted
                 want = min(max(c0 + s * c1, want - stray / fz), want + stray / fz)
-            k = clamp((want + rbx + s * (rax - rbx)) / (rzb + s * (rza - rzb)), mu)
+            k = min(max((want + rbx + s * (rax - rbx)) / (rzb + s * (rza - rzb)), k_lo), k_hi)
         fz_l = s * fz
         fz_r = fz - fz_l
         hl, kl = push_torques(m, left, k * fz_l, fz_l)
@@ -150,7 +176,7 @@ def stance(m, phase: int, body: Body, left: Leg, right: Leg) -> tuple[float, flo
     rz = hip_z - height
     fx_moment = (feet - offset_x * fz) / rz
     fx = min(max(fx, fx_moment - stray / -rz), fx_moment + stray / -rz) if balance else fx_moment
-    fx = clamp(fx, mu * fz)
+    fx = min(max(fx, k_lo * fz), k_hi * fz)
     if both:
         hl, kl = push_torques(m, left, fx / 2, fz / 2)
         hr, kr = push_torques(m, right, fx / 2, fz / 2)
