@@ -1,6 +1,7 @@
 """Issue 21's round trip with known truth: log a mismatched robot, identify it from the default model.
 
-Run: python -m benchmarks.identify_roundtrip [--cases issue,second] [--formats csv,mcap] [--hops 7] [--seed 21]
+Run: python -m benchmarks.identify_roundtrip [--cases issue,second] [--draws 1-3] [--formats csv,mcap] [--hops 7]
+         [--seed 21]
 
 Each case's robot (a hopper.mismatch and a gyro bias, realistic sensing: the IMU's noise and bias
 random walk, the motor delay) hops 2 x --hops hops on the flat Moon; the log is written as CSV and
@@ -44,6 +45,25 @@ CASES = {  # name -> (mismatch, gyro bias deg/s)
         -0.7,
     ),
 }
+# --draws: mismatches none of the above, drawn per case from these ranges (factors; com_x in m,
+# the gyro bias in deg/s), so that the fit is tried on robots it was not developed on.
+DRAW_RANGES = {
+    "torso_mass": (0.85, 1.25),
+    "wheel_inertia": (0.8, 1.2),
+    "motor_torque": (0.85, 1.15),
+    "friction": (0.7, 1.15),
+    "com_x": (-0.015, 0.015),
+}
+DRAW_BIAS = (-0.8, 0.8)
+
+
+def drawn(k: int) -> tuple[tuple, float]:
+    """Draw k's case (mismatch, gyro bias deg/s): every DRAW_RANGES parameter uniform in its range."""
+    rng = np.random.default_rng(k)
+    mismatch = tuple((name, round(float(rng.uniform(lo, hi)), 4)) for name, (lo, hi) in DRAW_RANGES.items())
+    return mismatch, round(float(rng.uniform(*DRAW_BIAS)), 3)
+
+
 REPLAYS = (f"re-anchored every {replay.REANCHOR_S:g} s", "whole hops, each from its liftoff",
            "phases, each from its start", "flights alone")  # fmt: skip
 TOLERANCE = {"friction": 0.10, "gyro_bias": 0.10}  # the rest: 5 %
@@ -81,7 +101,7 @@ def replay_errors(model, log, first: int, count: int) -> tuple[float, float, flo
 
 
 def run_case(name: str, formats: list[str], hops: int, refit_each: bool, folder: Path, seed: int = 21) -> bool:
-    mismatch, bias = CASES[name]
+    mismatch, bias = CASES[name] if name in CASES else drawn(int(name.removeprefix("draw")))
     config = SimConfig(
         terrain="flat",
         sensing="realistic",
@@ -147,15 +167,23 @@ def run_case(name: str, formats: list[str], hops: int, refit_each: bool, folder:
 
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--cases", default=",".join(CASES), help=f"comma-separated, of {', '.join(CASES)}")
+    p.add_argument("--cases", default=",".join(CASES), help=f"comma-separated, of {', '.join(CASES)} ('' for none)")
+    p.add_argument("--draws", default="", help="drawn mismatches too, e.g. 1-3 (DRAW_RANGES)")
     p.add_argument("--formats", default="csv,mcap", help="comma-separated, of csv, mcap, npz")
     p.add_argument("--hops", type=int, default=7, help="hops fitted (as many again validate)")
     p.add_argument("--refit-each", action="store_true", help="fit every format's log even when they are equal")
     p.add_argument("--seed", type=int, default=21, help="the capture's seed: its IMU noise and bias walk (default 21)")
     args = p.parse_args()
+    names = [n for n in args.cases.split(",") if n]
+    for n in names:
+        if n not in CASES:
+            p.error(f"unknown case {n!r}; the cases: {', '.join(CASES)}")
+    if args.draws:
+        first, _, last = args.draws.partition("-")
+        names += [f"draw{k}" for k in range(int(first), int(last or first) + 1)]
     results = {}
     with tempfile.TemporaryDirectory() as folder:
-        for name in args.cases.split(","):
+        for name in names:
             results[name] = run_case(name, args.formats.split(","), args.hops, args.refit_each, Path(folder), args.seed)
     print("\n" + ", ".join(f"{n}: {'pass' if r else 'FAIL'}" for n, r in results.items()))
     return 0 if all(results.values()) else 1
