@@ -328,7 +328,11 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
 
     # -- actuation --
     wheel = 0.0
-    if phase in (FLIGHT, FALLEN) or not contact:
+    if phase == PUSH and not contact and not m.push_done:
+        # A foot bouncing off the ground during the push, for less than the liftoff's confirmation:
+        # the legs keep pushing rather than swing for a landing between two contacts.
+        hl, kl, hr, kr = ctrl[m.a_hip_l], ctrl[m.a_knee_l], ctrl[m.a_hip_r], ctrl[m.a_knee_r]
+    elif phase in (FLIGHT, FALLEN) or not contact:
         # Legs swing to the landing pose: the feet's midpoint goes where the capture point lands
         # inside the front half of the support (Raibert's placement, from the linear inverted
         # pendulum), measured from the hip.
@@ -386,10 +390,6 @@ def control_tick(qpos: np.ndarray, qvel: np.ndarray, sensors: np.ndarray, ctrl: 
                 hr, kr = -LIMP_DAMPING * right.hip_rate, -LIMP_DAMPING * right.knee_rate
         else:
             wheel, hl, kl, hr, kr = stance(m, phase, body, left, right)
-    if phase == PUSH and not contact and not m.push_done:
-        # A foot bouncing off the ground during the push, for less than the liftoff's confirmation:
-        # the legs keep pushing rather than swing for a landing between two contacts.
-        hl, kl, hr, kr = ctrl[m.a_hip_l], ctrl[m.a_knee_l], ctrl[m.a_hip_r], ctrl[m.a_knee_r]
     if m.legs_locked:  # the stand holds them: a torque would only load its constraints
         hl = kl = hr = kr = 0.0
     ctrl[m.a_hip_l], ctrl[m.a_knee_l], ctrl[m.a_hip_r], ctrl[m.a_knee_r] = hl, kl, hr, kr

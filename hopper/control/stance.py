@@ -125,13 +125,12 @@ def stance(m, phase: int, body: Body, left: Leg, right: Leg) -> tuple[float, flo
 
     # Each foot's friction cone, turned with the ground under it: on a slope the same force that
     # holds on level ground slides the foot (a world-frame cone let landings on crater walls slip
-    # at the full friction ratio). Two feet share one direction, so inside both cones.
+    # at the full friction ratio). Two feet share one direction, so inside both cones (never
+    # empty: each holds the vertical).
     lo_l, hi_l = cone(m.slope_l, m.friction)
     lo_r, hi_r = cone(m.slope_r, m.friction)
     if left.on and right.on:
         k_lo, k_hi = max(lo_l, lo_r), min(hi_l, hi_r)
-        if k_lo > k_hi:  # feet on walls facing each other: no direction suits both; the least slip
-            k_lo = k_hi = 0.5 * (k_lo + k_hi)
     elif left.on:
         k_lo, k_hi = lo_l, hi_l
     else:
