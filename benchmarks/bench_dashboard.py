@@ -174,7 +174,10 @@ def main() -> None:
     print(f"{args.rounds} rounds, each case in turn in every round (medians; range in brackets); machine shared")
     if cases:
         report([merged(rounds[f"clients {n}"]) for n in cases], args.seconds, args.speed)
-        long_run(start, end, dashboard.sim.config.craters.tile, [merged(rounds[f"clients {n}"]) for n in cases])
+        if speeds:  # the robot's travel over the run includes the fast-forwarded rounds
+            print("\nterrain over the long run: not measured with --speeds (run the client cases alone)")
+        else:
+            long_run(start, end, dashboard.sim.config.craters.tile, [merged(rounds[f"clients {n}"]) for n in cases])
         base = [r["rtf"] for r in rounds[f"clients {cases[0]}"]]
         for n in cases[1:]:
             print(f"RTF {n} clients / {cases[0]} clients: {ratio([r['rtf'] for r in rounds[f'clients {n}']], base)}")
@@ -208,7 +211,10 @@ def bare_round(dashboard, config, controls: np.ndarray, seconds: float) -> dict:
 
 
 def at_speed(dashboard, speed: float, args: argparse.Namespace, record: bool) -> dict:
-    """The delivered speed at `speed` (MAX: as fast as it goes), with a recording on if `record`."""
+    """The delivered speed at `speed` (MAX: as fast as it goes), with a recording on if `record`.
+
+    The speed goes back to --speed after: the client cases of the next round are measured at it.
+    """
     dashboard.set_speed(speed)
     if record:
         dashboard.recorder.start()
@@ -221,6 +227,7 @@ def at_speed(dashboard, speed: float, args: argparse.Namespace, record: bool) ->
             dashboard.recorder.stop()
             while dashboard.recorder.active:
                 time.sleep(0.05)
+        dashboard.set_speed(args.speed)
 
 
 def merged(results: list[dict]) -> dict:
