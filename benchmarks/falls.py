@@ -7,9 +7,9 @@ Each run is `hopper-sim run --hops N --gravity BODY --seed S` (the default robot
 stepped one tick at a time so that the last TRACE_S seconds before a fall can be kept. Per run it
 prints hops done, fell or stuck (the time limit ran out short of N hops) and the torso's world x;
 per fall, the phases before it (phase letter L S C P F X, then the feet down, l and r, @ the time
-in s). Then the totals: hops, falls, stuck runs, hops per fall and metres a hop, per body. With
---traces, each fall's or stuck run's last TRACE_S s go to DIR/BODY_SEED.npy, one row a tick
-(columns TRACE).
+in s). Then the totals per body: hops, falls, stuck runs, hops per fall, metres a hop and the
+share of the pushes that were recovery hops. With --traces, each fall's or stuck run's last
+TRACE_S s go to DIR/BODY_SEED.npy, one row a tick (columns TRACE).
 
 The runs are chaotic: any change to the ground controller moves where the falls happen, so compare
 variants over many seeds (a few thousand hops, seeds the change was not made on), not run by run.
@@ -29,10 +29,12 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
 from hopper.config import GRAVITY_PRESETS  # noqa: E402
+from hopper.control.phases import Phase  # noqa: E402
 
 TRACE_S = 3.0  # s kept before a fall
 TRACE = ("t", "x", "z", "pitch", "vx", "vz", "phase", "foot_l", "foot_r", "wheel_speed", "push_done", "recovering")
 LETTERS = "LSCPFX"  # hopper.control.phases.Phase, in order
+PUSH = int(Phase.PUSH)
 SEQUENCE = 25  # phase changes shown before a fall
 
 
@@ -68,17 +70,25 @@ def run(job: tuple[str, int, int, str | None, str | None]) -> dict:
     keep = round(TRACE_S / sim.model.opt.timestep)
     ring = np.zeros((keep, len(TRACE)))
     ticks, limit = 0, round(sim.time_limit(hops) / sim.model.opt.timestep)
+    pushes = recoveries = 0
+    phase = -1
     start = time.perf_counter()
     while len(sim.hops) < hops and not sim.fallen and ticks < limit:
         sim.step()
         m = mem[0]
+        if m["phase"] != phase:
+            phase = m["phase"]
+            if phase == PUSH:
+                pushes += 1
+                recoveries += bool(m["recovering"])
         ring[ticks % keep] = (sim.data.time, q[lay.q_x], q[lay.q_z], m["pitch_true"], v[lay.v_x], v[lay.v_z],
                               m["phase"], m["contact_l"], m["contact_r"], v[lay.v_wheel], m["push_done"],
                               m["recovering"])  # fmt: skip
         ticks += 1
     done = sum(h.completed for h in sim.hops)
     result = {"body": body, "seed": seed, "hops": done, "fell": sim.fallen, "stuck": not sim.fallen and done < hops,
-              "x": sim.state().x, "wall_s": time.perf_counter() - start, "before": ""}  # fmt: skip
+              "x": sim.state().x, "wall_s": time.perf_counter() - start, "before": "",
+              "pushes": pushes, "recoveries": recoveries}  # fmt: skip
     if result["fell"] or result["stuck"]:
         rows = np.roll(ring, -(ticks % keep), axis=0) if ticks >= keep else ring[:ticks]
         result["before"] = sequence(rows)
@@ -123,9 +133,12 @@ def main(argv: list[str] | None = None) -> int:
         per = f"{hops / (falls + stuck):.0f}" if falls + stuck else "-"
         # Metres a hop: a robot trapped in a crater, hopping back and forth, hops on without falling.
         travel = sum(r["x"] for r in mine) / max(hops, 1)
+        # The share of pushes that were recovery hops (the capture point left the feet): how often
+        # the ground phase loses the robot, counted every hop, where falls are rare.
+        recovering = sum(r["recoveries"] for r in mine) / max(sum(r["pushes"] for r in mine), 1)
         print(
             f"{body or 'all':>6}: {hops} hops, {falls} falls, {stuck} stuck, {per} hops per fall or stop, "
-            f"{travel:.2f} m a hop"
+            f"{travel:.2f} m a hop, {recovering:.0%} of pushes recovery hops"
         )
     return 0
 
