@@ -12,6 +12,7 @@ import importlib.metadata
 import importlib.util
 import re
 import threading
+import warnings
 from collections.abc import Callable, Iterator
 from typing import Any
 
@@ -287,6 +288,24 @@ def test_a_script_for_one_client_reaches_that_client_only_and_no_later_one(
     assert b.wait_for(lambda p: uuid in p.gui) and b.scripts == []
     c, _ = connect(server, clients, probes)  # a later client replays the shared scene only
     assert c.wait_for(lambda p: uuid in p.gui) and c.scripts == []
+
+
+def test_a_send_to_a_client_that_just_closed_is_lost_without_a_warning(
+    server: viser.ViserServer, clients: Clients, probes: list[ProbeClient]
+) -> None:
+    """The chart feed and the roles check `connection_closed` and then send: a page that closes in
+    between must not make viser warn (its warning is for handles leaking onto dead connections)."""
+    slider = server.gui.add_slider("Shared", 0.0, 1.0, 0.1, 0.5)
+    a, client_a = connect(server, clients, probes)
+    a.close()
+    assert wait_until(lambda: compat.connection_closed(client_a), TIMEOUT_S)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        compat.run_javascript(client_a, "window.__marker = 1;")
+        compat.update_for_client(client_a, compat.element_id(slider), {"disabled": True})
+    # An ordinary send to that page is what viser warns about: the check above can fail.
+    with pytest.warns(UserWarning, match="never be delivered"):
+        client_a.gui.add_markdown("late")
 
 
 # -- broadcast_mark, broadcast_sent ---------------------------------------------------------------

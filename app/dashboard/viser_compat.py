@@ -87,7 +87,7 @@ def update_for_client(client: viser.ClientHandle, uuid: str, updates: dict[str, 
     Private: viser's handles only broadcast; a per-client change of a shared element (greying it
     for a viewer) needs the client's own message queue, `ClientHandle._websock_connection`.
     """
-    client._websock_connection.queue_message(GuiUpdateMessage(uuid, updates))
+    _send(client, GuiUpdateMessage(uuid, updates))
 
 
 # -- code for one page ---------------------------------------------------------------------------
@@ -106,7 +106,19 @@ def run_javascript(client: viser.ClientHandle, source: str) -> None:
     scene that every new client replays); here it goes on the client's own queue, which keeps nothing
     for later clients.
     """
-    client._websock_connection.queue_message(_messages.RunJavascriptMessage(source=source))
+    _send(client, _messages.RunJavascriptMessage(source=source))
+
+
+def _send(client: viser.ClientHandle, message: Message) -> None:
+    """Queue `message` on one client's connection, best effort.
+
+    The client may close between the caller's `connection_closed` check and this push: the message
+    is then lost with the page, which is fine, so the push is one of viser's sanctioned dead writes
+    (`sanctioned_dead_writes`, as its own scene removals use) rather than a warning.
+    """
+    connection = client._websock_connection
+    with connection.get_message_buffer().sanctioned_dead_writes():
+        connection.queue_message(message)
 
 
 # -- incoming messages ----------------------------------------------------------------------------
