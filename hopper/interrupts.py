@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import signal
 import threading
+import time
 from collections.abc import Iterator
 
 STOP_SIGNALS = (signal.SIGTERM, signal.SIGINT)
@@ -18,6 +19,10 @@ _held = 0  # depth of held() blocks in the main thread
 _pending: int | None = None  # the first signal that came inside a held() block, raised as it ends
 _requested = False  # a stop signal came at all (raise_if_stop_requested)
 _stopped = threading.Event()  # set with _requested, for a thread that only waits for a stop
+# s: the longest a main thread blocked in wait() sleeps through a stop signal. The kernel hands a
+# process a signal on whichever of its threads can take it; Python's handler then runs only once
+# the main thread wakes, and an untimed wait would never wake (the dashboard hung on a SIGTERM).
+WAKE_S = 0.1
 
 
 def _interrupt(signum: int, frame: object) -> None:
@@ -60,9 +65,29 @@ def stop_requested() -> bool:
     return _requested
 
 
+def wait(event: threading.Event, timeout: float | None = None) -> bool:
+    """`event.wait(timeout)` that a stop signal interrupts in the main thread, whichever thread the
+    kernel handed it to (see WAKE_S); True if the event was set."""
+    if timeout is None:
+        while not event.wait(WAKE_S):
+            pass
+        return True
+    deadline = time.monotonic() + timeout
+    while not event.wait(min(WAKE_S, max(deadline - time.monotonic(), 0.0))):
+        if time.monotonic() >= deadline:
+            return False
+    return True
+
+
+def join(thread: threading.Thread) -> None:
+    """`thread.join()` that a stop signal interrupts in the main thread (see wait)."""
+    while thread.is_alive():
+        thread.join(WAKE_S)
+
+
 def wait_for_stop() -> None:
     """Block until a stop signal comes, then raise KeyboardInterrupt (inside held() or not)."""
-    _stopped.wait()
+    wait(_stopped)
     raise KeyboardInterrupt
 
 

@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import signal
 import sys
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 from hopper.app import episode, recordings
 from hopper.app.recordings import FileLimits
+from net import wait_until
 from rrd import verify
 
 from hopper import interrupts
@@ -77,3 +79,59 @@ def test_a_stop_at_any_line_of_a_recorded_run_leaves_files_that_verify(
         files += made
     assert not list(tmp_path.glob(".*.reserve")), "a reserve file was left behind"
     verify(*files)
+
+
+def _signal_from_another_thread_once_main_waits(release: threading.Event) -> threading.Thread:
+    """A thread that, once the main thread blocks in a wait, takes a SIGTERM on itself (as the
+    kernel may hand a process's signal to any thread) and, if the main thread sleeps on through it
+    for 30 s, sets `release` so the test fails instead of hanging."""
+    main = threading.main_thread().ident
+
+    def blocked() -> bool:  # in threading's wait, called from interrupts' own
+        frame = sys._current_frames().get(main)
+        if frame is None or frame.f_code.co_filename != threading.__file__:
+            return False
+        while frame is not None and frame.f_code.co_filename == threading.__file__:
+            frame = frame.f_back
+        return frame is not None and frame.f_code.co_filename == interrupts.__file__
+
+    def run() -> None:
+        assert wait_until(blocked, timeout=30)
+        signal.pthread_kill(threading.get_ident(), signal.SIGTERM)
+        if not wait_until(lambda: interrupts.stop_requested(), timeout=30):
+            release.set()
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    return thread
+
+
+@pytest.mark.parametrize("timeout", [None, 600.0])
+def test_a_stop_signal_taken_by_another_thread_interrupts_a_wait(stop_handlers: None, timeout: float | None) -> None:
+    release = threading.Event()
+    helper = _signal_from_another_thread_once_main_waits(release)
+    with pytest.raises(KeyboardInterrupt):
+        interrupts.wait(release, timeout)
+    helper.join(30)
+    assert not release.is_set(), "the wait slept through the signal until the release"
+
+
+def test_a_stop_signal_taken_by_another_thread_interrupts_a_join(stop_handlers: None) -> None:
+    release = threading.Event()
+    waiter = threading.Thread(target=release.wait, daemon=True)
+    waiter.start()
+    helper = _signal_from_another_thread_once_main_waits(release)
+    with pytest.raises(KeyboardInterrupt):
+        interrupts.join(waiter)
+    helper.join(30)
+    assert not release.is_set(), "the join slept through the signal until the thread ended"
+    release.set()
+    assert not waiter.join(30) and not waiter.is_alive()
+
+
+def test_wait_says_whether_the_event_came_within_the_timeout() -> None:
+    event = threading.Event()
+    assert interrupts.wait(event, 0.0) is False
+    assert interrupts.wait(event, 0.3) is False
+    event.set()
+    assert interrupts.wait(event, 0.0) is True and interrupts.wait(event) is True

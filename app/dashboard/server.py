@@ -39,6 +39,7 @@ from hopper.app.dashboard.terrain_view import TerrainView
 from hopper.app.dashboard.wire import guard_gui_updates
 from hopper.app.recordings import FileLimits
 
+from hopper import interrupts
 from hopper.errors import HopperError
 from hopper.events import Event, EventKind, Fall
 from hopper.history import History
@@ -210,8 +211,8 @@ class Dashboard:
         self.stop()
 
     def wait(self, timeout: float | None = None) -> bool:
-        """Block until stop() is called (or `timeout` s); True if stopped."""
-        return self._stopping.wait(timeout)
+        """Block until stop() is called (or `timeout` s); True if stopped. A stop signal interrupts it."""
+        return interrupts.wait(self._stopping, timeout)
 
     def submit(self, command: Command) -> None:
         """Queue a command for the simulation the loop runs now (a mode change replaces it)."""

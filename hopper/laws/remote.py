@@ -52,6 +52,7 @@ from typing import NamedTuple, NoReturn
 
 import numpy as np
 
+from hopper import interrupts
 from hopper.controllers.api import ControllerError, Observation
 from hopper.controllers.law import ControllerFault
 from hopper.controllers.loading import declared_params
@@ -336,7 +337,7 @@ def serve(controller: type, host: str = "127.0.0.1", port: int = 0, params: Mapp
     """Serve `controller` (an API class) on host:port until interrupted (port 0: the OS chooses; logged)."""
     with Peer(controller, host, port, params) as peer:
         log.info("serving %s on %s", controller.__name__, peer.spec)
-        peer._thread.join()
+        interrupts.join(peer._thread)  # a stop signal ends it
 
 
 PEER_EXAMPLE = """\
