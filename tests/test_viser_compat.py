@@ -303,6 +303,8 @@ def test_a_send_to_a_client_that_just_closed_is_lost_without_a_warning(
         warnings.simplefilter("error")
         compat.run_javascript(client_a, "window.__marker = 1;")
         compat.update_for_client(client_a, compat.element_id(slider), {"disabled": True})
+        with compat.page_may_close(client_a):  # as feedback.notify tells one page
+            client_a.add_notification("Refused", "told to a page that closed")
     # An ordinary send to that page is what viser warns about: the check above can fail.
     with pytest.warns(UserWarning, match="never be delivered"):
         client_a.gui.add_markdown("late")

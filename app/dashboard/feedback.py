@@ -13,6 +13,7 @@ from collections.abc import Callable
 from typing import Any, Literal
 
 import viser
+from hopper.app.dashboard.viser_compat import page_may_close
 
 from hopper.errors import HopperError
 
@@ -60,7 +61,8 @@ def notify(client: viser.ClientHandle | None, title: str, body: str, level: Leve
             return
         shown[key] = now + AUTO_CLOSE_S[level]
     try:
-        client.add_notification(title, body, color=_COLORS[level], auto_close_seconds=AUTO_CLOSE_S[level])
+        with page_may_close(client):  # a page that closed since is simply not told
+            client.add_notification(title, body, color=_COLORS[level], auto_close_seconds=AUTO_CLOSE_S[level])
     except Exception:  # a disconnecting client must not break the caller
         log.debug("notification to client %s failed", getattr(client, "client_id", "?"), exc_info=True)
 

@@ -9,9 +9,10 @@ say, silently letting a viewer's input through the read-only gate.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import inspect
-from collections.abc import Awaitable, Callable
+from collections.abc import Awaitable, Callable, Iterator
 from typing import Any
 
 import viser
@@ -110,15 +111,22 @@ def run_javascript(client: viser.ClientHandle, source: str) -> None:
 
 
 def _send(client: viser.ClientHandle, message: Message) -> None:
-    """Queue `message` on one client's connection, best effort.
+    """Queue `message` on one client's connection, best effort (see page_may_close)."""
+    with page_may_close(client):
+        client._websock_connection.queue_message(message)
 
-    The client may close between the caller's `connection_closed` check and this push: the message
-    is then lost with the page, which is fine, so the push is one of viser's sanctioned dead writes
-    (`sanctioned_dead_writes`, as its own scene removals use) rather than a warning.
+
+@contextlib.contextmanager
+def page_may_close(client: viser.ClientHandle) -> Iterator[None]:
+    """Sends to `client` inside the block are lost without a warning if its page has just closed.
+
+    The page may close between a caller's `connection_closed` check (or viser's own) and the send:
+    the message is then lost with the page, which is fine, so the sends are viser's sanctioned dead
+    writes (`sanctioned_dead_writes`, as its own scene removals use) rather than a warning, which is
+    for handles leaking onto dead connections. Private: the buffer is `_websock_connection`'s.
     """
-    connection = client._websock_connection
-    with connection.get_message_buffer().sanctioned_dead_writes():
-        connection.queue_message(message)
+    with client._websock_connection.get_message_buffer().sanctioned_dead_writes():
+        yield
 
 
 # -- incoming messages ----------------------------------------------------------------------------
