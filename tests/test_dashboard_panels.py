@@ -5,6 +5,7 @@ Browser input is stood in for by `ProbeClient`, which speaks viser's real websoc
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 from pathlib import Path
@@ -79,6 +80,7 @@ class FakeClient:
 def test_a_notification_still_on_screen_is_not_shown_again(monkeypatch: pytest.MonkeyPatch) -> None:
     now = [100.0]
     monkeypatch.setattr(feedback, "_clock", lambda: now[0])
+    monkeypatch.setattr(feedback, "page_may_close", lambda _: contextlib.nullcontext())  # no connection here
     a, b = FakeClient(), FakeClient()
     notify(a, "The robot fell", "pitch -60°", "warning")
     notify(a, "The robot fell", "pitch -60°", "warning")  # still on screen: dropped
