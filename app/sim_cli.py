@@ -43,7 +43,7 @@ from hopper.app.recordings import FileLimits
 from hopper.terrain import CraterParams
 
 from hopper.config import TOTAL_MASS, Gains, GaitParams, InvalidConfig, SimConfig
-from hopper.interrupts import children_ignore_ctrl_c, stop_like_ctrl_c
+from hopper.interrupts import children_ignore_ctrl_c, each, stop_like_ctrl_c
 from hopper.scenarios import scenario
 
 CRATER_DEFAULTS = CraterParams()
@@ -420,7 +420,7 @@ def command_stress(args: argparse.Namespace) -> int:
     with children_ignore_ctrl_c():  # pool workers leave Ctrl-C to this process, which stops them
         pool = multiprocessing.get_context("spawn").Pool(workers)
     with pool:
-        runs = pool.imap(run_case, cases, chunksize=1)
+        runs = each(pool.imap(run_case, cases, chunksize=1))
         outcomes = list(tqdm(runs, total=len(cases), desc="cases", unit="case", file=sys.stderr))
     print("\n".join(table(outcomes)))
     if args.json:
@@ -501,7 +501,7 @@ def command_envelope(args: argparse.Namespace) -> int:
     with children_ignore_ctrl_c():  # pool workers leave Ctrl-C to this process, which stops them
         pool = multiprocessing.get_context("spawn").Pool(workers)
     with pool:
-        runs = pool.imap(run_case, cases, chunksize=1)
+        runs = each(pool.imap(run_case, cases, chunksize=1))
         outcomes = list(tqdm(runs, total=len(cases), desc="kicks", unit="case", file=sys.stderr))
     rows = envelope.rows(outcomes, moments, args.moments, flight)
     print(f"flat Moon, kicks in the second flight ({flight:.3f} s); landing limit {LANDING_LIMIT_DEG:g} deg")

@@ -31,6 +31,7 @@ import numpy as np
 from hopper.config import Gains
 from hopper.controllers.features import NAMES, SIZE
 from hopper.gym_env import FlightAttitudeEnv
+from hopper.interrupts import each
 from hopper.laws.policy import Weights
 
 EPISODE = {"gravity": (0.2, 10.0), "flights": 2, "kick_probability": 0.5, "randomise": True}
@@ -114,7 +115,7 @@ def main(argv: list[str] | None = None) -> int:
     rng = np.random.default_rng(args.seed)
     validation, test = draw(rng, VALIDATION_SEEDS, args.validation), draw(rng, TEST_SEEDS, args.test)
     pool = multiprocessing.get_context("spawn").Pool(args.workers) if args.workers > 1 else None
-    run = pool.map if pool else lambda f, jobs: list(map(f, jobs))
+    run = (lambda f, jobs: list(each(pool.imap(f, jobs)))) if pool else (lambda f, jobs: list(map(f, jobs)))
     best_score, best, best_gen = fitness((x0, args.hidden, validation)), x0, 0
     print(f"PID start: validation return {-best_score:.4f}", flush=True)
     for gen in range(1, args.generations + 1):

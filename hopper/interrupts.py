@@ -8,11 +8,14 @@ it as it ends, once the code that owns the file can close it.
 from __future__ import annotations
 
 import contextlib
+import multiprocessing
 import signal
 import threading
 import time
 from collections.abc import Iterator
+from typing import TypeVar
 
+T = TypeVar("T")
 STOP_SIGNALS = (signal.SIGTERM, signal.SIGINT)
 
 _held = 0  # depth of held() blocks in the main thread
@@ -83,6 +86,19 @@ def join(thread: threading.Thread) -> None:
     """`thread.join()` that a stop signal interrupts in the main thread (see wait)."""
     while thread.is_alive():
         thread.join(WAKE_S)
+
+
+def each(results: Iterator[T]) -> Iterator[T]:
+    """The items of a multiprocessing pool's `imap` (or `imap_unordered`), waiting for each in a way
+    a stop signal interrupts in the main thread (see wait): a sweep stops at once, not after its
+    running episodes."""
+    while True:
+        try:
+            yield results.next(WAKE_S)  # type: ignore[attr-defined] (multiprocessing.pool.IMapIterator)
+        except multiprocessing.TimeoutError:
+            continue
+        except StopIteration:
+            return
 
 
 def wait_for_stop() -> None:

@@ -6,6 +6,7 @@ import signal
 import sys
 import threading
 from collections.abc import Iterator
+from multiprocessing.pool import ThreadPool
 from pathlib import Path
 
 import pytest
@@ -87,13 +88,13 @@ def _signal_from_another_thread_once_main_waits(release: threading.Event) -> thr
     for 30 s, sets `release` so the test fails instead of hanging."""
     main = threading.main_thread().ident
 
-    def blocked() -> bool:  # in threading's wait, called from interrupts' own
+    def blocked() -> bool:  # in a wait of threading's, called (at any depth) from interrupts
         frame = sys._current_frames().get(main)
         if frame is None or frame.f_code.co_filename != threading.__file__:
             return False
-        while frame is not None and frame.f_code.co_filename == threading.__file__:
+        while frame is not None and frame.f_code.co_filename != interrupts.__file__:
             frame = frame.f_back
-        return frame is not None and frame.f_code.co_filename == interrupts.__file__
+        return frame is not None
 
     def run() -> None:
         assert wait_until(blocked, timeout=30)
@@ -127,6 +128,19 @@ def test_a_stop_signal_taken_by_another_thread_interrupts_a_join(stop_handlers: 
     assert not release.is_set(), "the join slept through the signal until the thread ended"
     release.set()
     assert not waiter.join(30) and not waiter.is_alive()
+
+
+def test_a_stop_signal_taken_by_another_thread_interrupts_a_pools_results(stop_handlers: None) -> None:
+    release = threading.Event()
+    with ThreadPool(1) as pool:  # the same result iterator as a process pool's
+        results = pool.imap(lambda _: release.wait(), [0])
+        helper = _signal_from_another_thread_once_main_waits(release)
+        with pytest.raises(KeyboardInterrupt):
+            list(interrupts.each(results))
+        helper.join(30)
+        assert not release.is_set(), "the results slept through the signal until the release"
+        release.set()
+        assert list(interrupts.each(pool.imap(lambda n: n * n, range(5)))) == [0, 1, 4, 9, 16]
 
 
 def test_wait_says_whether_the_event_came_within_the_timeout() -> None:

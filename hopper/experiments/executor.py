@@ -22,7 +22,7 @@ from hopper.config import MOON_GRAVITY
 from hopper.errors import HopperError
 from hopper.experiments.spec import Episode
 from hopper.experiments.worker import EpisodeResult, Worker
-from hopper.interrupts import children_ignore_ctrl_c
+from hopper.interrupts import children_ignore_ctrl_c, each
 
 Kind = Literal["auto", "local", "ray"]
 Chunk = list[Episode]
@@ -114,7 +114,7 @@ class LocalPool:
             self.pool = context.Pool(workers, initializer=_start_process_worker)
 
     def map(self, chunks: Iterable[Chunk]) -> Iterator[list[EpisodeResult]]:
-        yield from self.pool.imap_unordered(_run_in_process_worker, chunks)
+        yield from each(self.pool.imap_unordered(_run_in_process_worker, chunks))
 
     def close(self) -> None:
         self.pool.terminate()  # at the end the workers are idle; on Ctrl-C nothing they do is wanted
