@@ -58,6 +58,8 @@ def send_updates(client: ProbeClient, label: str, values: list) -> None:
         client.send({"type": "GuiUpdateMessage", "uuid": uuid, "updates": {"value": value}})
 
 
+# viser warns as it decodes the camera message with a word for a quaternion (part 3): expected here.
+@pytest.mark.filterwarnings("ignore:.*does not match annotation:UserWarning")
 def test_malformed_traffic_never_stops_the_loop_or_corrupts_settings(dashboard: Dashboard, client: ProbeClient) -> None:
     before = settings(dashboard)
     print(f"\nRTF before: {rtf_over(dashboard, 1.0):.3f}")
