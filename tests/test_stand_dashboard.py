@@ -97,13 +97,14 @@ def test_a_chirp_injected_live_on_the_stand_is_measured_and_drawn(dashboard: Das
 
     client.set_gui_value("To (Hz)", "200")
     client.set_gui_value("Length (s)", "3")
+    asked = sim.time  # s of simulation: the injection starts after the press and before the test sees it
     client.set_gui_value("Inject", True)
     assert wait_until(lambda: sim.injection is not None), "the injection never started"
     started = sim.time
     assert client.wait_for(lambda p: "Injection measured" in titles(p), timeout=60.0), titles(client)
     injection = sim.injection
     assert injection.stopped == "" and injection.played == 3000 and injection.length_s == pytest.approx(3.0)
-    assert injection.start.time == pytest.approx(started, abs=0.1)
+    assert asked <= injection.start.time <= started
     assert "crossover" in client.notifications[-1]["body"]
     assert dashboard.layout.stand.inject.bode.visible
     assert dashboard.sim is sim and sim.time > started + 3.0  # the loop ran on through it
