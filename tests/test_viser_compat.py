@@ -297,6 +297,7 @@ def test_a_send_to_a_client_that_just_closed_is_lost_without_a_warning(
     between must not make viser warn (its warning is for handles leaking onto dead connections)."""
     slider = server.gui.add_slider("Shared", 0.0, 1.0, 0.1, 0.5)
     a, client_a = connect(server, clients, probes)
+    own = client_a.gui.add_markdown("this page's own")  # as roles' view of a seat
     a.close()
     assert wait_until(lambda: compat.connection_closed(client_a), TIMEOUT_S)
     with warnings.catch_warnings():
@@ -305,6 +306,7 @@ def test_a_send_to_a_client_that_just_closed_is_lost_without_a_warning(
         compat.update_for_client(client_a, compat.element_id(slider), {"disabled": True})
         with compat.page_may_close(client_a):  # as feedback.notify tells one page
             client_a.add_notification("Refused", "told to a page that closed")
+            own.content = "updated on a page that closed"
     # An ordinary send to that page is what viser warns about: the check above can fail.
     with pytest.warns(UserWarning, match="never be delivered"):
         client_a.gui.add_markdown("late")

@@ -306,14 +306,15 @@ class Roles:
             self._grey(seat, seat.client.client_id != self.operator)
             line, ask, hand = self._texts(seat)
             view = seat.view
-            if view.line.content != line:
-                view.line.content = line
-            view.ask.visible = ask is not None
-            if ask is not None:
-                view.ask.label, view.ask.disabled = ask
-            view.hand.visible = hand is not None
-            if hand is not None:
-                view.hand.label = hand
+            with compat.page_may_close(seat.client):  # it may close after the check above
+                if view.line.content != line:
+                    view.line.content = line
+                view.ask.visible = ask is not None
+                if ask is not None:
+                    view.ask.label, view.ask.disabled = ask
+                view.hand.visible = hand is not None
+                if hand is not None:
+                    view.hand.label = hand
         except Exception:  # the client is leaving; its disconnect callback cleans up
             log.debug("updating the control view of %s failed", seat.name, exc_info=True)
 
