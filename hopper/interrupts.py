@@ -8,6 +8,7 @@ it as it ends, once the code that owns the file can close it.
 from __future__ import annotations
 
 import contextlib
+import math
 import multiprocessing
 import signal
 import threading
@@ -71,11 +72,7 @@ def stop_requested() -> bool:
 def wait(event: threading.Event, timeout: float | None = None) -> bool:
     """`event.wait(timeout)` that a stop signal interrupts in the main thread, whichever thread the
     kernel handed it to (see WAKE_S); True if the event was set."""
-    if timeout is None:
-        while not event.wait(WAKE_S):
-            pass
-        return True
-    deadline = time.monotonic() + timeout
+    deadline = math.inf if timeout is None else time.monotonic() + timeout
     while not event.wait(min(WAKE_S, max(deadline - time.monotonic(), 0.0))):
         if time.monotonic() >= deadline:
             return False

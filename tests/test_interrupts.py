@@ -99,7 +99,7 @@ def _signal_from_another_thread_once_main_waits(release: threading.Event) -> thr
     def run() -> None:
         assert wait_until(blocked, timeout=30)
         signal.pthread_kill(threading.get_ident(), signal.SIGTERM)
-        if not wait_until(lambda: interrupts.stop_requested(), timeout=30):
+        if not wait_until(interrupts.stop_requested, timeout=30):
             release.set()
 
     thread = threading.Thread(target=run, daemon=True)
@@ -127,7 +127,8 @@ def test_a_stop_signal_taken_by_another_thread_interrupts_a_join(stop_handlers: 
     helper.join(30)
     assert not release.is_set(), "the join slept through the signal until the thread ended"
     release.set()
-    assert not waiter.join(30) and not waiter.is_alive()
+    waiter.join(30)
+    assert not waiter.is_alive()
 
 
 def test_a_stop_signal_taken_by_another_thread_interrupts_a_pools_results(stop_handlers: None) -> None:
