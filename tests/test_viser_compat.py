@@ -358,10 +358,14 @@ def test_a_closed_connection_says_so_at_once_even_while_viser_still_lists_the_cl
         client_a.client_id,
         {client_a.client_id: (True, False), client_b.client_id: (False, True), client_c.client_id: (False, True)},
     )
-    server.stop()  # b and c still connected: stop() closes their connections before viser lets go of them
+    # b and c still connected. stop() marks their buffers done from this thread while the server's
+    # loop already tears the connections down, so one's callback may still see the other open (1
+    # run in 15 under load): only the page that leaves is sure to read closed in its own callback.
+    server.stop()
     assert seen.wait_for(lambda s: len(s) == 3)
     for gone, view in seen.items[1:]:
-        assert all(view[c.client_id][0] for c in (client_b, client_c)), (gone, view)
+        assert view[gone][0], (gone, view)
+    assert all(compat.connection_closed(c) for c in everyone)
     print(f"\nlisted by get_clients() in the callbacks while stopping: {[v for _, v in seen.items[1:]]}")
 
 
