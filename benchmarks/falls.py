@@ -7,9 +7,9 @@ Each run is `hopper-sim run --hops N --gravity BODY --seed S` (the default robot
 stepped one tick at a time so that the last TRACE_S seconds before a fall can be kept. Per run it
 prints hops done, fell or stuck (the time limit ran out short of N hops) and the torso's world x;
 per fall, the phases before it (phase letter L S C P F X, then the feet down, l and r, @ the time
-in s). Then the totals per body: hops, falls, stuck runs, hops per fall, metres a hop and the
-share of the pushes that were recovery hops. With --traces, each fall's or stuck run's last
-TRACE_S s go to DIR/BODY_SEED.npy, one row a tick (columns TRACE).
+in s). Then the totals per body: hops, falls, stuck runs, hops per fall, metres a hop, metres per
+fall and the share of the pushes that were recovery hops. With --traces, each fall's or stuck
+run's last TRACE_S s go to DIR/BODY_SEED.npy, one row a tick (columns TRACE).
 
 The runs are chaotic: any change to the ground controller moves where the falls happen, so compare
 variants over many seeds (a few thousand hops, seeds the change was not made on), not run by run.
@@ -97,6 +97,27 @@ def run(job: tuple[str, int, int, str | None, str | None]) -> dict:
     return result
 
 
+def totals(name: str, results: list[dict]) -> str:
+    """One line of totals over `results` (run's dicts): hops, falls, stuck runs, hops and metres per
+    fall or stop, metres a hop and the share of the pushes that were recovery hops."""
+    hops, falls, stuck = (sum(r[k] for r in results) for k in ("hops", "fell", "stuck"))
+    ended = falls + stuck
+    ground = sum(r["x"] for r in results)
+    per = f"{hops / ended:.0f}" if ended else "-"
+    # Metres a hop: a robot trapped in a crater, hopping back and forth, hops on without falling.
+    travel = ground / max(hops, 1)
+    # Metres of crater ground a fall: the falls come from the ground met, so a gait that covers less
+    # ground a hop falls less often a hop without being any surer on that ground.
+    per_m = f"{ground / ended:.0f}" if ended else "-"
+    # The share of pushes that were recovery hops (the capture point left the feet): how often the
+    # ground phase loses the robot, counted every hop, where falls are rare.
+    recovering = sum(r["recoveries"] for r in results) / max(sum(r["pushes"] for r in results), 1)
+    return (
+        f"{name:>6}: {hops} hops, {falls} falls, {stuck} stuck, {per} hops per fall or stop, "
+        f"{travel:.2f} m a hop, {per_m} m per fall or stop, {recovering:.0%} of pushes recovery hops"
+    )
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--hops", type=int, default=300, help="hops asked of each run (default 300)")
@@ -128,18 +149,7 @@ def main(argv: list[str] | None = None) -> int:
             if r["before"]:
                 print(f"       before: {r['before']}", flush=True)
     for body in [*bodies, None]:
-        mine = [r for r in results if body is None or r["body"] == body]
-        hops, falls, stuck = (sum(r[k] for r in mine) for k in ("hops", "fell", "stuck"))
-        per = f"{hops / (falls + stuck):.0f}" if falls + stuck else "-"
-        # Metres a hop: a robot trapped in a crater, hopping back and forth, hops on without falling.
-        travel = sum(r["x"] for r in mine) / max(hops, 1)
-        # The share of pushes that were recovery hops (the capture point left the feet): how often
-        # the ground phase loses the robot, counted every hop, where falls are rare.
-        recovering = sum(r["recoveries"] for r in mine) / max(sum(r["pushes"] for r in mine), 1)
-        print(
-            f"{body or 'all':>6}: {hops} hops, {falls} falls, {stuck} stuck, {per} hops per fall or stop, "
-            f"{travel:.2f} m a hop, {recovering:.0%} of pushes recovery hops"
-        )
+        print(totals(body or "all", [r for r in results if body is None or r["body"] == body]))
     return 0
 
 

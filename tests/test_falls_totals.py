@@ -1,0 +1,26 @@
+"""The falls benchmark's totals (benchmarks.falls.totals): per hop and per metre of crater ground."""
+
+from __future__ import annotations
+
+import pytest
+
+from benchmarks.falls import totals
+
+pytestmark = pytest.mark.unit
+
+
+def result(hops: int, x: float, fell: bool = False, stuck: bool = False) -> dict:
+    return {"hops": hops, "x": x, "fell": fell, "stuck": stuck, "pushes": hops + 10, "recoveries": 5}
+
+
+def test_totals_count_falls_per_hop_and_per_metre_of_ground():
+    line = totals("earth", [result(100, 30.0, fell=True), result(300, 50.0), result(50, 20.0, stuck=True)])
+    assert line == (
+        " earth: 450 hops, 1 falls, 1 stuck, 225 hops per fall or stop, 0.22 m a hop, "
+        "50 m per fall or stop, 3% of pushes recovery hops"
+    )
+
+
+def test_totals_without_a_fall_say_so_rather_than_divide_by_zero():
+    line = totals("moon", [result(300, 200.0)])
+    assert "- hops per fall or stop" in line and "- m per fall or stop" in line and "0.67 m a hop" in line
