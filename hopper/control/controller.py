@@ -10,11 +10,14 @@ import numpy as np
 
 from hopper.config import (
     LEG_MOTOR_GEAR,
+    LEG_TORQUE_LIMIT,
     MOTOR_RESISTANCE,
     MOTOR_TORQUE_CONSTANT,
     REGENERATIVE_DRIVES,
     SATURATION_FRACTION,
     STANDARD_GRAVITY,
+    WHEEL_GEAR,
+    WHEEL_TORQUE_LIMIT,
     SimConfig,
 )
 from hopper.control import gait as gaits
@@ -41,7 +44,7 @@ class HopController:
         self.mem[0] = new_memory(self.layout)[0]
         (self.mem["x0"], self.mem["z0"]), self.mem["dt"] = self.layout.torso_origin, config.timestep
         self._write_robot()
-        self.mem["leg_kt"], self.mem["motor_resistance"] = MOTOR_TORQUE_CONSTANT, MOTOR_RESISTANCE
+        self.mem["leg_kt"] = MOTOR_TORQUE_CONSTANT
         self.mem["leg_motor_gear"], self.mem["regenerate"] = LEG_MOTOR_GEAR, REGENERATIVE_DRIVES
         self.configure(config)
         self.reset()
@@ -53,6 +56,11 @@ class HopController:
         m["wheel_limit"], m["wheel_damping"] = r.wheel_torque_limit, r.wheel_damping
         m["wheel_top"] = r.wheel_no_load_speed
         m["saturation_torque"] = SATURATION_FRACTION * r.wheel_torque_limit
+        # A model's motor n times as strong as the datasheet's (hopper.similarity sizes them so) is n
+        # of them in parallel: the same k_t and no-load speed, n times the current through R / n.
+        wheel_motors = (r.wheel_torque_limit / r.wheel_gear) / (WHEEL_TORQUE_LIMIT / WHEEL_GEAR)
+        m["wheel_resistance"] = MOTOR_RESISTANCE / wheel_motors
+        m["leg_resistance"] = MOTOR_RESISTANCE / (r.leg_torque_limit / LEG_TORQUE_LIMIT)
 
     def configure(self, config: SimConfig) -> None:
         m, g, gait = self.mem, config.gains, config.gait

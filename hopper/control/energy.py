@@ -6,7 +6,8 @@ negative when it brakes). Braking does not regenerate by default (hopper.config.
 a negative P, the motor generating more than its copper loss burns, is burnt in the drive and counts
 as zero, each drive on its own (no exchange between the motors over a shared bus). Left out: iron and
 friction losses, the gearbox's, the drive's. The figures are in hopper.config (MOTOR_*, LEG_MOTOR_GEAR);
-a motor_torque mismatch (hopper.mismatch) scales the wheel motor's k_t here as it does in the model.
+a motor_torque mismatch (hopper.mismatch) scales the wheel motor's k_t here as it does in the model,
+and a model whose motors are n times stronger has n of them in parallel (hopper.control.controller).
 """
 
 from __future__ import annotations
@@ -35,10 +36,10 @@ def spend(m, qvel: np.ndarray, sensors: np.ndarray) -> None:  # noqa: ANN001 (a 
     against the speed it left: MuJoCo's integrators move qpos by dt times the new qvel, so tau * w * dt
     is exactly that step's work.
     """
-    dt, regen, r = m.dt, m.regenerate, m.motor_resistance
+    dt, regen = m.dt, m.regenerate
     wheel = sensors[m.s_wheel_torque] * m.wheel_gear  # N m at the wheel
-    m.acc_wheel_energy += dt * motor_power(wheel, qvel[m.v_wheel], m.wheel_gear, m.wheel_kt, r, regen)
-    kt, legs = m.leg_kt, m.leg_motor_gear
+    m.acc_wheel_energy += dt * motor_power(wheel, qvel[m.v_wheel], m.wheel_gear, m.wheel_kt, m.wheel_resistance, regen)
+    kt, legs, r = m.leg_kt, m.leg_motor_gear, m.leg_resistance
     g = m.leg_gear  # actuator force to joint torque
     power = motor_power(sensors[m.s_torque_hip_l] * g, qvel[m.v_hip_l], legs, kt, r, regen)
     power += motor_power(sensors[m.s_torque_knee_l] * g, qvel[m.v_knee_l], legs, kt, r, regen)
