@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from hopper.app import log_cli, report_cli, stand_cli, sweep_cli, sysid_cli
+from hopper.app import log_cli, report_cli, size_cli, stand_cli, sweep_cli, sysid_cli
 from hopper.app.cli_common import (
     EXIT_CONTROLLER,
     EXIT_FELL,
@@ -175,6 +175,7 @@ def parser() -> Parser:
     report_cli.add_parser(commands, EXIT_STATUSES)
     stand_cli.add_parser(commands, EXIT_STATUSES)
     log_cli.add_parser(commands, EXIT_STATUSES)
+    size_cli.add_parser(commands, EXIT_STATUSES)
     return top
 
 
@@ -548,6 +549,8 @@ def main(argv: list[str] | None = None) -> int:
             return stand_cli.command_stand(args)
         if args.command == "log":
             return log_cli.run(args)
+        if args.command == "size":
+            return size_cli.run(args)
         if args.command == "league":
             return command_league(args)
         check_counts(args)

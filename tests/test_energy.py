@@ -12,8 +12,9 @@ from hopper.config import LEG_MOTOR_GEAR, MOTOR_RESISTANCE, MOTOR_TORQUE_CONSTAN
 from hopper.control.controller import HopController
 from hopper.control.energy import motor_power, spend
 from hopper.layout import ModelLayout
-from hopper.model import MODEL_XML
+from hopper.model import MODEL_XML, robot_of
 from hopper.sim import Simulation
+from hopper.similarity import size_for
 
 DT = 0.001  # s
 WHEEL_GEAR = 30.0  # models/hopper.xml
@@ -122,3 +123,26 @@ def test_a_motor_torque_mismatch_is_the_simulated_wheel_motors_torque_constant(k
     # Half the torque per ampere: twice the current for the same torque, four times the copper loss.
     assert weak["acc_wheel_energy"][0] == pytest.approx(4.0 * mem["acc_wheel_energy"][0], rel=1e-12)
     assert mem["acc_wheel_energy"][0] == pytest.approx(0.2 * copper(6.0, WHEEL_GEAR), rel=1e-12)
+
+
+def test_a_motor_k_times_the_datasheets_is_k_of_them_in_parallel(kernel, tmp_path) -> None:  # noqa: ANN001
+    """hopper-sim size's Earth robot: the same torque through k motors in parallel, each carrying 1/k
+    of the current, burns 1/k of one motor's copper loss (I^2 R / k); the mechanical power is the same.
+    (The written MJCF keeps 6 significant digits: k read back is within 1e-4 of g / g_moon.)"""
+    layout, mem, sizes = kernel
+    spec = mujoco.MjSpec.from_string(MODEL_XML.read_text(encoding="utf-8"))
+    k = size_for(spec, 9.81)
+    path = tmp_path / "earth.xml"
+    path.write_text(spec.to_xml())
+    config = SimConfig(terrain="flat", model=str(path))
+    sized = HopController(layout, config, robot_of(config)).mem
+    assert sized["wheel_resistance"][0] == pytest.approx(MOTOR_RESISTANCE / k, rel=1e-4)
+    assert sized["leg_resistance"][0] == pytest.approx(MOTOR_RESISTANCE / k, rel=1e-4)
+    assert mem["wheel_resistance"][0] == mem["leg_resistance"][0] == MOTOR_RESISTANCE  # the datasheet's, exactly
+    holds = ((-4.0, 5.0), (3.0, 0.0), (-4.0, 5.0), (-2.0, 0.0))
+    for record in (mem, sized):
+        drive((layout, record, sizes), 0.2, lambda t: (6.0, 0.0), lambda t: holds)
+    assert sized["acc_wheel_energy"][0] == pytest.approx(mem["acc_wheel_energy"][0] / k, rel=1e-4)
+    hips = 2 * 0.2 * max(copper(-4.0, LEG_MOTOR_GEAR) / k - 20.0, 0.0)  # braking, not recovered: zero
+    knees = 0.2 * (copper(3.0, LEG_MOTOR_GEAR) + copper(-2.0, LEG_MOTOR_GEAR)) / k
+    assert sized["acc_leg_energy"][0] == pytest.approx(hips + knees, rel=1e-4)

@@ -12,7 +12,8 @@ is carried to another gravity by the physics that sets it:
 - The forward speed scales with w0 z too (dynamic similarity: the same Froude number), so the
   capture point, vx / w0 ahead of the CoM, lands as far ahead at every g; the feet land around it.
 - The legs' strength does not scale: the hop is capped where landing from it would ask the legs
-  for more than LEG_MARGIN of what their 30 N m motors can hold.
+  for more than LEG_MARGIN of what their 30 N m motors can hold (a robot sized for the gravity,
+  hopper.similarity, has legs that scale, and flies the Moon's hop).
 - The wheel's momentum capacity does not scale either, but the ground moment that takes the
   wheel's momentum out does (a fraction of m g d): the stance waits for the wheel before the next
   push as long as that takes.
