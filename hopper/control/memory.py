@@ -72,10 +72,7 @@ _PARAMS = [
     # The motors' energy (hopper.control.energy; figures in hopper.config).
     ("wheel_kt", "f8"),  # N m/A, the wheel motor's torque constant (the simulated robot's: SimConfig.mismatch)
     ("leg_kt", "f8"),  # N m/A, the leg motors'
-    (
-        "wheel_resistance",
-        "f8",
-    ),  # ohm, the wheel motor's winding (over its count in parallel, hopper.control.controller)
+    ("wheel_resistance", "f8"),  # ohm, the wheel motor's winding over its count in parallel (controller.py)
     ("leg_resistance", "f8"),  # ohm, each leg motor's
     ("leg_motor_gear", "f8"),  # joint torque / motor torque at each leg joint
     ("regenerate", "?"),  # True: braking energy is recovered (negative power counts); False: burnt
