@@ -314,6 +314,9 @@ def command_run(args: argparse.Namespace) -> int:
         fail("--rrd-max-mb and --rrd-max-min need --rrd and cannot be combined with --rerun-viewer")
     config = make_config(args, args.seed, wheel=not args.no_wheel)
     result = simulate(config, args.hops, args.rrd, args.rerun_viewer, report, limits=limits, kicks=args.schedule)
+    note = size_cli.capped(config)
+    if note:
+        print(note)
     if result["short"] is not None:
         print(f"hopper-sim: error: {result['short']}", file=sys.stderr)
         return EXIT_SHORT

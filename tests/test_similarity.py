@@ -87,6 +87,20 @@ def test_hopper_sim_size_writes_a_model_that_run_flies(tmp_path: Path):
     run = hopper_sim("run", "--model", str(out), "--gravity", "earth", "--hops", "3", "--terrain", "flat")
     assert run.returncode == 0, run.stderr
     assert "3 hops" in run.stdout and "FELL" not in run.stdout
+    assert "note:" not in run.stdout  # its legs do not cap the hop
+
+
+@pytest.mark.integration  # processes
+@pytest.mark.parametrize(("body", "capped"), [("earth", True), ("mars", False)])
+def test_a_run_whose_legs_cap_the_hop_names_the_command_that_sizes_the_robot(body: str, capped: bool):
+    run = hopper_sim("run", "--gravity", body, "--hops", "1", "--terrain", "flat")
+    assert run.returncode in (0, 1), run.stderr
+    note = [line for line in run.stdout.splitlines() if line.startswith("note:")]
+    if capped:
+        assert len(note) == 1 and "30 N m legs cap the hop at 0.09 m of the 0.25 m asked" in note[0], run.stdout
+        assert "hopper-sim size --gravity 9.81" in note[0]
+    else:
+        assert note == [], run.stdout
 
 
 @pytest.mark.integration
