@@ -82,6 +82,11 @@ def add_commands(commands: argparse._SubParsersAction) -> None:  # noqa: SLF001 
         help=f"re-anchor each hop on the log's state every S s (multiple shooting; {REANCHOR_S:g} measures a "
         "model where a whole open-loop stance drifts off; default: each hop whole)",
     )  # fmt: skip
+    rep.add_argument(
+        "--legs", choices=("torque", "servo"), default="torque",
+        help="the legs fly the log's torques alone (default), or with a servo to the log's angles too: a whole "
+        "hop then measures the torso and the wheel, not the open-loop stance's chaos",
+    )  # fmt: skip
     rep.add_argument("--out", type=Path, metavar="DIR", help="write replay.png and .pdf (errors over time) here")
 
     ide = commands.add_parser("identify", help="fit the model to a log; print estimates, write the MJCF")
@@ -183,6 +188,7 @@ def command_replay(args: argparse.Namespace) -> int:
     log = read_log(args.log)
     world = replay_world(args, log)
     model, window = world_model(world)
+    servo = args.legs == "servo"
     if args.start is not None:
         t = log.time
         if not t[0] <= args.start < t[-1]:
@@ -194,8 +200,8 @@ def command_replay(args: argparse.Namespace) -> int:
             fail(f"--to {args.stop:g} s leaves nothing to replay after --from {args.start:g} s")
         from hopper.logs.replay import errors
 
-        traj = simulate(model, log, a, b, delay_ticks=world.command_delay, window=window)
-        parts = [(f"from {t[a]:.3f} s", errors(log, traj))]
+        traj = simulate(model, log, a, b, delay_ticks=world.command_delay, window=window, servo=servo)
+        parts = [(f"from {t[a]:.3f} s" + (", legs held to the log's angles" if servo else ""), errors(log, traj))]
     else:
         if args.hops is not None and args.hops < 1:
             fail(f"--hops must be at least 1, got {args.hops}")
@@ -205,9 +211,12 @@ def command_replay(args: argparse.Namespace) -> int:
         if args.hops is not None and args.hops > found:
             fail(f"--hops {args.hops}: the log has {found} hop(s)")
         anchored = "" if args.every is None else f", re-anchored every {args.every:g} s"
+        anchored += ", legs held to the log's angles" if servo else ""
         parts = []
         for i, (a, _) in enumerate(hops(log)[: args.hops]):
-            done = replay_hops(model, log, 1, first=i, delay_ticks=world.command_delay, window=window, every=args.every)
+            done = replay_hops(
+                model, log, 1, first=i, delay_ticks=world.command_delay, window=window, every=args.every, servo=servo
+            )  # fmt: skip
             parts.append((f"hop {i + 1} from {log.time[a]:.3f} s{anchored}", Errors.concat([e for _, e in done])))
     for label, e in parts:
         print(error_line(label, e))
@@ -256,16 +265,20 @@ def command_identify(args: argparse.Namespace) -> int:
     world = replay_world(args, log)
     (model, _), (fresh, _) = world_model(world), world_model(world)  # the fit edits `model`
     span = sysid.hop_span(log, 0, args.hops)
-    measures = ((f"re-anchored every {REANCHOR_S:g} s", REANCHOR_S), ("whole, each from its liftoff", None))
-    before = [sysid.replay_error(fresh, log, 0, args.hops, world.command_delay, every) for _, every in measures]
+    measures = (
+        (f"re-anchored every {REANCHOR_S:g} s", REANCHOR_S, False),
+        ("whole, each from its liftoff, legs held to the log's angles", None, True),
+        ("whole, each from its liftoff", None, False),
+    )
+    before = [sysid.replay_error(fresh, log, 0, args.hops, world.command_delay, e, s) for _, e, s in measures]
     fit = sysid.identify(
         model, log, span, names, stages=args.windows, delay_ticks=world.command_delay,
         max_evaluations=args.max_evaluations,
     )  # fmt: skip
-    after = [sysid.replay_error(model, log, 0, args.hops, world.command_delay, every) for _, every in measures]
+    after = [sysid.replay_error(model, log, 0, args.hops, world.command_delay, e, s) for _, e, s in measures]
     truth = truth_values(fresh, args.truth)
     print(table(fit, truth))
-    for (what, _), e0, e1 in zip(measures, before, after, strict=True):
+    for (what, _, _), e0, e1 in zip(measures, before, after, strict=True):
         print(error_line(f"replay of hops 1..{args.hops} ({what}) before", e0))
         print(error_line(f"replay of hops 1..{args.hops} ({what}) after ", e1))
         r0, r1 = e0.rms("pitch"), e1.rms("pitch")

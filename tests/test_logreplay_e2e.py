@@ -99,6 +99,16 @@ def test_a_log_replays_beside_the_simulation(browser, dashboard: Dashboard, tmp_
             "() => [...document.querySelectorAll('.hd-record')].some(e => e.innerText.includes('re-anchored every'))"
         )
         _shot(page, tmp_path, "logreplay_reanchored.png")
+        # The legs held to the log's angles too, ticked in the page: said in the summary.
+        _input(page, panel.servo).check()
+        assert wait_until(lambda: panel.servo.value, timeout=30)
+        _load(page, dashboard, str(path))
+        assert panel.last.servo and panel.last.every == 0.3
+        assert np.degrees(panel.last.errors.rms("pitch")) < 1e-3  # the log's own robot: nothing to hold
+        page.wait_for_function(
+            "() => [...document.querySelectorAll('.hd-record')].some(e => e.innerText.includes('legs held'))"
+        )
+        _shot(page, tmp_path, "logreplay_held.png")
         page.get_by_role("button", name="Stop log replay").click()
         assert wait_until(lambda: not panel.logged_ghost.playing and not panel.simulated_ghost.playing, timeout=30)
         assert panel.watched() is None and not panel.watch.value

@@ -33,6 +33,9 @@ def test_replay_prints_each_hop_and_writes_its_figure(logged: Path, tmp_path: Pa
     assert main(["replay", str(logged), "--every", "0.3"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert lines[1].startswith("hop 1 from") and lines[1].split(":")[0].endswith("re-anchored every 0.3 s"), lines
+    assert main(["replay", str(logged), "--hops", "1", "--legs", "servo"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[1].split(":")[0].endswith("legs held to the log's angles"), lines
 
 
 def test_identify_prints_the_table_and_writes_the_mjcf(logged: Path, tmp_path: Path, capsys) -> None:  # noqa: ANN001
@@ -44,7 +47,8 @@ def test_identify_prints_the_table_and_writes_the_mjcf(logged: Path, tmp_path: P
     row = next(line for line in text.splitlines() if line.startswith("motor_torque"))
     estimate = float(row.split()[4])
     assert estimate == pytest.approx(0.9, rel=0.01)
-    for measure in ("re-anchored every 0.3 s", "whole, each from its liftoff"):
+    held = "whole, each from its liftoff, legs held to the log's angles"
+    for measure in ("re-anchored every 0.3 s", held, "whole, each from its liftoff"):
         assert f"replay of hops 1..1 ({measure}) before" in text and f"({measure}) after" in text
     model = mujoco.MjModel.from_xml_path(str(out))
     assert model.actuator_gainprm[model.actuator("wheel").id, 0] == pytest.approx(0.9833 * estimate, rel=1e-5)

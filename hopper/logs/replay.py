@@ -7,6 +7,11 @@ hopper.control.wheel.wheel_ctrl inverts the motor its controller knows: by defau
 robot's, hopper.robot.PACKAGED): a motor that is not that one then turns the same commands into
 other torques, as a real one does. `replay_hops` flies each hop
 of the log from its liftoff; `errors` compares the two (pitch, wheel speed, contact timing).
+
+The legs fly the log's torques alone by default. With `servo`, a joint servo around those torques
+also holds them to the log's encoder angles, as a bench replaying a robot's log holds its legs:
+an open-loop stance is an inverted pendulum on slipping feet, chaotic (REANCHOR_S), and with the
+legs held a whole hop measures the torso and the wheel instead (README, "From a log to the model").
 """
 
 from __future__ import annotations
@@ -29,6 +34,10 @@ MIN_FLIGHT_S = 0.1  # s: both feet off the ground this long is a flight (a stanc
 # open-loop stance: on the issue's robot the true model with its friction 0.1 % off replays whole
 # hops 3.5 deg RMS off (README, "Identification"); 0.3 s holds about half a lunar flight.
 REANCHOR_S = 0.3
+# The legs' servo to the log's angles (`servo`): stiff enough that a hop's contacts come where the
+# log's did (1 deg costs 0.35 N m of the legs' 30), soft beside what the legs' torques already do.
+LEG_SERVO_KP = 20.0  # N m/rad at each leg joint
+LEG_SERVO_KD = 2.0  # N m s/rad: about critical on a leg's ~0.05 kg m^2 at the knee
 LEG_COMMANDS = tuple(f"{j}_torque_cmd" for j in LEG_JOINTS)
 SIMULATED = ("pitch", "pitch_rate", "wheel_speed", "x", "z", *LEG_JOINTS, "foot_L_force", "foot_R_force")
 
@@ -123,8 +132,10 @@ def simulate(
     data: mujoco.MjData | None = None,
     window=None,  # noqa: ANN001 (a terrain.Window: moved under the start if given)
     drive: Robot = PACKAGED,
+    servo: bool = False,
 ) -> Trajectory:
-    """Fly rows start..stop-1 of `log` open loop on `model` from the log's state at row `start`.
+    """Fly rows start..stop-1 of `log` open loop on `model` from the log's state at row `start`
+    (with `servo`, the legs also held to the log's angles: LEG_SERVO_KP, LEG_SERVO_KD).
 
     Row k's simulated values are those of t_k, as the log's are (hopper.logs.capture): pitch, rates
     and positions before the step that applies row k's commands, the feet's forces of its forward pass.
@@ -146,11 +157,16 @@ def simulate(
     ok = src >= 0
     delayed[ok] = wheel_cmd[src[ok]]
     legs = np.column_stack([s[c][start:stop] for c in LEG_COMMANDS]) / lay.leg_gear
+    if servo:  # the log's angles, and their rates by backward differences (as set_state takes them)
+        angles = np.column_stack([s[j][max(start - 1, 0) : stop] for j in LEG_JOINTS])
+        rates = np.diff(angles, axis=0) / np.diff(log.time[max(start - 1, 0) : stop])[:, None]
+        rates = np.vstack([rates[:1], rates]) if len(rates) else np.zeros_like(angles)
+        angles, rates = angles[-(stop - start) :], rates[-(stop - start) :]
     m = stop - start
     out = np.full((m, len(SIMULATED)), np.nan)
     q, v, sensors, ctrl = data.qpos, data.qvel, data.sensordata, data.ctrl
     a_wheel, a_legs, torso = lay.a_wheel, list(lay.a_legs), lay.torso
-    q_legs = list(lay.q_legs)
+    q_legs, v_legs = list(lay.q_legs), list(lay.v_legs)
     xipos = data.xipos
     limit, damping = drive.wheel_torque_limit, drive.wheel_damping
     for i in range(m):
@@ -158,6 +174,9 @@ def simulate(
         u = (delayed[i] + damping * w) / limit  # hopper.control.wheel.wheel_ctrl
         ctrl[a_wheel] = 1.0 if u > 1.0 else -1.0 if u < -1.0 else u
         ctrl[a_legs] = legs[i]
+        if servo:
+            held = LEG_SERVO_KP * (angles[i] - q[q_legs]) + LEG_SERVO_KD * (rates[i] - v[v_legs])
+            ctrl[a_legs] = legs[i] + held / lay.leg_gear
         row = out[i]
         row[0], row[1], row[2] = q[lay.q_pitch], v[lay.v_pitch], w
         row[5:9] = q[q_legs]
@@ -258,14 +277,15 @@ def replay_spans(
     *,
     delay_ticks: int = DEFAULT_DELAY_TICKS,
     window=None,  # noqa: ANN001 (a terrain.Window)
+    servo: bool = False,
 ) -> list[tuple[Trajectory, Errors]]:
-    """Replay each (start, stop) span of rows from the log's state at its start."""
+    """Replay each (start, stop) span of rows from the log's state at its start (`servo`: simulate's)."""
     if not spans:
         raise ReplayError(f"{log.source}: nothing to replay (no hop: no flight of {MIN_FLIGHT_S:g} s or more)")
     data = mujoco.MjData(model)
     out = []
     for a, b in spans:
-        traj = simulate(model, log, a, b, delay_ticks=delay_ticks, data=data, window=window)
+        traj = simulate(model, log, a, b, delay_ticks=delay_ticks, data=data, window=window, servo=servo)
         out.append((traj, errors(log, traj)))
     return out
 
@@ -287,15 +307,17 @@ def replay_hops(
     delay_ticks: int = DEFAULT_DELAY_TICKS,
     window=None,  # noqa: ANN001 (a terrain.Window)
     every: float | None = None,
+    servo: bool = False,
 ) -> list[tuple[Trajectory, Errors]]:
     """Replay hops first..first+count-1 of the log (all from `first` by default), each from its liftoff
     to the next; with `every` (s), each hop in windows of that length, each from the log's state at its
     start (multiple shooting). Whole, an open-loop stance is an inverted pendulum without feedback on
-    slipping feet: it drifts off unless the model is the robot to the last digit (REANCHOR_S)."""
+    slipping feet: it drifts off unless the model is the robot to the last digit (REANCHOR_S), or
+    the legs are held to the log's angles (`servo`: simulate's)."""
     if every is not None and not every > 0.0:
         raise ReplayError(f"a replay re-anchors every positive number of seconds, got {every}")
     spans = hops(log)[first:]
     spans = spans if count is None else spans[:count]
     if every is not None:
         spans = [w for hop in spans for w in windows(log, hop, every)]
-    return replay_spans(model, log, spans, delay_ticks=delay_ticks, window=window)
+    return replay_spans(model, log, spans, delay_ticks=delay_ticks, window=window, servo=servo)

@@ -476,8 +476,10 @@ def replay_error(
     count: int,
     delay_ticks: int = DEFAULT_DELAY_TICKS,
     every: float | None = None,
+    servo: bool = False,
 ) -> Errors:
     """The replay error of hops first..first+count-1, each from its liftoff: whole, or re-anchored on
-    the log's state every `every` s (hopper.logs.replay.replay_hops)."""
-    parts = replay_hops(model, log, count, first=first, delay_ticks=delay_ticks, every=every)
+    the log's state every `every` s, the legs held to the log's angles with `servo`
+    (hopper.logs.replay.replay_hops)."""
+    parts = replay_hops(model, log, count, first=first, delay_ticks=delay_ticks, every=every, servo=servo)
     return Errors.concat([e for _, e in parts])

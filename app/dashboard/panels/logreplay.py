@@ -68,6 +68,7 @@ class LogReplay:
     found: int  # hops in the log
     shown: int  # hops replayed
     every: float | None  # s: each hop re-anchored on the log's state this often (None: whole)
+    servo: bool  # the legs held to the log's angles (hopper.logs.replay.simulate)
     parts: list[tuple[Trajectory, Errors]]  # a replay each hop, or each window of one
     logged: np.ndarray  # qpos rows every `frame_s` of log time
     simulated: np.ndarray  # likewise
@@ -91,15 +92,18 @@ def world_for(recorded: Log, config: SimConfig) -> tuple[World, str]:
     return dataclasses.replace(of_config(config), delay_ticks=None), "the log names none: this dashboard's"
 
 
-def replay_log(path: str, config: SimConfig, every: float | None = None) -> LogReplay:
+def replay_log(path: str, config: SimConfig, every: float | None = None, servo: bool = False) -> LogReplay:
     """Read the log at `path` and replay its first MAX_HOPS hops in its world (world_for), whole or
-    re-anchored on the log's state every `every` s; HopperError if it cannot."""
+    re-anchored on the log's state every `every` s, the legs held to its angles with `servo`;
+    HopperError if it cannot."""
     recorded = read_log(path)
     check_replayable(recorded)  # before the hops: a log without the state says so, not 'no hop'
     world, origin = world_for(recorded, config)
     model, window = world_model(world)
     found = len(hops(recorded))
-    parts = replay_hops(model, recorded, MAX_HOPS, window=window, delay_ticks=world.command_delay, every=every)
+    parts = replay_hops(
+        model, recorded, MAX_HOPS, window=window, delay_ticks=world.command_delay, every=every, servo=servo
+    )  # fmt: skip
     first, last = parts[0][0], parts[-1][0]
     rows = slice(first.first, last.first + len(last.time))
     s = recorded.signals
@@ -111,6 +115,7 @@ def replay_log(path: str, config: SimConfig, every: float | None = None) -> LogR
         found=found,
         shown=min(found, MAX_HOPS),
         every=every,
+        servo=servo,
         parts=parts,
         logged=poses(model, {k: v[rows] for k, v in s.items()}, stride),
         simulated=poses(model, simulated, stride),
@@ -137,6 +142,7 @@ def summary_html(done: LogReplay | None) -> str:
     shown = done.shown
     of = f"{shown} of {done.found} hops" if shown < done.found else f"{shown} hop(s)"
     of += "" if done.every is None else f" re-anchored every {done.every:g} s"
+    of += ", legs held to the log's angles" if done.servo else ""
     return (
         f"<div class='hd-record'><b>{html.escape(done.source)}</b>: {of}, {e.time[0]:.2f}–{e.time[-1]:.2f} s · "
         f"pitch RMS {rms_pitch:.3f}° · wheel speed RMS {rms_wheel:.3f} rad/s · {timing} · "
@@ -152,6 +158,7 @@ class LogReplayPanel:
     load: viser.GuiButtonHandle
     watch: viser.GuiCheckboxHandle
     reanchor: viser.GuiCheckboxHandle
+    servo: viser.GuiCheckboxHandle
     stop_button: viser.GuiButtonHandle
     summary: viser.GuiHtmlHandle
     logged_ghost: GhostRobot
@@ -180,7 +187,8 @@ class LogReplayPanel:
 
     def _run(self, path: str, client: viser.ClientHandle | None) -> None:
         try:
-            done = replay_log(path, self.host.sim.config, REANCHOR_S if self.reanchor.value else None)
+            every = REANCHOR_S if self.reanchor.value else None
+            done = replay_log(path, self.host.sim.config, every, self.servo.value)
             self.show(done)
             notify(client, "Log replayed", f"{path}: {done.shown} hop(s)")
         except HopperError as exc:
@@ -249,12 +257,20 @@ def build_logreplay_panel(gui: viser.GuiApi, scene: viser.SceneApi, host: LogRep
             hint="Start the simulated robot again from the log's state every "
             f"{REANCHOR_S:g} s: a whole open-loop stance drifts off with any model error",
         )
+        servo = gui.add_checkbox(
+            "Legs held to the log",
+            False,
+            hint="A servo holds the legs to the log's joint angles around its torques: a whole hop then "
+            "measures the torso and the wheel, not the open-loop stance's chaos",
+        )
         watch = gui.add_checkbox(
             "Camera on the ghosts", False, hint="Follow the replayed log's ghosts; untick to follow the live robot"
         )
         stop_button = gui.add_button("Stop log replay", icon=viser.Icon.PLAYER_STOP, color="gray")
         summary = gui.add_html(summary_html(None))
-    panel = LogReplayPanel(host, path, load, watch, reanchor, stop_button, summary, logged, simulated, LogGround(scene))
+    panel = LogReplayPanel(
+        host, path, load, watch, reanchor, servo, stop_button, summary, logged, simulated, LogGround(scene)
+    )  # fmt: skip
     stop_button.on_click(guarded(lambda _: panel.stop()))
     load.on_click(guarded(lambda event: panel.request(path.value, event.client)))
     return panel
