@@ -32,7 +32,7 @@ from hopper.robot import PACKAGED, Robot
 MIN_FLIGHT_S = 0.1  # s: both feet off the ground this long is a flight (a stance's flicker is shorter)
 # s: a replay re-anchored on the log's state this often measures the model, not the chaos of an
 # open-loop stance: on the issue's robot the true model with its friction 0.1 % off replays whole
-# hops 3.5 deg RMS off (README, "Identification"); 0.3 s holds about half a lunar flight.
+# hops 3.5 deg RMS off (README, "From a log to the model"); 0.3 s holds about half a lunar flight.
 REANCHOR_S = 0.3
 # The legs' servo to the log's angles (`servo`): stiff enough that a hop's contacts come where the
 # log's did (1 deg costs 0.35 N m of the legs' 30), soft beside what the legs' torques already do.
