@@ -19,7 +19,7 @@ from hopper.app.cli_common import EXIT_FELL, EXIT_OK, add_model_flag, fail, fini
 from hopper.config import GRAVITY_PRESETS, MISMATCH_FACTORS, MISMATCH_OFFSETS, SensingParams, SimConfig, check_mismatch
 from hopper.errors import HopperError
 from hopper.logs.io import read_log, write_log
-from hopper.logs.replay import REANCHOR_S, Errors, hops, replay_hops, simulate, world_model
+from hopper.logs.replay import HELD, REANCHOR_S, Errors, hops, replay_hops, simulate, world_model
 from hopper.logs.schema import Log
 from hopper.logs.sysid import PROFILE_SIGMAS, STAGES
 from hopper.logs.world import DEFAULT_DELAY_TICKS, World, resolve
@@ -201,7 +201,7 @@ def command_replay(args: argparse.Namespace) -> int:
         from hopper.logs.replay import errors
 
         traj = simulate(model, log, a, b, delay_ticks=world.command_delay, window=window, servo=servo)
-        parts = [(f"from {t[a]:.3f} s" + (", legs held to the log's angles" if servo else ""), errors(log, traj))]
+        parts = [(f"from {t[a]:.3f} s" + (f", {HELD}" if servo else ""), errors(log, traj))]
     else:
         if args.hops is not None and args.hops < 1:
             fail(f"--hops must be at least 1, got {args.hops}")
@@ -211,7 +211,7 @@ def command_replay(args: argparse.Namespace) -> int:
         if args.hops is not None and args.hops > found:
             fail(f"--hops {args.hops}: the log has {found} hop(s)")
         anchored = "" if args.every is None else f", re-anchored every {args.every:g} s"
-        anchored += ", legs held to the log's angles" if servo else ""
+        anchored += f", {HELD}" if servo else ""
         parts = []
         for i, (a, _) in enumerate(hops(log)[: args.hops]):
             done = replay_hops(
@@ -267,7 +267,7 @@ def command_identify(args: argparse.Namespace) -> int:
     span = sysid.hop_span(log, 0, args.hops)
     measures = (
         (f"re-anchored every {REANCHOR_S:g} s", REANCHOR_S, False),
-        ("whole, each from its liftoff, legs held to the log's angles", None, True),
+        (f"whole, each from its liftoff, {HELD}", None, True),
         ("whole, each from its liftoff", None, False),
     )
     before = [sysid.replay_error(fresh, log, 0, args.hops, world.command_delay, e, s) for _, e, s in measures]

@@ -38,6 +38,7 @@ REANCHOR_S = 0.3
 # log's did (1 deg costs 0.35 N m of the legs' 30), soft beside what the legs' torques already do.
 LEG_SERVO_KP = 20.0  # N m/rad at each leg joint
 LEG_SERVO_KD = 2.0  # N m s/rad: about critical on a leg's ~0.05 kg m^2 at the knee
+HELD = "legs held to the log's angles"  # how a replay with `servo` is labelled (CLI, dashboard)
 LEG_COMMANDS = tuple(f"{j}_torque_cmd" for j in LEG_JOINTS)
 SIMULATED = ("pitch", "pitch_rate", "wheel_speed", "x", "z", *LEG_JOINTS, "foot_L_force", "foot_R_force")
 
@@ -173,10 +174,11 @@ def simulate(
         w = v[lay.v_wheel]
         u = (delayed[i] + damping * w) / limit  # hopper.control.wheel.wheel_ctrl
         ctrl[a_wheel] = 1.0 if u > 1.0 else -1.0 if u < -1.0 else u
-        ctrl[a_legs] = legs[i]
         if servo:
             held = LEG_SERVO_KP * (angles[i] - q[q_legs]) + LEG_SERVO_KD * (rates[i] - v[v_legs])
             ctrl[a_legs] = legs[i] + held / lay.leg_gear
+        else:
+            ctrl[a_legs] = legs[i]
         row = out[i]
         row[0], row[1], row[2] = q[lay.q_pitch], v[lay.v_pitch], w
         row[5:9] = q[q_legs]

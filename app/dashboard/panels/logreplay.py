@@ -29,6 +29,7 @@ from hopper.config import SimConfig
 from hopper.errors import HopperError
 from hopper.logs.io import read_log
 from hopper.logs.replay import (
+    HELD,
     REANCHOR_S,
     Errors,
     Trajectory,
@@ -142,7 +143,7 @@ def summary_html(done: LogReplay | None) -> str:
     shown = done.shown
     of = f"{shown} of {done.found} hops" if shown < done.found else f"{shown} hop(s)"
     of += "" if done.every is None else f" re-anchored every {done.every:g} s"
-    of += ", legs held to the log's angles" if done.servo else ""
+    of += f", {HELD}" if done.servo else ""
     return (
         f"<div class='hd-record'><b>{html.escape(done.source)}</b>: {of}, {e.time[0]:.2f}–{e.time[-1]:.2f} s · "
         f"pitch RMS {rms_pitch:.3f}° · wheel speed RMS {rms_wheel:.3f} rad/s · {timing} · "
