@@ -90,11 +90,12 @@ def stance(m, phase: int, body: Body, left: Leg, right: Leg) -> tuple[float, flo
         vz_lo = m.recovery_vz if m.recovering else (m.vz_boost if m.boost else m.vz_liftoff)
         remaining = max(m.push - reach, 0.02)
         az = min(max((vz_lo * vz_lo - vz * abs(vz)) / (2 * remaining), 0.0), m.push_accel)
-        if m.recovering and vz < vz_lo:
-            # A recovery hop leaves as quickly as the legs allow: it starts with the capture point
-            # off the feet, often from one foot, where the CoM falls away from the support (an
-            # inverted pendulum) and every extra ms of push is ground impulse off the CoM that the
-            # wheel takes; a push spread over the whole stroke filled it before the flight.
+        if m.recovering and left.on != right.on and vz < vz_lo:
+            # A recovery hop from one foot leaves as quickly as the legs allow: the CoM falls away
+            # from the foot (an inverted pendulum), whose cone leaves it little moment, and every
+            # extra ms of push is ground impulse off the CoM that the wheel takes; spread over the
+            # whole stroke, the push filled it before the flight. Two feet can take the moment
+            # (and a kick's momentum) out while they push, and take their time.
             az = m.push_accel
         # A recovery hop keeps the speed it has: the landing, not the push, takes it out.
         speed = m.forward_speed * (BOOST_SPEED if m.boost else 1.0)
