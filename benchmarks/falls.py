@@ -8,8 +8,9 @@ stepped one tick at a time so that the last TRACE_S seconds before a fall can be
 prints hops done, fell or stuck (the time limit ran out short of N hops) and the torso's world x;
 per fall, the phases before it (phase letter L S C P F X, then the feet down, l and r, @ the time
 in s). Then the totals per body: hops, falls, stuck runs, hops per fall, metres a hop, metres per
-fall, the share of the pushes that were recovery hops and the near falls (NEAR_FALL). With --traces, each fall's or stuck
-run's last TRACE_S s go to DIR/BODY_SEED.npy, one row a tick (columns TRACE).
+fall, the share of the pushes that were recovery hops and the near falls (NEAR_FALL). With
+--traces, each fall's or stuck run's last TRACE_S s go to DIR/BODY_SEED.npy, one row a tick
+(columns TRACE).
 
 The runs are chaotic: any change to the ground controller moves where the falls happen, so compare
 variants over many seeds (a few thousand hops, seeds the change was not made on), not run by run.
