@@ -87,8 +87,8 @@ def run(job: tuple[str, int, int, str | None, str | None]) -> dict:
             if phase == PUSH:
                 pushes += 1
                 recoveries += bool(m["recovering"])
-        near += not beyond and abs(m["pitch_true"]) > NEAR_FALL
-        beyond = abs(m["pitch_true"]) > NEAR_FALL
+        out = abs(m["pitch_true"]) > NEAR_FALL
+        near, beyond = near + (out and not beyond), out
         ring[ticks % keep] = (sim.data.time, q[lay.q_x], q[lay.q_z], m["pitch_true"], v[lay.v_x], v[lay.v_z],
                               m["phase"], m["contact_l"], m["contact_r"], v[lay.v_wheel], m["push_done"],
                               m["recovering"])  # fmt: skip

@@ -69,20 +69,27 @@ def check_replayable(log: Log) -> None:
         raise ReplayError(f"{log.source}: a replay starts from the log's state, and it has no {missing} column(s)")
 
 
+def leg_rates(log: Log, start: int, stop: int) -> np.ndarray:
+    """The legs' joint rates (rad/s) at rows start..stop-1, a column each of LEG_JOINTS, by backward
+    differences of their encoders (exact for MuJoCo's integrators, which move q by dt times the new
+    velocity; a central difference misses the swing that starts at a liftoff); row 0 by the forward one."""
+    k = np.arange(start, stop)
+    a, b = np.maximum(k - 1, 0), np.maximum(k, 1)
+    dt = log.time[b] - log.time[a]
+    return np.column_stack([(log.signals[j][b] - log.signals[j][a]) / dt for j in LEG_JOINTS])
+
+
 def set_state(model: mujoco.MjModel, data: mujoco.MjData, log: Log, k: int) -> None:
     """Put the robot into the log's state at row k: pitch, legs, wheel speed and the torso CoM's position
-    and velocity as logged (the model's own CoM offset accounted for); the legs' rates by backward
-    differences of their encoders (exact for MuJoCo's integrators, which move q by dt times the new
-    velocity; a central difference misses the swing that starts at a liftoff); the wheel's angle
-    (which nothing depends on) at 0."""
+    and velocity as logged (the model's own CoM offset accounted for), the legs' rates leg_rates'; the
+    wheel's angle (which nothing depends on) at 0."""
     lay = ModelLayout.of(model)
     s, time = log.signals, log.time
     mujoco.mj_resetData(model, data)
     data.time = float(time[k])
-    a, b = (k - 1, k) if k > 0 else (0, 1)
-    for joint, q, v in zip(LEG_JOINTS, lay.q_legs, lay.v_legs, strict=True):
+    for joint, q, v, rate in zip(LEG_JOINTS, lay.q_legs, lay.v_legs, leg_rates(log, k, k + 1)[0], strict=True):
         data.qpos[q] = s[joint][k]
-        data.qvel[v] = (s[joint][b] - s[joint][a]) / (time[b] - time[a])
+        data.qvel[v] = rate
     rate = s["pitch_rate"][k]
     data.qpos[lay.q_pitch], data.qvel[lay.v_pitch], data.qvel[lay.v_wheel] = s["pitch"][k], rate, s["wheel_speed"][k]
     mujoco.mj_kinematics(model, data)  # the root at 0: where the torso's CoM is from its frame
@@ -158,11 +165,8 @@ def simulate(
     ok = src >= 0
     delayed[ok] = wheel_cmd[src[ok]]
     legs = np.column_stack([s[c][start:stop] for c in LEG_COMMANDS]) / lay.leg_gear
-    if servo:  # the log's angles, and their rates by backward differences (as set_state takes them)
-        angles = np.column_stack([s[j][max(start - 1, 0) : stop] for j in LEG_JOINTS])
-        rates = np.diff(angles, axis=0) / np.diff(log.time[max(start - 1, 0) : stop])[:, None]
-        rates = np.vstack([rates[:1], rates]) if len(rates) else np.zeros_like(angles)
-        angles, rates = angles[-(stop - start) :], rates[-(stop - start) :]
+    if servo:  # the log's angles and their rates, as set_state takes them
+        angles, rates = np.column_stack([s[j][start:stop] for j in LEG_JOINTS]), leg_rates(log, start, stop)
     m = stop - start
     out = np.full((m, len(SIMULATED)), np.nan)
     q, v, sensors, ctrl = data.qpos, data.qvel, data.sensordata, data.ctrl
