@@ -249,12 +249,15 @@ def check_controllers(spec: Any) -> None:  # noqa: ANN401 (hopper.experiments.sp
 
 
 def check_out(out: Path) -> None:
-    """OUT is a folder (or can be made one) that can be written, checked before any work."""
+    """OUT is a folder (or can be made one, with its missing parents, as the store does) that can be
+    written, checked before any work."""
     if out.exists() and not out.is_dir():
         fail(f"--out {out} is not a folder")
-    folder = out if out.exists() else out.parent
+    folder = out.absolute()
+    while not folder.exists():  # the nearest existing folder: the store makes the rest
+        folder = folder.parent
     if not folder.is_dir():
-        fail(f"--out: folder {folder} does not exist")
+        fail(f"--out: {folder} is not a folder")
     if not os.access(folder, os.W_OK | os.X_OK):
         fail(f"--out: cannot write in {folder}")
 
