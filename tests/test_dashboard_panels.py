@@ -25,7 +25,7 @@ from hopper.app.dashboard.server import Dashboard
 from net import free_port, wait_until
 
 from hopper.commands import Reset, SetWheel
-from hopper.config import GAIN_RANGES, WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT
+from hopper.config import GAIN_RANGES, GRAVITY_PRESETS, WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT
 from hopper.events import Event
 from hopper.metrics import RAD_S_TO_RPM
 from hopper.sim import Simulation
@@ -135,6 +135,30 @@ def test_a_replayed_fall_shows_one_toast(tmp_path: Path) -> None:
         probe.close()
     finally:
         d.stop()
+
+
+def test_a_gravity_whose_hop_the_legs_cap_tells_every_client_and_how_to_size_the_robot(dashboard: Dashboard) -> None:
+    probes = [ProbeClient(dashboard.url)]
+    try:
+        assert wait_until(lambda: dashboard.roles.operator is not None)  # the first to connect operates
+        probes.append(ProbeClient(dashboard.url))  # and the second watches
+        assert wait_until(lambda: len(dashboard.server.get_clients()) == 2)
+        probes[0].set_gui_value("Gravity", "Earth")
+        for probe in probes:  # the one who chose it and the viewer
+            assert probe.wait_for(lambda p: bodies(p, "Legs at their limit")), probe.notifications
+            (body,) = bodies(probe, "Legs at their limit")
+            assert body.startswith("At 9.81 m/s² this robot's 30 N m legs cap the hop at 0.09 m of the 0.25 m asked")
+            assert "hopper-sim size --gravity 9.81 --out FILE" in body and "hopper-dashboard --model FILE" in body
+        # Mars's gravity asks no more of the legs than they give: the loop has it, then a marker, and
+        # no second notice came before the marker (one connection keeps its order).
+        probes[0].set_gui_value("Gravity", "Mars")
+        assert wait_until(lambda: dashboard.sim.config.gravity == GRAVITY_PRESETS["mars"])
+        feedback.notify_all(dashboard.server, "marker", "")
+        assert probes[0].wait_for(lambda p: bodies(p, "marker"))
+        assert len(bodies(probes[0], "Legs at their limit")) == 1, probes[0].notifications
+    finally:
+        for probe in probes:
+            probe.close()
 
 
 # -- typed numbers ---------------------------------------------------------------------------------

@@ -27,7 +27,7 @@ from hopper.app.dashboard.plots import LivePlots, LogReplayPlots, ReflyPlots
 from hopper.app.dashboard.recording import Recorder
 from hopper.app.dashboard.scene import CameraFollow, GhostRobot, RobotView, Trail
 
-from hopper.config import Gains
+from hopper.config import Gains, GaitParams
 from hopper.robot import PACKAGED, Robot
 
 
@@ -87,6 +87,7 @@ def build_layout(
     controller: str = "pid",
     controller_choices: tuple[str, ...] = (),
     flown: Robot = PACKAGED,
+    gait: GaitParams | None = None,  # the flown gait (None: the default one)
     lighting: str = "full",
 ) -> Layout:
     configure_theme(server)
@@ -112,7 +113,7 @@ def build_layout(
     with tabs.add_tab("Disturb", viser.Icon.BOLT):
         disturbances = build_disturbances_panel(gui, ctx)
     with tabs.add_tab("World", viser.Icon.PLANET):
-        terrain_panel = build_terrain_panel(gui, ctx, seed, terrain, gravity)
+        terrain_panel = build_terrain_panel(gui, ctx, seed, terrain, gravity, flown, gait)
         with gui.add_folder("Test stand"):
             stand = build_stand_panel(gui, ctx)
         view = build_view_panel(gui, server.scene, camera, trail, robot, physics, lighting)

@@ -155,6 +155,7 @@ class Dashboard:
             controller=sim.config.controller,
             controller_choices=config.controller_choice,
             flown=sim.robot,
+            gait=sim.config.gait,
             lighting=config.lighting,
         )
         self.layout.controller.show(sim.law)

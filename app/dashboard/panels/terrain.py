@@ -5,12 +5,14 @@ from __future__ import annotations
 import dataclasses
 
 import viser
-from hopper.app.dashboard.feedback import Refused, guarded
+from hopper.app.dashboard.feedback import Refused, guarded, notify_all
 from hopper.app.dashboard.panels import PanelContext
 from hopper.app.dashboard.panels.entry import NumberEntry
+from hopper.app.size_cli import legs_cap
 
 from hopper.commands import SetGravity, SetTerrain
-from hopper.config import GRAVITY_PRESETS, MOON_GRAVITY
+from hopper.config import GRAVITY_PRESETS, MOON_GRAVITY, GaitParams
+from hopper.robot import PACKAGED, Robot
 
 MAX_SEED = 2**31 - 1
 
@@ -33,6 +35,8 @@ class TerrainPanel:
     reset_button: viser.GuiButtonHandle
     default_seed: int
     default_flat: bool
+    robot: Robot = PACKAGED  # the flown robot and its gait: whether its legs cap the hop at a gravity
+    gait: GaitParams = dataclasses.field(default_factory=GaitParams)
 
     def apply_terrain(self, client: viser.ClientHandle | None = None) -> None:
         """Queue a terrain rebuild from the panel's seed and flat choice (restarts the robot)."""
@@ -47,7 +51,18 @@ class TerrainPanel:
         if name not in GRAVITY_PRESETS:  # only preset names may reach the core
             raise Refused(f"unknown gravity preset {self.gravity.value!r}")
         gravity = GRAVITY_PRESETS[name]
-        self.ctx.submit(SetGravity(gravity))
+        cap = legs_cap(gravity, self.gait, self.robot)
+        if cap is not None:  # the world changes for everyone: everyone is told why the robot stumbles
+            notify_all(
+                self.ctx.server,
+                "Legs at their limit",
+                f"At {gravity:g} m/s² this robot's {self.robot.leg_torque_limit:g} N m legs cap the hop at "
+                f"{cap[0]:.2f} m of the {cap[1]:g} m asked: expect stumbles and falls on crater ground. "
+                f"hopper-sim size --gravity {gravity:g} --out FILE writes the robot sized for this gravity; "
+                "fly it with hopper-dashboard --model FILE (README: A robot sized for another gravity).",
+                "warning",
+            )
+        self.ctx.submit(SetGravity(gravity))  # after the notice: once the loop has the gravity, it is out
 
     def reset(self) -> None:
         """Back to the starting terrain on the Moon (one rebuild)."""
@@ -60,9 +75,16 @@ class TerrainPanel:
 
 
 def build_terrain_panel(
-    gui: viser.GuiApi, ctx: PanelContext, seed: int, kind: str, gravity: float = MOON_GRAVITY
+    gui: viser.GuiApi,
+    ctx: PanelContext,
+    seed: int,
+    kind: str,
+    gravity: float = MOON_GRAVITY,
+    robot: Robot = PACKAGED,
+    gait: GaitParams | None = None,
 ) -> TerrainPanel:
-    """Rebuilding hot-swaps the heightfield and restarts the robot; gravity applies at the next tick."""
+    """Rebuilding hot-swaps the heightfield and restarts the robot; gravity applies at the next tick,
+    with a warning to every client when the flown `robot`'s legs cap the hop of its `gait` there."""
     seed_box = gui.add_text("Seed", "", hint=f"A whole number from 0 to {MAX_SEED}; Regenerate applies it")
     panel = TerrainPanel(
         ctx=ctx,
@@ -81,6 +103,8 @@ def build_terrain_panel(
         reset_button=gui.add_button("Default terrain and gravity", icon=viser.Icon.RESTORE, color="dark"),
         default_seed=seed,
         default_flat=kind == "flat",
+        robot=robot,
+        gait=gait or GaitParams(),
     )
 
     def next_seed(event: viser.GuiEvent) -> None:
