@@ -588,8 +588,10 @@ class Simulation:
         self._emit(Reset(reason))
 
     def _reconfigure(self, **changes: object) -> None:
-        self.config = dataclasses.replace(self.config, **changes)  # validates
-        self.controller.configure(self.config)
+        """The config with `changes`, taken by the controller; one it refuses changes nothing."""
+        config = dataclasses.replace(self.config, **changes)  # validates
+        self.controller.configure(config)
+        self.config = config
 
     def set_gains(self, gains: Gains, source: str = "") -> None:
         self._reconfigure(gains=gains)

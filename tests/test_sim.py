@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from hopper import commands
-from hopper.config import Gains, SimConfig
+from hopper.config import MOON_GRAVITY, Gains, SimConfig
 from hopper.control import FallCause, Phase
 from hopper.events import CommandFailed, Disturbance, EventKind, Fall, GainsChanged
 from hopper.sim import Simulation
@@ -159,6 +160,24 @@ def test_gravity_change_changes_the_hop() -> None:
     sim.run(1)
     assert sim.model.opt.gravity[2] == -3.72
     assert sim.hops[0].flight_time_s < 0.9  # 1.12 s on the Moon for the same apex
+
+
+def test_a_gravity_the_legs_cannot_hold_the_robot_at_is_refused_and_changes_nothing(tmp_path: Path) -> None:
+    from hopper.model import MODEL_XML
+
+    weak = tmp_path / "weak.xml"  # 10 N m legs: enough on the Moon, not on Earth
+    weak.write_text(MODEL_XML.read_text().replace('ctrlrange="-30 30"', 'ctrlrange="-10 10"'))
+    sim = Simulation(SimConfig(terrain="flat", model=str(weak)))
+    memory = sim.controller.mem.copy()
+    sim.submit(commands.SetGravity(9.81))
+    sim.step()
+    (failed,) = [e.payload for e in sim.events if isinstance(e.payload, CommandFailed)]
+    assert "the legs cannot hold the robot at 9.81 m/s^2" in failed.message
+    assert sim.config.gravity == MOON_GRAVITY and sim.model.opt.gravity[2] == -MOON_GRAVITY
+    for name in ("gravity", "kz", "apex", "vz_liftoff", "push_accel"):  # the controller's memory too
+        assert sim.controller.mem[name][0] == memory[name][0], name
+    sim.run(2)
+    assert len(sim.hops) == 2 and not sim.fallen
 
 
 def test_the_crater_strip_holds_twenty_hops() -> None:

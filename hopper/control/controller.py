@@ -63,14 +63,15 @@ class HopController:
         m["leg_resistance"] = MOTOR_RESISTANCE / (r.leg_torque_limit / LEG_TORQUE_LIMIT)
 
     def configure(self, config: SimConfig) -> None:
+        """Take `config`; a gravity the legs cannot hold the robot at raises ValueError and changes nothing."""
         m, g, gait = self.mem, config.gains, config.gait
+        self.gait = derived = gaits.derive(config.gravity, gait, self.robot)  # first: it may refuse
         m["kp"], m["ki"], m["kd"] = g.kp, g.ki, g.kd
         m["gravity"], m["wheel_on"] = config.gravity, config.wheel
         # The energy is the simulated robot's: a motor_torque mismatch is its wheel motor's k_t (hopper.mismatch),
         # though the control law keeps the nominal one.
         m["wheel_kt"] = MOTOR_TORQUE_CONSTANT * dict(config.mismatch).get("motor_torque", 1.0)
-        self.gait = gaits.derive(config.gravity, gait, self.robot)
-        for name, value in self.gait.record().items():
+        for name, value in derived.record().items():
             m[name] = value
         m["stand"], m["crouch"] = gait.stand_height, gait.crouch_height
         m["push"], m["flight_length"], m["spread"] = gait.push_length, gait.flight_length, gait.foot_spread
