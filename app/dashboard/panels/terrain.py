@@ -51,7 +51,10 @@ class TerrainPanel:
         if name not in GRAVITY_PRESETS:  # only preset names may reach the core
             raise Refused(f"unknown gravity preset {self.gravity.value!r}")
         gravity = GRAVITY_PRESETS[name]
-        cap = legs_cap(gravity, self.gait, self.robot)
+        try:
+            cap = legs_cap(gravity, self.gait, self.robot)
+        except ValueError:  # legs that cannot hold the robot there at all: the loop refuses it, and says so
+            cap = None
         if cap is not None:  # the world changes for everyone: everyone is told why the robot stumbles
             notify_all(
                 self.ctx.server,
