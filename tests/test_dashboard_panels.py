@@ -25,7 +25,7 @@ from hopper.app.dashboard.server import Dashboard
 from net import free_port, wait_until
 
 from hopper.commands import Reset, SetWheel
-from hopper.config import GAIN_RANGES, GRAVITY_PRESETS, WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT
+from hopper.config import GAIN_RANGES, GRAVITY_PRESETS, MOON_GRAVITY, WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT
 from hopper.events import Event
 from hopper.metrics import RAD_S_TO_RPM
 from hopper.sim import Simulation
@@ -159,6 +159,30 @@ def test_a_gravity_whose_hop_the_legs_cap_tells_every_client_and_how_to_size_the
     finally:
         for probe in probes:
             probe.close()
+
+
+def test_a_gravity_the_legs_cannot_hold_the_robot_at_is_refused_and_the_control_shows_what_flies(
+    start: Any, tmp_path: Path
+) -> None:
+    from hopper.model import MODEL_XML
+
+    weak = tmp_path / "weak.xml"  # 10 N m legs: enough on the Moon, not on Earth
+    weak.write_text(MODEL_XML.read_text().replace('ctrlrange="-30 30"', 'ctrlrange="-10 10"'))
+    d = start(model=str(weak))
+    probe = ProbeClient(d.url)
+    try:
+        assert wait_until(lambda: d.roles.operator is not None)
+        gravity = probe.set_gui_value("Gravity", "Earth")
+        assert probe.wait_for(lambda p: bodies(p, "Command failed")), probe.notifications
+        assert bodies(probe, "Command failed") == [
+            "SetGravity failed: ValueError: the legs cannot hold the robot at 9.81 m/s^2 (crouched, 10 N m)"
+        ]
+        assert probe.wait_for(lambda p: (gravity, {"value": "Moon"}) in p.gui_log), "the control still shows Earth"
+        assert d.sim.config.gravity == MOON_GRAVITY and d.sim.model.opt.gravity[2] == -MOON_GRAVITY
+        now = d.sim.time
+        assert wait_until(lambda: d.sim.time > now + 0.5), "the simulation stopped"
+    finally:
+        probe.close()
 
 
 # -- typed numbers ---------------------------------------------------------------------------------

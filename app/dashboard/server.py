@@ -488,6 +488,8 @@ class Dashboard:
             notify_all(self.server, "Command failed", payload.describe(), "error")
             if payload.command == "SetController":  # the selector shows what flies again
                 layout.controller.show(self.sim.law)
+            elif payload.command == "SetGravity":  # so does the Gravity control
+                layout.terrain.show_gravity(self.sim.config.gravity)
         elif kind == EventKind.CONTROLLER_FAILED:
             notify_all(self.server, "Controller failed", payload.describe(), "error")
         elif kind == EventKind.CONTROLLER:

@@ -67,6 +67,11 @@ class TerrainPanel:
             )
         self.ctx.submit(SetGravity(gravity))  # after the notice: once the loop has the gravity, it is out
 
+    def show_gravity(self, gravity: float) -> None:
+        """Show the gravity the simulation flies (m/s^2), after it refused another; the control's callback
+        asks for it again, which changes nothing."""
+        self.gravity.value = _preset_name(gravity)
+
     def reset(self) -> None:
         """Back to the starting terrain on the Moon (one rebuild)."""
         self.gravity.value = "Moon"
