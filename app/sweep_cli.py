@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -254,12 +253,19 @@ def check_out(out: Path) -> None:
     if out.exists() and not out.is_dir():
         fail(f"--out {out} is not a folder")
     folder = out.absolute()
-    while not folder.exists():  # the nearest existing folder: the store makes the rest
+    while not folder.exists():  # the nearest existing folder
         folder = folder.parent
     if not folder.is_dir():
         fail(f"--out: {folder} is not a folder")
-    if not os.access(folder, os.W_OK | os.X_OK):
-        fail(f"--out: cannot write in {folder}")
+    # Made and written to now, the last check before any work: permission bits say little for root,
+    # /proc or a read-only mount (cli_common.writable_file).
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        probe = out / ".hopper-sweep-write-test"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as exc:
+        fail(f"--out: cannot write to {out}: {exc.strerror or exc}")
 
 
 def check_workers(args: argparse.Namespace) -> None:
