@@ -62,6 +62,17 @@ def writable_file(text: str) -> Path:
     return path
 
 
+def make_writable_folder(path: Path) -> None:
+    """Make the folder `path` (and its parents) and write in it; OSError if that cannot be done.
+
+    Written to, not judged by its permission bits, which say little for root, /proc or a read-only mount.
+    """
+    path.mkdir(parents=True, exist_ok=True)
+    probe = path / ".hopper-write-test"
+    probe.write_bytes(b"")
+    probe.unlink()
+
+
 def seed(text: str) -> int:
     """A terrain seed, a non-negative integer (numpy's generators take no negative seed)."""
     try:

@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from hopper.app.cli_common import EXIT_OK, fail
+from hopper.app.cli_common import EXIT_OK, fail, make_writable_folder
 from hopper.app.episode import sim_config, simulate
 
 from hopper.controllers import ControllerError
@@ -60,10 +60,7 @@ def kind(path: Path) -> str:
 def out_folder(path: Path) -> Path:
     """The output folder, created; ValueError if it cannot be."""
     try:
-        path.mkdir(parents=True, exist_ok=True)
-        probe = path / ".hopper-report-write-test"
-        probe.write_bytes(b"")
-        probe.unlink()
+        make_writable_folder(path)
     except OSError as exc:
         raise ValueError(f"cannot write to {path}: {exc.strerror or exc}") from None
     return path

@@ -8,7 +8,15 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from hopper.app.cli_common import EXIT_OK, add_model_flag, checked_controller, fail, model_file, writable_file
+from hopper.app.cli_common import (
+    EXIT_OK,
+    add_model_flag,
+    checked_controller,
+    fail,
+    make_writable_folder,
+    model_file,
+    writable_file,
+)
 
 SWEEP_EPILOG = (
     "exit status: 0 finished (falls are results), 2 bad spec or arguments, 130 interrupted "
@@ -257,13 +265,8 @@ def check_out(out: Path) -> None:
         folder = folder.parent
     if not folder.is_dir():
         fail(f"--out: {folder} is not a folder")
-    # Made and written to now, the last check before any work: permission bits say little for root,
-    # /proc or a read-only mount (cli_common.writable_file).
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        probe = out / ".hopper-sweep-write-test"
-        probe.write_bytes(b"")
-        probe.unlink()
+    try:  # made and written to now, the last check before any work
+        make_writable_folder(out)
     except OSError as exc:
         fail(f"--out: cannot write to {out}: {exc.strerror or exc}")
 
