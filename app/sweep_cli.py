@@ -258,10 +258,8 @@ def check_controllers(spec: Any) -> None:  # noqa: ANN401 (hopper.experiments.sp
 def check_out(out: Path) -> None:
     """OUT is a folder (or can be made one, with its missing parents, as the store does) that can be
     written, checked before any work."""
-    if out.exists() and not out.is_dir():
-        fail(f"--out {out} is not a folder")
     folder = out.absolute()
-    while not folder.exists():  # the nearest existing folder
+    while not folder.exists():  # OUT itself, or the nearest of its parents that exists
         folder = folder.parent
     if not folder.is_dir():
         fail(f"--out: {folder} is not a folder")
