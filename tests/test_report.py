@@ -222,6 +222,31 @@ def test_a_sweep_report_maps_the_gains_and_the_success_rates(sweep_dir: Path, tm
     assert load(part).episodes.num_rows == len(ds.dataset(part).to_table())
 
 
+def test_a_gain_cell_whose_robots_never_landed_says_so_instead_of_a_perfect_zero(tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    """With the wheel off the robot falls in its first flight: the store writes 0 deg for an episode
+    without a landing, which the map drew as the best colour ("0.00°") and the table as 0."""
+    out = tmp_path / "sweep"
+    code, printed, err = cli(capsys, "sweep", "--out", str(out), "--seeds", "2", "--wheel", "on,off", "--hops", "1",
+                             "--terrain", "flat", "--executor", "local", "--workers", "1")  # fmt: skip
+    assert code == 0, err
+    off = [e for e in ds.dataset(out / "episodes").to_table().to_pylist() if not e["wheel"]]
+    assert off and all(e["fell"] and e["hops_completed"] == 0 and e["worst_landing_deg"] == 0.0 for e in off)
+    assert "off: 2/2 fell, land none (no hop completed)" in printed
+    sweep = load(out)
+    fig = gain_map(sweep, wheel=False)
+    ax = fig.axes[0]
+    assert np.ma.getmaskarray(ax.images[0].get_array()).all()  # grey, not coloured as 0 deg
+    assert [t.get_text() for t in ax.texts] == ["no landing\n2/2 fell"]
+    build.style.close(fig)
+    report = sweep_report(sweep, "t")
+    for named in report.figures:
+        build.style.close(named.figure)
+    rows = {(r[0], r[1]): r for r in report.tables[0].rows}
+    on = [e["worst_landing_deg"] for e in ds.dataset(out / "episodes").to_table().to_pylist() if e["wheel"]]
+    assert rows[("wheel", False)][5] == "no landing"
+    assert rows[("wheel", True)][5] == pytest.approx(max(on))
+
+
 @pytest.mark.parametrize(
     "make, message",
     [

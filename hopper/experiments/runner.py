@@ -52,7 +52,8 @@ def run_sweep(
     executor = make_executor(todo)
     ready = time.perf_counter()
     startup = getattr(executor, "startup_s", 0.0)
-    announce(f"running {len(todo)} episodes on {executor.name} ({executor.workers} workers)")
+    workers = f"{executor.workers} worker" + ("s" if executor.workers != 1 else "")
+    announce(f"running {len(todo)} episodes on {executor.name} ({workers})")
     bar = tqdm(total=spec.size, initial=skipped, desc="episodes", unit="ep", file=sys.stderr, disable=not progress)
     ran = 0
     try:

@@ -23,10 +23,9 @@ def axis_lines(episodes: pa.Table, axes: dict[str, tuple[Any, ...]]) -> list[str
             if rows.num_rows == 0:
                 continue
             falls = pc.sum(rows.column("fell")).as_py() or 0
-            landing = pc.max(rows.column("worst_landing_deg")).as_py()
             momentum = pc.max(rows.column("momentum_used_pct")).as_py()
             label = _label(value)
-            parts.append(f"{label}: {falls}/{rows.num_rows} fell, land {landing:.2f} deg, wheel {momentum:.0f} %")
+            parts.append(f"{label}: {falls}/{rows.num_rows} fell, land {_landing(rows)}, wheel {momentum:.0f} %")
         unit = f" ({UNITS[name]})" if name in UNITS else ""
         lines.append(f"{name}{unit}: " + "; ".join(parts))
     return lines
@@ -37,11 +36,18 @@ def overall_line(episodes: pa.Table) -> str:
     if n == 0:
         return "no episodes"
     falls = pc.sum(episodes.column("fell")).as_py() or 0
-    landing = pc.max(episodes.column("worst_landing_deg")).as_py()
     sim = pc.sum(episodes.column("sim_time_s")).as_py()
-    return (
-        f"{n} episodes, {falls} fell ({100 * falls / n:.1f} %), worst landing {landing:.2f} deg, {sim:.0f} s simulated"
-    )
+    landing = _landing(episodes)
+    return f"{n} episodes, {falls} fell ({100 * falls / n:.1f} %), worst landing {landing}, {sim:.0f} s simulated"
+
+
+def _landing(rows: pa.Table) -> str:
+    """The worst landing (deg) over the episodes that landed at least once: the column holds 0 for an
+    episode without a completed hop (a robot that fell in its first flight), which is no landing."""
+    landed = rows.filter(pc.greater(rows.column("hops_completed"), 0))
+    if landed.num_rows == 0:
+        return "none (no hop completed)"
+    return f"{pc.max(landed.column('worst_landing_deg')).as_py():.2f} deg"
 
 
 def _label(value: Any) -> str:

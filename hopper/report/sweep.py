@@ -40,9 +40,15 @@ class Sweep:
     def column(self, name: str) -> np.ndarray:
         return self.episodes.column(name).to_numpy(zero_copy_only=False)
 
+    def landing(self) -> np.ndarray:
+        """Per episode, its worst landing error (deg); NaN for one that never landed (the store
+        writes 0 there: hopper.experiments.store)."""
+        landing = self.column("worst_landing_deg").astype(float)
+        return np.where(self.column("hops_completed") > 0, landing, np.nan)
+
     def success(self) -> np.ndarray:
         """Per episode: all hops done, no fall, every landing within LANDING_LIMIT_DEG."""
-        landing = np.nan_to_num(self.column("worst_landing_deg").astype(float), nan=np.inf)
+        landing = np.nan_to_num(self.landing(), nan=np.inf)
         done = self.column("hops_completed") >= self.column("hops_target")
         return done & ~self.column("fell").astype(bool) & (landing <= LANDING_LIMIT_DEG)
 
@@ -94,10 +100,10 @@ def load(path: Path) -> Sweep:
 
 def gain_map(sweep: Sweep, wheel: bool = True) -> Figure:
     """Kp x Kd coloured by the worst landing error over every episode in the cell (other axes and
-    seeds pooled); falls marked with their count. Grey: every episode in the cell fell before landing."""
+    seeds pooled); falls marked with their count. Grey, "no landing": every episode in the cell fell before landing."""
     mask = sweep.column("wheel").astype(bool) == wheel
     kp_all, kd_all = sweep.column("kp")[mask], sweep.column("kd")[mask]
-    landing = sweep.column("worst_landing_deg")[mask].astype(float)
+    landing = sweep.landing()[mask]
     fell = sweep.column("fell")[mask].astype(bool)
     kps, kds = _unique(kp_all), _unique(kd_all)
     worst = np.full((len(kds), len(kps)), np.nan)
@@ -121,7 +127,7 @@ def gain_map(sweep: Sweep, wheel: bool = True) -> Figure:
     bar.ax.axhline(LANDING_LIMIT_DEG, color="white", lw=1.5)
     for i in range(len(kds)):
         for j in range(len(kps)):
-            text = "all fell" if not np.isfinite(worst[i, j]) else f"{worst[i, j]:.2f}°"
+            text = "no landing" if not np.isfinite(worst[i, j]) else f"{worst[i, j]:.2f}°"
             if falls[i, j]:  # falls: a red frame, a cross in the corner and the count
                 text += f"\n{falls[i, j]}/{counts[i, j]} fell"
                 ax.add_patch(Rectangle((j - 0.48, i - 0.48), 0.96, 0.96, fill=False, edgecolor=style.LIMIT, lw=2.5))
@@ -161,13 +167,13 @@ def success_against(sweep: Sweep, column: str, label: str) -> Figure:
 def axis_table(sweep: Sweep) -> page.Section:
     """One line per value of each varied setting: episodes, success, falls, worst landing."""
     ok, fell = sweep.success(), sweep.column("fell").astype(bool)
-    landing = sweep.column("worst_landing_deg").astype(float)
+    landing = sweep.landing()
     rows = []
     for name in sweep.varied():
         values = sweep.column(name)
         for v in _unique(values):
             sel = values == v
-            worst = np.nanmax(landing[sel]) if np.isfinite(landing[sel]).any() else float("nan")
+            worst = np.nanmax(landing[sel]) if np.isfinite(landing[sel]).any() else "no landing"
             rows.append([name, v, int(sel.sum()), 100.0 * ok[sel].mean(), int(fell[sel].sum()), worst])
     header = ["setting", "value", "episodes", "success (%)", "falls", "worst landing (deg)"]
     note = (f"Success: all hops done, no fall, every landing within {LANDING_LIMIT_DEG:g} deg. "
