@@ -234,6 +234,7 @@ def test_tune_robust_scores_a_quantile_over_robots_and_judges_on_fresh_ones(tmp_
     runs = [hopper_sim(*flags, "--json", str(tmp_path / f"{i}.json")) for i in range(2)]
     for r in runs:
         assert r.returncode == 0, r.stderr
+        assert "judging: 100%" in r.stderr, "the judging (with 500 robots half an hour) counts its episodes"
     assert runs[0].stdout == runs[1].stdout, "seeded: the same search, the same robots"
     report = json.loads((tmp_path / "0.json").read_text())
     assert report["tuning"]["best"]["episodes"] == 3 and report["heldout"]["best"]["episodes"] == 2

@@ -216,8 +216,10 @@ def evaluate(
     setup: TuneSetup,
     executor: Executor,
     judging: bool = False,
+    bar: Any = None,
 ) -> list[Score | RobustScore | None]:
-    """Each candidate's score over `seeds` x gravities (x robots) (None if its configuration is refused)."""
+    """Each candidate's score over `seeds` x gravities (x robots) (None if its configuration is refused);
+    `bar` (a tqdm), if given, counts the episodes as they finish."""
     valid, episodes = {}, []
     for i, params in enumerate(candidates):
         eps = setup.episodes(params, seeds, judging)
@@ -228,9 +230,13 @@ def evaluate(
         valid[i] = eps
         episodes += eps
     unique = list({e.episode_id: e for e in episodes}.values())
+    if bar is not None:
+        bar.reset(total=len(unique))
     results: dict[str, EpisodeResult] = {}
     for chunk_results in executor.map(chunks(unique, executor.workers)):
         results |= {r.episode.episode_id: r for r in chunk_results}
+        if bar is not None:
+            bar.update(len(chunk_results))
     return [
         setup.score([results[e.episode_id] for e in valid[i]]) if i in valid else None for i in range(len(candidates))
     ]
@@ -264,7 +270,10 @@ def tune(setup: TuneSetup, make_executor: Callable[[list[Episode]], Executor], p
             bar.update(len(trials))
         best_index = min(range(len(history)), key=lambda i: history[i][1])  # the first of equals
         best = {**defaults, **history[best_index][0]}
-        default_heldout, best_heldout = evaluate([defaults, best], setup.heldout, setup, executor, judging=True)
+        bar.close()
+        # The judging can be the longest part (--judge-samples 500: 16,000 episodes): it counts too.
+        bar = tqdm(desc="judging", unit="ep", file=sys.stderr, disable=not progress)
+        default_heldout, best_heldout = evaluate([defaults, best], setup.heldout, setup, executor, True, bar)
     finally:
         bar.close()
         executor.close()
