@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import copy
 import math
+import sys
 from pathlib import Path
 
 import mujoco
@@ -273,7 +274,7 @@ def command_identify(args: argparse.Namespace) -> int:
     before = [sysid.replay_error(fresh, log, 0, args.hops, world.command_delay, e, s) for _, e, s in measures]
     fit = sysid.identify(
         model, log, span, names, stages=args.windows, delay_ticks=world.command_delay,
-        max_evaluations=args.max_evaluations,
+        max_evaluations=args.max_evaluations, progress=lambda line: print(f"identify: {line}", file=sys.stderr),
     )  # fmt: skip
     after = [sysid.replay_error(model, log, 0, args.hops, world.command_delay, e, s) for _, e, s in measures]
     truth = truth_values(fresh, args.truth)

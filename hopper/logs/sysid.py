@@ -399,12 +399,19 @@ def identify(
     stages: Sequence[float] = STAGES,
     delay_ticks: int = DEFAULT_DELAY_TICKS,
     max_evaluations: int = 60,
+    progress: Callable[[str], None] | None = None,
 ) -> Fit:
     """Fit `names` (PARAMS) of `model` (compiled in the log's world; left at the estimates) to rows
     span[0]..span[1] of `log`: one least-squares fit per window length of `stages` (s), each from
     the last one's estimate (short windows first: their cost is smooth where a contact's slip or
-    stick makes a long window's rugged; long ones last, for their sensitivity)."""
+    stick makes a long window's rugged; long ones last, for their sensitivity). `progress`, if
+    given, is told as each stage starts (a fit takes minutes)."""
     started = clock.perf_counter()
+
+    def announce(what: str) -> None:
+        if progress is not None:
+            progress(f"{what} ({clock.perf_counter() - started:.0f} s in)")
+
     if not log.has_state():
         raise ReplayError(f"{log.source}: identification replays from the log's state, and it has none")
     if not stages or any(w <= 0 for w in stages):
@@ -420,6 +427,7 @@ def identify(
         # Without a contact nothing is piecewise: the torso and the wheel are fitted on the flights
         # first, so that friction, on the stances, does not soak up their errors (a torso mass 2 %
         # and a CoM 20 % off once made friction +15 %).
+        announce(f"fitting {', '.join(free)} on {len(airborne)} windows in flight first")
         flying = Problem(robot, log, airborne, free, delay_ticks)
         start = flying.values(_least_squares(flying, np.zeros(len(free)), max_evaluations).x)
         evaluations += flying.evaluations
@@ -427,6 +435,7 @@ def identify(
         spans = windows(log, span, window_s)
         if not spans:
             raise IdentifyError(f"{log.source}: rows {span[0]}..{span[1]} hold no window of {window_s:g} s")
+        announce(f"stage {i + 1} of {len(stages)}: {len(spans)} windows of {window_s:g} s")
         problem = Problem(robot, log, spans, names, delay_ticks)
         if i == 0:
             before = problem.channel_rms(problem.residuals(np.zeros(len(problem.names))))
