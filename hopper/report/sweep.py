@@ -194,7 +194,8 @@ def sweep_report(sweep: Sweep, title: str) -> Report:
             state = "on" if wheel else "off"
             figures.append(Named(f"gain_map_wheel_{state}", f"Kp x Kd, wheel {state}",
                                  "Worst landing pitch error over every episode in each cell (other settings pooled); "
-                                 "red crosses and counts: episodes that fell. White line on the scale: 3.5 deg.",
+                                 "red crosses and counts: episodes that fell; grey, no landing: every episode in the "
+                                 "cell fell before its first landing. White line on the scale: 3.5 deg.",
                                  gain_map(sweep, wheel)))  # fmt: skip
     for column, label in (("gravity", "gravity (m/s²)"), ("disturbance_size", "disturbance size (N m s)")):
         if len(_unique(sweep.column(column))) > 1:
