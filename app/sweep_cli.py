@@ -296,7 +296,7 @@ def command_sweep(args: argparse.Namespace) -> int:
     check_out(args.out)
 
     from hopper.experiments.executor import ExecutorError, choose
-    from hopper.experiments.runner import run_sweep
+    from hopper.experiments.runner import run_sweep, workers
     from hopper.experiments.store import SweepStore
     from hopper.experiments.summary import axis_lines, overall_line
 
@@ -317,9 +317,8 @@ def command_sweep(args: argparse.Namespace) -> int:
     if run.ran == 0 and run.skipped == run.total:
         print(f"this run: nothing left to run, all {run.total} episodes were already done")
         return EXIT_OK
-    workers = f"{run.workers} worker" + ("s" if run.workers != 1 else "")
     print(
-        f"this run: {run.ran} episodes on {run.executor} ({workers}) in {run.wall_s:.1f} s{startup}; "
+        f"this run: {run.ran} episodes on {run.executor} ({workers(run.workers)}) in {run.wall_s:.1f} s{startup}; "
         f"{run.skipped} were already done"
     )
     return EXIT_OK

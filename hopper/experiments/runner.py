@@ -52,8 +52,7 @@ def run_sweep(
     executor = make_executor(todo)
     ready = time.perf_counter()
     startup = getattr(executor, "startup_s", 0.0)
-    workers = f"{executor.workers} worker" + ("s" if executor.workers != 1 else "")
-    announce(f"running {len(todo)} episodes on {executor.name} ({workers})")
+    announce(f"running {len(todo)} episodes on {executor.name} ({workers(executor.workers)})")
     bar = tqdm(total=spec.size, initial=skipped, desc="episodes", unit="ep", file=sys.stderr, disable=not progress)
     ran = 0
     try:
@@ -68,3 +67,8 @@ def run_sweep(
         executor.close()
     wall = time.perf_counter() - start
     return SweepRun(spec.size, skipped, ran, wall, startup, finished - ready, executor.name, executor.workers)
+
+
+def workers(n: int) -> str:
+    """'1 worker', '2 workers'."""
+    return f"{n} worker" + ("s" if n != 1 else "")

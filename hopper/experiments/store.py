@@ -18,6 +18,7 @@ import typing
 from pathlib import Path
 
 import pyarrow as pa
+import pyarrow.compute as pc
 import pyarrow.dataset as ds
 import pyarrow.parquet as pq
 
@@ -61,6 +62,12 @@ HOP_FIELDS: list[tuple[str, pa.DataType]] = [
     )
 ]  # fmt: skip
 FLUSH_S = 2.0  # s between parts at most while results stream in (and at the end, and on Ctrl-C)
+
+
+def worst_landing(episodes: pa.Table) -> pa.ChunkedArray:
+    """Each episode's worst landing (deg), null for one without a completed hop (stored as 0 there):
+    a robot that fell in its first flight never landed, which is not a perfect landing."""
+    return pc.if_else(pc.greater(episodes.column("hops_completed"), 0), episodes.column("worst_landing_deg"), None)
 
 
 def schemas(spec: SweepSpec) -> tuple[pa.Schema, pa.Schema]:

@@ -7,6 +7,8 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.compute as pc
 
+from hopper.experiments.store import worst_landing
+
 UNITS = {"kp": "N m/rad", "ki": "N m/(rad s)", "kd": "N m s/rad", "gravity": "m/s^2"}
 
 
@@ -42,12 +44,9 @@ def overall_line(episodes: pa.Table) -> str:
 
 
 def _landing(rows: pa.Table) -> str:
-    """The worst landing (deg) over the episodes that landed at least once: the column holds 0 for an
-    episode without a completed hop (a robot that fell in its first flight), which is no landing."""
-    landed = rows.filter(pc.greater(rows.column("hops_completed"), 0))
-    if landed.num_rows == 0:
-        return "none (no hop completed)"
-    return f"{pc.max(landed.column('worst_landing_deg')).as_py():.2f} deg"
+    """The worst landing over the episodes that landed at least once."""
+    worst = pc.max(worst_landing(rows)).as_py()
+    return "none (no hop completed)" if worst is None else f"{worst:.2f} deg"
 
 
 def _label(value: Any) -> str:

@@ -15,6 +15,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 
 from hopper.config import GaitParams
+from hopper.experiments.store import worst_landing
 from hopper.report import page, style
 from hopper.report.build import Named, Report
 
@@ -41,10 +42,8 @@ class Sweep:
         return self.episodes.column(name).to_numpy(zero_copy_only=False)
 
     def landing(self) -> np.ndarray:
-        """Per episode, its worst landing error (deg); NaN for one that never landed (the store
-        writes 0 there: hopper.experiments.store)."""
-        landing = self.column("worst_landing_deg").astype(float)
-        return np.where(self.column("hops_completed") > 0, landing, np.nan)
+        """Per episode, its worst landing error (deg); NaN for one that never landed."""
+        return worst_landing(self.episodes).to_numpy().astype(float)
 
     def success(self) -> np.ndarray:
         """Per episode: all hops done, no fall, every landing within LANDING_LIMIT_DEG."""
