@@ -1,7 +1,7 @@
 """How often the robot falls on crater ground: N hops per (body, seed), the falls and where.
 
 Run: python -m benchmarks.falls [--hops 300] [--seeds 0-7] [--bodies moon,mars,ceres,earth]
-         [--workers 2] [--traces DIR] [--model PATH.xml]
+         [--workers 2] [--traces DIR] [--model PATH.xml] [--terrain crater|flat] [--depth 1.0]
 
 Each run is `hopper-sim run --hops N --gravity BODY --seed S` (the default robot and controller),
 stepped one tick at a time so that the last TRACE_S seconds before a fall can be kept. Per run it
@@ -10,7 +10,8 @@ per fall, the phases before it (phase letter L S C P F X, then the feet down, l 
 in s). Then the totals per body: hops, falls, stuck runs, hops per fall, metres a hop, metres per
 fall, the share of the pushes that were recovery hops and the near falls (NEAR_FALL). With
 --traces, each fall's or stuck run's last TRACE_S s go to DIR/BODY_SEED.npy, one row a tick
-(columns TRACE).
+(columns TRACE). `--terrain flat` and `--depth` (the craters' depths and rims times this) tell the
+ground's share of the falls from the controller's.
 
 The runs are chaotic: any change to the ground controller moves where the falls happen, so compare
 variants over many seeds (a few thousand hops, seeds the change was not made on), not run by run.
@@ -19,6 +20,7 @@ variants over many seeds (a few thousand hops, seeds the change was not made on)
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import sys
 import time
@@ -30,7 +32,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
-from hopper.config import GRAVITY_PRESETS  # noqa: E402
+from hopper.config import GRAVITY_PRESETS, CraterParams  # noqa: E402
 from hopper.control.phases import Phase  # noqa: E402
 
 TRACE_S = 3.0  # s kept before a fall
@@ -65,13 +67,23 @@ def sequence(rows: np.ndarray) -> str:
     return " ".join(changes[-SEQUENCE:])
 
 
-def run(job: tuple[str, int, int, str | None, str | None]) -> dict:
+def craters(depth: float) -> CraterParams:
+    """The default crater field with every crater's depth and rim `depth` times as high."""
+    c = CraterParams()
+    depths, rims = c.depth_ratio_range, c.rim_ratio_range
+    return dataclasses.replace(
+        c, depth_ratio_range=(depths[0] * depth, depths[1] * depth), rim_ratio_range=(rims[0] * depth, rims[1] * depth)
+    )
+
+
+def run(job: tuple[str, int, int, str | None, str | None, str, float]) -> dict:
     """One run: its result, and the phases before its fall (or its stop short of the hops)."""
     from hopper.config import SimConfig
     from hopper.sim import Simulation
 
-    body, seed, hops, traces, model = job
-    sim = Simulation(SimConfig(seed=seed, gravity=GRAVITY_PRESETS[body], model=model))
+    body, seed, hops, traces, model, terrain, depth = job
+    config = SimConfig(seed=seed, gravity=GRAVITY_PRESETS[body], model=model, terrain=terrain, craters=craters(depth))
+    sim = Simulation(config)
     mem, lay, q, v = sim.controller.mem, sim.layout, sim.data.qpos, sim.data.qvel
     keep = round(TRACE_S / sim.model.opt.timestep)
     ring = np.zeros((keep, len(TRACE)))
@@ -135,18 +147,25 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--workers", type=int, default=2, help="processes (default 2)")
     parser.add_argument("--traces", type=Path, default=None, help="keep each fall's last seconds here (.npy)")
     parser.add_argument("--model", type=Path, default=None, help="your own MJCF of the robot (hopper-sim --model)")
+    parser.add_argument("--terrain", choices=("crater", "flat"), default="crater", help="the ground (default crater)")
+    parser.add_argument("--depth", type=float, default=1.0, help="the craters' depths and rims times this (default 1)")
     args = parser.parse_args(argv)
     bodies = args.bodies.split(",")
     unknown = [b for b in bodies if b not in GRAVITY_PRESETS]
     if unknown or args.hops < 1 or args.workers < 1:
         parser.error(f"bodies are {', '.join(GRAVITY_PRESETS)}; hops and workers at least 1")
+    try:
+        craters(args.depth)
+    except ValueError as error:
+        parser.error(str(error))
     if args.traces is not None:
         args.traces.mkdir(parents=True, exist_ok=True)
     traces = str(args.traces) if args.traces is not None else None
     # The slowest bodies first: the pool ends with short runs, not one long one.
     model = str(args.model.resolve()) if args.model is not None else None
     jobs = sorted(
-        ((b, s, args.hops, traces, model) for b in bodies for s in args.seeds), key=lambda j: GRAVITY_PRESETS[j[0]]
+        ((b, s, args.hops, traces, model, args.terrain, args.depth) for b in bodies for s in args.seeds),
+        key=lambda j: GRAVITY_PRESETS[j[0]],
     )
     results = []
     with Pool(args.workers) as pool:
