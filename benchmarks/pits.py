@@ -67,9 +67,9 @@ class PitField:
         return int(crossed), next(part for end, part in zip(ends, PARTS, strict=True) if u < end)
 
 
-def simulation(body: str, angle: float, depth: float, shift: float = 0.0, model: str | None = None):  # noqa: ANN201
-    """The robot (a Simulation) at `body`'s gravity, standing before pits of `angle` (deg) and
-    `depth` (m) shifted by `shift` of a period (PitField)."""
+def simulation(body: str, angle: float, depth: float, shift: float = 0.0, model: str | None = None) -> tuple:
+    """(a Simulation, its PitField): the robot at `body`'s gravity, standing before pits of `angle`
+    (deg) and `depth` (m) shifted by `shift` of a period."""
     from hopper import terrain
     from hopper.config import SimConfig
     from hopper.model import set_terrain
@@ -87,14 +87,9 @@ def run(job: tuple[str, float, float, float, int, str | None]) -> dict:
     """One run over pits of `angle` (deg) and `depth` (m), shifted: hops done, fell, where it ended."""
     body, angle, depth, shift, hops, model = job
     sim, field = simulation(body, angle, depth, shift, model)
-    limit = round(sim.time_limit(hops) / sim.model.opt.timestep)
-    ticks = 0
-    while len(sim.hops) < hops and not sim.fallen and ticks < limit:
-        sim.step()
-        ticks += 1
+    done = sum(h.completed for h in sim.run(hops))
     x = sim.state().x
     crossed, part = field.where(x)
-    done = sum(h.completed for h in sim.hops)
     return {"body": body, "angle": angle, "depth": depth, "hops": done, "fell": sim.fallen, "x": x,
             "crossed": crossed, "part": part}  # fmt: skip
 

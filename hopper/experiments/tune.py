@@ -273,8 +273,9 @@ def tune(setup: TuneSetup, make_executor: Callable[[list[Episode]], Executor], p
         bar.close()
         # The judging can be the longest part (--judge-samples 500: 16,000 episodes): it counts too.
         bar = tqdm(desc="judging", unit="ep", file=sys.stderr, disable=not progress)
-        judged = evaluate([defaults, best], setup.heldout, setup, executor, judging=True, bar=bar)
-        default_heldout, best_heldout = judged
+        default_heldout, best_heldout = evaluate(
+            [defaults, best], setup.heldout, setup, executor, judging=True, bar=bar
+        )
     finally:
         bar.close()
         executor.close()
