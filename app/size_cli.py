@@ -3,6 +3,7 @@
 Writes the packaged robot (or --model's) with its leg and wheel motors scaled from the gravity it
 was sized for (--design, default the Moon's: the paper's robot) by dynamic similarity
 (hopper.similarity): torques x g / g_design, the wheel's momentum capacity x sqrt(g / g_design).
+--only legs (or wheel) scales one of them and keeps the other: which one a gravity overloads.
 Fly it anywhere with --model PATH.xml.
 """
 
@@ -16,7 +17,7 @@ from hopper.config import GRAVITY_PRESETS, GaitParams, SimConfig
 from hopper.errors import ModelError
 from hopper.model import model_source, model_spec, robot_of
 from hopper.robot import Robot
-from hopper.similarity import size_for
+from hopper.similarity import PARTS, size_for
 
 
 def add_parser(commands: argparse._SubParsersAction, epilog: str) -> None:
@@ -33,6 +34,10 @@ def add_parser(commands: argparse._SubParsersAction, epilog: str) -> None:
         "--design", type=gravity, default=GRAVITY_PRESETS["moon"],
         help="m/s^2 or a preset: the gravity the robot was sized for (default moon, the paper's)",
     )  # fmt: skip
+    p.add_argument(
+        "--only", choices=PARTS, default=None,
+        help="scale only the leg motors or only the wheel (its motor and momentum), keeping the other as it is",
+    )  # fmt: skip
     add_model_flag(p)
     p.add_argument("--out", type=writable_file, required=True, metavar="PATH.xml", help="the MJCF to write")
 
@@ -43,14 +48,16 @@ def run(args: argparse.Namespace) -> int:
     base = SimConfig(model=args.model, terrain="flat")
     before = robot_of(base)
     spec = model_spec(base)
-    k = size_for(spec, args.gravity, args.design)
+    parts = (args.only,) if args.only else PARTS
+    k = size_for(spec, args.gravity, args.design, parts)
     args.out.write_text(spec.to_xml(), encoding="utf-8")
     try:  # what --model will read back: the file loads and the controller can fly it
         after = robot_of(SimConfig(model=str(args.out.absolute()), terrain="flat"))
     except ModelError as exc:
         args.out.unlink()
         fail(f"the sized robot does not load, nothing written: {exc}")
-    source, scale = model_source(base), f"{args.design:g} to {args.gravity:g} m/s^2 (torques x {k:.3g})"
+    which = f"; {args.only} only" if args.only else ""
+    source, scale = model_source(base), f"{args.design:g} to {args.gravity:g} m/s^2 (torques x {k:.3g}{which})"
     print(f"wrote {args.out}: {source} sized from {scale}")
     rows = (
         ("leg motors", "N m", before.leg_torque_limit, after.leg_torque_limit),

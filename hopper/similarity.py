@@ -26,6 +26,7 @@ import mujoco
 from hopper.config import MOON_GRAVITY
 
 LEGS = ("hip_L", "knee_L", "hip_R", "knee_R")  # hopper.layout.NAMES: the leg actuators
+PARTS = ("legs", "wheel")  # what size_for can scale: the leg motors, the wheel and its motor
 DIGITS = 6  # significant digits MjSpec.to_xml writes
 
 
@@ -36,13 +37,35 @@ def factor(gravity: float, design: float = MOON_GRAVITY) -> float:
     return gravity / design
 
 
-def size_for(spec: mujoco.MjSpec, gravity: float, design: float = MOON_GRAVITY) -> float:
-    """Scale `spec`'s actuators (in place) from `design` gravity to `gravity` (m/s^2); returns k."""
+def size_for(
+    spec: mujoco.MjSpec, gravity: float, design: float = MOON_GRAVITY, parts: tuple[str, ...] = PARTS
+) -> float:
+    """Scale `spec`'s actuators (in place) from `design` gravity to `gravity` (m/s^2); returns k.
+
+    `parts` (of PARTS) limits the scaling to the legs or the wheel: which of them a gravity
+    overloads (README: A robot sized for another gravity).
+    """
+    unknown = set(parts) - set(PARTS)
+    if unknown or not parts:
+        raise ValueError(f"parts must be some of {', '.join(PARTS)}, got {', '.join(parts) or 'none'}")
     k = factor(gravity, design)
+    if "legs" in parts:
+        _scale_legs(spec, k)
+    if "wheel" in parts:
+        _scale_wheel(spec, k)
+    return k
+
+
+def _scale_legs(spec: mujoco.MjSpec, k: float) -> None:
+    """Every leg motor's torque limit x k."""
     for name in LEGS:
         leg = spec.actuator(name)
         leg.ctrlrange = [k * v for v in leg.ctrlrange]
         leg.forcerange = [k * v for v in leg.forcerange]
+
+
+def _scale_wheel(spec: mujoco.MjSpec, k: float) -> None:
+    """The wheel motor's stall torque x k at the same no-load speed; its momentum capacity x sqrt(k)."""
     wheel = spec.actuator("wheel")  # force = K u - b w: K and b together keep the no-load speed
     wheel.gainprm = [k * wheel.gainprm[0], *wheel.gainprm[1:]]
     wheel.biasprm = [*wheel.biasprm[:2], k * wheel.biasprm[2], *wheel.biasprm[3:]]
@@ -52,7 +75,6 @@ def size_for(spec: mujoco.MjSpec, gravity: float, design: float = MOON_GRAVITY) 
     body.inertia = _writable_inertia([spin * v for v in body.inertia])
     joint = spec.joint("wheel")
     joint.armature = spin * joint.armature
-    return k
 
 
 def _writable_inertia(moments: list[float]) -> list[float]:

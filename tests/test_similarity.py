@@ -16,13 +16,13 @@ from hopper.control import gait
 from hopper.model import MODEL_XML, robot_of
 from hopper.robot import PACKAGED
 from hopper.sim import Simulation
-from hopper.similarity import factor, size_for
+from hopper.similarity import PARTS, factor, size_for
 
 
-def sized(tmp_path: Path, gravity: float) -> Path:
+def sized(tmp_path: Path, gravity: float, parts: tuple[str, ...] = PARTS) -> Path:
     spec = mujoco.MjSpec.from_string(MODEL_XML.read_text(encoding="utf-8"))
-    size_for(spec, gravity)
-    path = tmp_path / f"sized_{gravity:g}.xml"
+    size_for(spec, gravity, parts=parts)
+    path = tmp_path / f"sized_{gravity:g}_{'_'.join(parts)}.xml"
     path.write_text(spec.to_xml())
     return path
 
@@ -37,6 +37,29 @@ def test_torques_grow_with_the_weight_and_the_wheels_capacity_with_its_square_ro
     assert robot.wheel_no_load_speed == pytest.approx(PACKAGED.wheel_no_load_speed, rel=1e-4)
     kept = ("mass", "wheel_gear", "thigh", "shank", "hip_z", "foot_y", "foot_radius")
     assert {n: getattr(robot, n) for n in kept} == pytest.approx({n: getattr(PACKAGED, n) for n in kept}, rel=1e-6)
+
+
+def test_one_part_sized_keeps_the_other_as_the_paper_built_it(tmp_path: Path):
+    """`--only legs` and `--only wheel`: which actuator a gravity overloads (README)."""
+    earth = GRAVITY_PRESETS["earth"]
+    k = earth / MOON_GRAVITY
+    legs = robot_of(SimConfig(model=str(sized(tmp_path, earth, ("legs",))), terrain="flat"))
+    wheel = robot_of(SimConfig(model=str(sized(tmp_path, earth, ("wheel",))), terrain="flat"))
+    assert legs.leg_torque_limit == pytest.approx(k * PACKAGED.leg_torque_limit, rel=1e-5)
+    assert (legs.wheel_torque_limit, legs.momentum_capacity) == pytest.approx(
+        (PACKAGED.wheel_torque_limit, PACKAGED.momentum_capacity), rel=1e-6
+    )
+    assert wheel.leg_torque_limit == PACKAGED.leg_torque_limit
+    assert wheel.wheel_torque_limit == pytest.approx(k * PACKAGED.wheel_torque_limit, rel=1e-4)
+    assert wheel.momentum_capacity == pytest.approx(math.sqrt(k) * PACKAGED.momentum_capacity, rel=1e-4)
+
+
+@pytest.mark.parametrize("parts", [(), ("tail",), ("legs", "tail")])
+def test_parts_that_are_not_the_legs_or_the_wheel_are_refused(parts: tuple[str, ...]):
+    spec = mujoco.MjSpec.from_string(MODEL_XML.read_text(encoding="utf-8"))
+    with pytest.raises(ValueError, match="parts must be some of legs, wheel"):
+        size_for(spec, GRAVITY_PRESETS["earth"], parts=parts)
+    assert spec.actuator("knee_L").ctrlrange[1] == PACKAGED.leg_torque_limit  # nothing scaled
 
 
 def test_sized_for_the_gravity_it_was_designed_for_it_is_the_same_robot(tmp_path: Path):
@@ -88,6 +111,10 @@ def test_hopper_sim_size_writes_a_model_that_run_flies(tmp_path: Path):
     assert run.returncode == 0, run.stderr
     assert "3 hops" in run.stdout and "FELL" not in run.stdout
     assert "note:" not in run.stdout  # its legs do not cap the hop
+    legs = tmp_path / "legs.xml"
+    done = hopper_sim("size", "--gravity", "earth", "--only", "legs", "--out", str(legs))
+    assert done.returncode == 0 and "x 6.04; legs only" in done.stdout, done.stdout + done.stderr
+    assert "wheel stall torque            29.5 ->      29.5 N m" in done.stdout
 
 
 @pytest.mark.integration  # processes
@@ -110,6 +137,7 @@ def test_a_run_whose_legs_cap_the_hop_names_the_command_that_sizes_the_robot(bod
         (["--gravity", "0"], "gravities must be positive"),
         (["--gravity", "venus"], "neither m/s^2 nor one of"),
         (["--gravity", "earth", "--design", "-1"], "gravities must be positive"),
+        (["--gravity", "earth", "--only", "tail"], "invalid choice: 'tail'"),
     ],
 )
 def test_hopper_sim_size_refuses_bad_input_in_one_line_and_writes_nothing(tmp_path: Path, args: list[str], why: str):
