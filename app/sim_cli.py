@@ -265,6 +265,22 @@ def summary(result: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def trapped(result: dict[str, Any]) -> str | None:
+    """A note when the run's robot was trapped (hopper.metrics.trapped_at): it hopped on without
+    falling, but went nowhere. None for a gait that hops in place (a zero forward speed)."""
+    from hopper.metrics import TRAP_HOPS, TRAP_M, trapped_at
+
+    if result["settings"]["gait"]["forward_speed"] == 0.0:
+        return None
+    hop = trapped_at([h["distance_m"] for h in result["hops"] if h["completed"]])
+    if hop is None:
+        return None
+    return (
+        f"note: trapped from hop {hop + 1}: {TRAP_HOPS} hops got the robot less than {TRAP_M:g} m further "
+        "(a crater it does not climb out of)"
+    )
+
+
 def energy_per_hop(hops: list[dict[str, Any]]) -> float:
     """Mean electrical energy (J) of the completed hops, wheel and legs (0 without one)."""
     done = [h for h in hops if h["completed"]]
@@ -314,9 +330,9 @@ def command_run(args: argparse.Namespace) -> int:
         fail("--rrd-max-mb and --rrd-max-min need --rrd and cannot be combined with --rerun-viewer")
     config = make_config(args, args.seed, wheel=not args.no_wheel)
     result = simulate(config, args.hops, args.rrd, args.rerun_viewer, report, limits=limits, kicks=args.schedule)
-    note = size_cli.capped(config)
-    if note:
-        print(note)
+    for note in (size_cli.capped(config), trapped(result)):
+        if note:
+            print(note)
     if result["short"] is not None:
         print(f"hopper-sim: error: {result['short']}", file=sys.stderr)
         return EXIT_SHORT

@@ -7,7 +7,8 @@ Each run is `hopper-sim run --hops N --gravity BODY --seed S` (the default robot
 stepped one tick at a time so that the last TRACE_S seconds before a fall can be kept. Per run it
 prints hops done, fell or stuck (the time limit ran out short of N hops) and the torso's world x;
 per fall, the phases before it (phase letter L S C P F X, then the feet down, l and r, @ the time
-in s). Then the totals per body: hops, falls, stuck runs, hops per fall, metres a hop, metres per
+in s) and whether it was trapped (hopper.metrics.trapped_at). Then the
+totals per body: hops, falls, stuck runs, trapped runs, hops per fall, metres a hop, metres per
 fall, the share of the pushes that were recovery hops and the near falls (NEAR_FALL). With
 --traces, each fall's or stuck run's last TRACE_S s go to DIR/BODY_SEED.npy, one row a tick
 (columns TRACE). `--terrain flat` and `--depth` (the craters' depths and rims times this) tell the
@@ -34,6 +35,7 @@ sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
 from hopper.config import GRAVITY_PRESETS, CraterParams  # noqa: E402
 from hopper.control.phases import Phase  # noqa: E402
+from hopper.metrics import trapped_at  # noqa: E402
 
 TRACE_S = 3.0  # s kept before a fall
 TRACE = ("t", "x", "z", "pitch", "vx", "vz", "phase", "foot_l", "foot_r", "wheel_speed", "push_done", "recovering")
@@ -108,7 +110,8 @@ def run(job: tuple[str, int, int, str | None, str | None, str, float]) -> dict:
     done = sum(h.completed for h in sim.hops)
     result = {"body": body, "seed": seed, "hops": done, "fell": sim.fallen, "stuck": not sim.fallen and done < hops,
               "x": sim.state().x, "wall_s": time.perf_counter() - start, "before": "",
-              "pushes": pushes, "recoveries": recoveries, "near": near - (sim.fallen and beyond)}  # fmt: skip
+              "pushes": pushes, "recoveries": recoveries, "near": near - (sim.fallen and beyond),
+              "trapped": trapped_at([h.distance_m for h in sim.hops])}  # fmt: skip
     if result["fell"] or result["stuck"]:
         rows = np.roll(ring, -(ticks % keep), axis=0) if ticks >= keep else ring[:ticks]
         result["before"] = sequence(rows)
@@ -132,8 +135,9 @@ def totals(name: str, results: list[dict]) -> str:
     # The share of pushes that were recovery hops (the capture point left the feet): how often the
     # ground phase loses the robot, counted every hop, where falls are rare.
     recovering = sum(r["recoveries"] for r in results) / max(sum(r["pushes"] for r in results), 1)
+    trapped = sum(r.get("trapped") is not None for r in results)
     return (
-        f"{name:>6}: {hops} hops, {falls} falls, {stuck} stuck, {per} hops per fall or stop, "
+        f"{name:>6}: {hops} hops, {falls} falls, {stuck} stuck, {trapped} trapped, {per} hops per fall or stop, "
         f"{travel:.2f} m a hop, {per_m} m per fall or stop, {recovering:.0%} of pushes recovery hops, "
         f"{sum(r['near'] for r in results)} near falls (the torso beyond {math.degrees(NEAR_FALL):.0f} deg and back)"
     )
@@ -172,8 +176,9 @@ def main(argv: list[str] | None = None) -> int:
         for r in pool.imap_unordered(run, jobs):
             results.append(r)
             end = "fell" if r["fell"] else "stuck" if r["stuck"] else "done"
+            trap = "" if r["trapped"] is None else f", trapped from hop {r['trapped'] + 1}"
             print(f"{r['body']:>6} seed {r['seed']:>3}: {r['hops']:>5} hops, {end} at x = {r['x']:8.2f} m "
-                  f"({r['wall_s']:.0f} s)", flush=True)  # fmt: skip
+                  f"({r['wall_s']:.0f} s){trap}", flush=True)  # fmt: skip
             if r["before"]:
                 print(f"       before: {r['before']}", flush=True)
     for body in [*bodies, None]:

@@ -14,6 +14,10 @@ from hopper.robot import PACKAGED, Robot
 RAD_S_TO_RPM = 60.0 / (2.0 * math.pi)
 MIN_HOP_FLIGHT_S = 0.05  # s; a shorter flight (a foot skipping after a weak push) is no hop
 MIN_TRANSPORT_DISTANCE_M = 0.01  # m; a shorter hop transported nothing: its cost of transport is NaN
+# A robot whose TRAP_HOPS hops got it less than TRAP_M further is trapped (in a crater it cannot climb
+# out of, hopping back and forth): it neither falls nor stops, so only its distance tells. Mars
+# seed 0 hopped 800 times in one crater, 0.14 m a hop over its 1000.
+TRAP_HOPS, TRAP_M = 50, 2.0  # hops, m (a hop is 0.4-0.8 m at every body)
 
 
 def cost_of_transport(energy: float, mass: float, gravity: float, distance: float) -> float:
@@ -21,6 +25,15 @@ def cost_of_transport(energy: float, mass: float, gravity: float, distance: floa
     (or without weight)."""
     weight_distance = mass * gravity * abs(distance)
     return energy / weight_distance if abs(distance) >= MIN_TRANSPORT_DISTANCE_M and weight_distance > 0 else math.nan
+
+
+def trapped_at(distances: list[float]) -> int | None:
+    """The first hop (0-based) of the first TRAP_HOPS hops that got less than TRAP_M further, if any
+    (`distances`: each hop's, m, signed)."""
+    ahead = np.concatenate(([0.0], np.cumsum(distances)))
+    gained = ahead[TRAP_HOPS:] - ahead[:-TRAP_HOPS]
+    stalled = np.flatnonzero(gained < TRAP_M)
+    return int(stalled[0]) if stalled.size else None
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)

@@ -10,14 +10,15 @@ from hopper.config import CraterParams
 pytestmark = pytest.mark.unit
 
 
-def result(hops: int, x: float, fell: bool = False, stuck: bool = False) -> dict:
-    return {"hops": hops, "x": x, "fell": fell, "stuck": stuck, "pushes": hops + 10, "recoveries": 5, "near": 2}
+def result(hops: int, x: float, fell: bool = False, stuck: bool = False, trapped: int | None = None) -> dict:
+    return {"hops": hops, "x": x, "fell": fell, "stuck": stuck, "pushes": hops + 10, "recoveries": 5, "near": 2,
+            "trapped": trapped}  # fmt: skip
 
 
 def test_totals_count_falls_per_hop_and_per_metre_of_ground():
-    line = totals("earth", [result(100, 30.0, fell=True), result(300, 50.0), result(50, 20.0, stuck=True)])
+    line = totals("earth", [result(100, 30.0, fell=True), result(300, 50.0, trapped=120), result(50, 20.0, stuck=True)])
     assert line == (
-        " earth: 450 hops, 1 falls, 1 stuck, 225 hops per fall or stop, 0.22 m a hop, "
+        " earth: 450 hops, 1 falls, 1 stuck, 1 trapped, 225 hops per fall or stop, 0.22 m a hop, "
         "50 m per fall or stop, 3% of pushes recovery hops, 6 near falls (the torso beyond 15 deg and back)"
     )
 

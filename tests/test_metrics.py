@@ -9,7 +9,7 @@ import pytest
 
 from hopper.config import TOTAL_MASS
 from hopper.control.memory import MEMORY
-from hopper.metrics import MetricsTracker
+from hopper.metrics import TRAP_HOPS, TRAP_M, MetricsTracker, trapped_at
 
 
 def _fly(mem: np.ndarray, pitches: list[float], rate: float) -> None:
@@ -64,3 +64,13 @@ def test_the_energy_of_the_ground_phase_belongs_to_the_hop_and_sets_its_cost_of_
     tracker.liftoff(2.0, z=1.0, momentum=0.0)
     in_place = tracker.touchdown(3.0, x=0.805, pitch=0.0)  # 5 mm: it went nowhere
     assert in_place.leg_energy_j == 25.0 and math.isnan(in_place.cost_of_transport)
+
+
+def test_a_run_that_hops_back_and_forth_is_trapped_where_it_started_to() -> None:
+    """Mars seed 0 hopped 800 times in one crater, back and forth, without falling or stopping."""
+    hops = [0.8] * 200 + [0.3, -0.25] * 400
+    # From hop 200 on, a window of 50 gains 25 x 0.05 = 1.25 m; the one from hop 199, 0.8 + 1.5 m.
+    assert trapped_at(hops) == 200
+    assert trapped_at([0.8] * 1000) is None
+    assert trapped_at([TRAP_M / TRAP_HOPS * 1.01] * 200) is None  # slow, but on its way
+    assert trapped_at([0.8] * 10) is None  # fewer hops than a window

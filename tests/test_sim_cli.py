@@ -268,3 +268,18 @@ def test_realistic_sensing_from_the_command_line(tmp_path) -> None:
     report = json.loads(out.read_text())
     assert report["settings"]["sensing"] == "realistic" and len(report["hops"]) == 2
     assert max(h["landing_pitch_deg"] for h in report["hops"]) < 3.5
+
+
+def test_run_says_when_its_robot_was_trapped() -> None:
+    """Mars seed 0 hopped 1000 times, 800 of them back and forth in one crater, and the run said
+    only "mean distance 0.143 m/hop". A gait that hops in place is not trapped."""
+    from hopper.app.sim_cli import trapped
+
+    def result(distances: list[float], forward: float = 0.4) -> dict:
+        hops = [{"completed": True, "distance_m": d} for d in distances]
+        return {"hops": hops, "settings": {"gait": {"forward_speed": forward}}}
+
+    note = trapped(result([0.8] * 200 + [0.3, -0.25] * 400))
+    assert note is not None and note.startswith("note: trapped from hop 201: 50 hops")
+    assert trapped(result([0.8] * 1000)) is None
+    assert trapped(result([0.01] * 100, forward=0.0)) is None
