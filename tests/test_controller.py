@@ -248,6 +248,32 @@ def test_the_stance_keeps_each_foots_force_inside_its_friction_cone_turned_with_
         assert abs(along) == pytest.approx(mu * across, rel=1e-6)  # the demand is at the cone's edge
 
 
+def test_a_push_with_one_foot_on_a_wall_pushes_each_foot_in_its_own_cone() -> None:
+    """Mars seed 0 hopped 800 times in one crater: its front foot landed on the 35 deg wall out,
+    whose cone holds next to no forward force (tan(atan(mu) - 35 deg) of the vertical), and both
+    feet pushed in one direction inside both cones, so neither the stance nor the push could move
+    the CoM forward, and a recovery hop took it back in. Pushing with the rear foot on level
+    ground, each foot now pushes inside its own cone: more forward force than one direction
+    allows, none outside a cone."""
+    sim = Simulation(SimConfig(terrain="flat"))
+    mem, d = sim.controller.mem, sim.data
+    _step_until(sim, lambda s: s.phase == Phase.PUSH)
+    mu, wall = float(mem["friction"][0]), math.radians(35.0)
+    assert d.geom("foot_L").xpos[0] > d.geom("foot_R").xpos[0] + 0.2  # the wall is under the front foot
+    mem["slope_l"], mem["slope_r"] = wall, 0.0
+    ctrl = d.ctrl.copy()
+    control_tick(d.qpos, d.qvel, d.sensordata, ctrl, mem)
+    assert mem["phase"][0] == Phase.PUSH and mem["contact_l"][0] and mem["contact_r"][0]
+    forces = _foot_forces(mem, d.qpos, ctrl)
+    for force, slope in zip(forces, (wall, 0.0), strict=True):
+        normal, tangent = np.array([-math.sin(slope), math.cos(slope)]), np.array([math.cos(slope), math.sin(slope)])
+        along, across = float(force @ tangent), float(force @ normal)
+        assert across > 0.0 and abs(along) <= mu * across * (1 + 1e-6)
+    fx, fz = sum(f[0] for f in forces), sum(f[1] for f in forces)
+    shared = max(math.tan(math.atan(mu) - wall), 0.0)  # fx / fz of one direction inside both cones, at most
+    assert fx > (shared + 0.1) * fz
+
+
 def test_each_touchdown_reads_the_ground_slope_under_each_foot() -> None:
     """The kernel's slopes are the terrain's under the feet at touchdown (rad, rising along +x)."""
     sim = Simulation(SimConfig(seed=3))

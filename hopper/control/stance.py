@@ -19,6 +19,10 @@ MIN_SUPPORT = 0.4  # fraction of the weight the stance legs always carry
 BALANCE_MOMENT = 8.0  # N m, of the wheel's 29.5: the most the feet may stray from the momentum's wish
 SUPPORT_MARGIN = 0.05  # least share of the vertical force on either of two feet: both stay loaded
 CONTACT_LOAD = 2.0  # x the contact threshold: the least force either of two feet is asked for
+# When one direction for both feet misses the horizontal force by FORCE_MISS (per N of the vertical
+# one) where a foot's own cone reaches further, each foot gets its own, the moment within MOMENT_MISS.
+FORCE_MISS = 0.05
+MOMENT_MISS = 0.2  # N m
 REACH_FORCE = 0.2  # fraction of the weight a free leg may push with while it reaches for the ground
 
 
@@ -60,6 +64,62 @@ def cone(slope: float, mu: float) -> tuple[float, float]:
     lo = math.tan(max(-slope - half, -1.4))  # 80 deg: tan stays finite
     hi = math.tan(min(-slope + half, 1.4))
     return min(lo, 0.0), max(hi, 0.0)
+
+
+SPLIT_STEPS = 20  # shares of the weight the per-foot split tries between its bounds
+SPLIT_MOMENTS = 3  # moments it tries across that band
+
+
+@njit(cache=True)
+def _directions(s, want, fx_share, rax, rza, rbx, rzb, lo_l, hi_l, lo_r, hi_r):  # noqa: ANN001, ANN202
+    """For the left foot's share s of the vertical force: each foot's fx / fz (k_l, k_r), each in its
+    own cone, making the moment `want` (N m per N of vertical force) or coming nearest it, then the
+    horizontal force nearest fx_share (per N)."""
+    # moment per N: s (rza k_l - rax) + (1 - s) (rzb k_r - rbx); a k_l + b k_r = rhs
+    a, b = s * rza, (1.0 - s) * rzb
+    rhs = want + s * rax + (1.0 - s) * rbx
+    # a, b <= 0 (the feet are below the CoM): the moment falls as either k rises
+    top, bottom = a * lo_l + b * lo_r, a * hi_l + b * hi_r
+    if rhs >= top or rhs <= bottom:  # out of reach: the nearest corner
+        return (lo_l, lo_r) if rhs >= top else (hi_l, hi_r)
+    if abs(a) < 1e-9 or abs(b) < 1e-9:  # one foot carries nothing: the other makes the moment
+        return (rhs / a, lo_r) if abs(b) < 1e-9 else (lo_l, rhs / b)
+    # k_r = (rhs - a k_l) / b within [lo_r, hi_r] bounds k_l
+    e1, e2 = (rhs - b * lo_r) / a, (rhs - b * hi_r) / a
+    k_min, k_max = max(lo_l, min(e1, e2)), min(hi_l, max(e1, e2))
+    # fx per N = s k_l + (1 - s) k_r, linear in k_l along the segment with the slope
+    # s (1 - rza / rzb): about 0 with the feet at one height, and then equal directions
+    slope = s - (1.0 - s) * a / b
+    k_l = (fx_share - (1.0 - s) * rhs / b) / slope if abs(slope) > 1e-6 else rhs / (a + b)
+    k_l = min(max(k_l, k_min), k_max)
+    return k_l, (rhs - a * k_l) / b
+
+
+@njit(cache=True)
+def _score(s, k_l, k_r, want, fx_share, slack, rax, rza, rbx, rzb):  # noqa: ANN001, ANN202
+    """(moment miss beyond `slack`, horizontal miss), both per N of vertical force, of the left
+    foot's share s with directions k_l, k_r."""
+    got = s * (rza * k_l - rax) + (1.0 - s) * (rzb * k_r - rbx)
+    return max(abs(got - want) - slack, 0.0), abs(s * k_l + (1.0 - s) * k_r - fx_share)
+
+
+@njit(cache=True)
+def split(want, fx_share, slack, rax, rza, rbx, rzb, lo_l, hi_l, lo_r, hi_r, s_lo, s_hi):  # noqa: ANN001, ANN201
+    """The feet's shares and directions for the horizontal force nearest fx_share (per N of the
+    vertical force) when each foot pushes inside its own friction cone (a foot on a wall and one on
+    level ground hold different directions), the moment within `slack` of `want` (N m per N);
+    positions of each foot relative to the CoM (m). Returns (s, k_l, k_r, horizontal miss): the
+    left foot's share of the vertical force and each foot's fx / fz."""
+    best_s, best_l, best_r, best_x = s_lo, lo_l, lo_r, 1e9
+    for i in range(SPLIT_STEPS + 1):
+        s = s_lo + (s_hi - s_lo) * i / SPLIT_STEPS
+        for j in range(SPLIT_MOMENTS):
+            target = want + slack * (2.0 * j / (SPLIT_MOMENTS - 1) - 1.0)
+            k_l, k_r = _directions(s, target, fx_share, rax, rza, rbx, rzb, lo_l, hi_l, lo_r, hi_r)
+            miss, off = _score(s, k_l, k_r, want, fx_share, slack, rax, rza, rbx, rzb)
+            if miss <= 1e-9 and off < best_x:
+                best_s, best_l, best_r, best_x = s, k_l, k_r, off
+    return best_s, best_l, best_r, best_x
 
 
 @njit(cache=True)
@@ -172,10 +232,26 @@ def stance(m, phase: int, body: Body, left: Leg, right: Leg) -> tuple[float, flo
             if balance:  # keep the force the CoM needs, within `stray` of the moment wanted
                 want = min(max(c0 + s * c1, want - stray / fz), want + stray / fz)
             k = min(max((want + rbx + s * (rax - rbx)) / (rzb + s * (rza - rzb)), k_lo), k_hi)
+        k_l = k_r = k
+        short = fx / fz - k  # the horizontal force one direction misses, per N
+        # ... because the narrower cone binds, where the other foot's reaches further
+        ahead = short > FORCE_MISS and k >= k_hi - 1e-9 and max(hi_l, hi_r) > k_hi + FORCE_MISS
+        back = -short > FORCE_MISS and k <= k_lo + 1e-9 and min(lo_l, lo_r) < k_lo - FORCE_MISS
+        if ahead or back:
+            # One direction for both feet falls short of the horizontal force, held to the narrower
+            # cone (of a foot on a wall): each foot in its own cone, the share chosen again, for
+            # the same moment. With its front foot on a 35 deg wall, whose cone holds next to no
+            # forward force, a robot could not move its CoM forward and hopped back into the
+            # crater it was climbing out of, hundreds of times (Mars seed 0).
+            got = rzb * k - rbx + s * ((rza - rzb) * k - (rax - rbx))  # the moment per N it makes
+            cones = (lo_l, hi_l, lo_r, hi_r)
+            s2, k_l2, k_r2, off2 = split(got, fx / fz, MOMENT_MISS / fz, rax, rza, rbx, rzb, *cones, lo, hi)
+            if off2 < abs(k - fx / fz) - 1e-6:
+                s, k_l, k_r = s2, k_l2, k_r2
         fz_l = s * fz
         fz_r = fz - fz_l
-        hl, kl = push_torques(m, left, k * fz_l, fz_l)
-        hr, kr = push_torques(m, right, k * fz_r, fz_r)
+        hl, kl = push_torques(m, left, k_l * fz_l, fz_l)
+        hr, kr = push_torques(m, right, k_r * fz_r, fz_r)
         return wheel, hl, kl, hr, kr
     # One support point: the feet's moment is rz fx + offset_x fz, so the moment sets fx, but
     # while balancing fx may stray from it toward the force the CoM needs by `stray` N m.
