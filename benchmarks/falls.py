@@ -7,12 +7,12 @@ Each run is `hopper-sim run --hops N --gravity BODY --seed S` (the default robot
 stepped one tick at a time so that the last TRACE_S seconds before a fall can be kept. Per run it
 prints hops done, fell or stuck (the time limit ran out short of N hops) and the torso's world x;
 per fall, the phases before it (phase letter L S C P F X, then the feet down, l and r, @ the time
-in s) and whether it was trapped (hopper.metrics.trapped_at). Then the
-totals per body: hops, falls, stuck runs, trapped runs, hops per fall, metres a hop, metres per
-fall, the share of the pushes that were recovery hops and the near falls (NEAR_FALL). With
---traces, each fall's or stuck run's last TRACE_S s go to DIR/BODY_SEED.npy, one row a tick
-(columns TRACE). `--terrain flat` and `--depth` (the craters' depths and rims times this) tell the
-ground's share of the falls from the controller's.
+in s), and whether it was trapped (hopper.metrics.trapped_at). Then the totals per body: hops,
+falls, stuck runs, trapped runs, hops per fall, metres a hop, metres per fall, the share of the
+pushes that were recovery hops and the near falls (NEAR_FALL). With --traces, each fall's or stuck
+run's last TRACE_S s go to DIR/BODY_SEED.npy, one row a tick (columns TRACE). `--terrain flat`
+and `--depth` (the craters' depths and rims times this) tell the ground's share of the falls from
+the controller's.
 
 The runs are chaotic: any change to the ground controller moves where the falls happen, so compare
 variants over many seeds (a few thousand hops, seeds the change was not made on), not run by run.
@@ -135,7 +135,7 @@ def totals(name: str, results: list[dict]) -> str:
     # The share of pushes that were recovery hops (the capture point left the feet): how often the
     # ground phase loses the robot, counted every hop, where falls are rare.
     recovering = sum(r["recoveries"] for r in results) / max(sum(r["pushes"] for r in results), 1)
-    trapped = sum(r.get("trapped") is not None for r in results)
+    trapped = sum(r["trapped"] is not None for r in results)
     return (
         f"{name:>6}: {hops} hops, {falls} falls, {stuck} stuck, {trapped} trapped, {per} hops per fall or stop, "
         f"{travel:.2f} m a hop, {per_m} m per fall or stop, {recovering:.0%} of pushes recovery hops, "
