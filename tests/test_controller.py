@@ -274,6 +274,40 @@ def test_a_push_with_one_foot_on_a_wall_pushes_each_foot_in_its_own_cone() -> No
     assert fx > (shared + 0.1) * fz
 
 
+def test_a_rear_foot_on_a_falling_wall_leaves_the_moment_to_the_front_foots_cone() -> None:
+    """Mars seed 27 fell landing with its rear foot on a wall falling at 37 deg, whose cone holds no
+    backward force, and both feet ahead of the CoM: inside both cones one direction could not make
+    the moment the robot's momentum asked, and it pitched back past the wheel. Each foot now pushes
+    in its own cone when one direction misses the moment: the level front foot pushes back. More
+    moment than one direction inside both cones makes, none outside a cone, no leg past its motors."""
+    sim = Simulation(SimConfig(terrain="flat"))
+    mem, d = sim.controller.mem, sim.data
+    _step_until(sim, lambda s: s.phase == Phase.STANCE)
+    mu, wall = float(mem["friction"][0]), math.radians(-37.0)
+    front, rear = d.geom("foot_L").xpos.copy(), d.geom("foot_R").xpos.copy()
+    assert front[0] > rear[0] + 0.2
+    mem["slope_l"], mem["slope_r"] = 0.0, wall
+    sensors, ctrl = d.sensordata.copy(), d.ctrl.copy()
+    sensors[mem["s_angmom"][0]] = -2.0  # N m s, pitching back: the feet are asked for the opposite moment
+    control_tick(d.qpos, d.qvel, sensors, ctrl, mem)
+    assert mem["phase"][0] == Phase.STANCE and mem["contact_l"][0] and mem["contact_r"][0]
+    forces = _foot_forces(mem, d.qpos, ctrl)
+    for (fx, fz), slope in zip(forces, (0.0, wall), strict=True):
+        # the cone about the ground's normal; on a wall steeper than it, the vertical is allowed too
+        lo, hi = math.tan(-slope - math.atan(mu)), math.tan(-slope + math.atan(mu))
+        assert fz > 0.0 and min(lo, 0.0) - 1e-6 <= fx / fz <= max(hi, 0.0) + 1e-6
+    limit = float(mem["leg_limit"][0])
+    legs = [mem[name][0] for name in ("a_hip_l", "a_knee_l", "a_hip_r", "a_knee_r")]
+    assert np.all(np.abs(ctrl[legs]) <= limit * (1 + 1e-6))
+    com = sensors[mem["s_com"][0] : mem["s_com"][0] + 3]
+    r = [np.array([p[0] - com[0], p[2] - com[2]]) for p in (front, rear)]
+    moment = sum(rz * f[0] - rx * f[1] for (rx, rz), f in zip(r, forces, strict=True))
+    fz = sum(f[1] for f in forces)
+    # One direction inside both cones pushes no foot back (the wall's cone), and a foot below the
+    # CoM pushing forward only lowers this moment: at most the vertical forces', max(-rx) a newton.
+    assert moment > (max(-r[0][0], -r[1][0]) + 0.03) * fz
+
+
 def test_each_touchdown_reads_the_ground_slope_under_each_foot() -> None:
     """The kernel's slopes are the terrain's under the feet at touchdown (rad, rising along +x)."""
     sim = Simulation(SimConfig(seed=3))

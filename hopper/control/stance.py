@@ -104,22 +104,28 @@ def _score(s, k_l, k_r, want, fx_share, slack, rax, rza, rbx, rzb):  # noqa: ANN
 
 
 @njit(cache=True)
-def split(want, fx_share, slack, rax, rza, rbx, rzb, lo_l, hi_l, lo_r, hi_r, s_lo, s_hi):  # noqa: ANN001, ANN201
+def split(m, left, right, fz, want, fx_share, slack, rax, rza, rbx, rzb, lo_l, hi_l, lo_r, hi_r, s_lo, s_hi):  # noqa: ANN001, ANN201
     """The feet's shares and directions for the horizontal force nearest fx_share (per N of the
-    vertical force) when each foot pushes inside its own friction cone (a foot on a wall and one on
-    level ground hold different directions), the moment within `slack` of `want` (N m per N);
-    positions of each foot relative to the CoM (m). Returns (s, k_l, k_r, horizontal miss): the
-    left foot's share of the vertical force and each foot's fx / fz."""
-    best_s, best_l, best_r, best_x = s_lo, lo_l, lo_r, 1e9
+    vertical force `fz`, N) when each foot pushes inside its own friction cone (a foot on a wall and
+    one on level ground hold different directions), the moment within `slack` of `want` (N m per N),
+    and neither leg asked for more than its motors push in its own direction; positions of each
+    foot relative to the CoM (m). The moment comes first: where no share reaches it, the nearest.
+    Returns (s, k_l, k_r, moment miss, horizontal miss): the left foot's share of the vertical
+    force, each foot's fx / fz, and what it misses by (per N; both 1e9 if no share is in reach)."""
+    best_s, best_l, best_r, best_m, best_x = s_lo, lo_l, lo_r, 1e9, 1e9
     for i in range(SPLIT_STEPS + 1):
         s = s_lo + (s_hi - s_lo) * i / SPLIT_STEPS
         for j in range(SPLIT_MOMENTS):
             target = want + slack * (2.0 * j / (SPLIT_MOMENTS - 1) - 1.0)
             k_l, k_r = _directions(s, target, fx_share, rax, rza, rbx, rzb, lo_l, hi_l, lo_r, hi_r)
             miss, off = _score(s, k_l, k_r, want, fx_share, slack, rax, rza, rbx, rzb)
-            if miss <= 1e-9 and off < best_x:
-                best_s, best_l, best_r, best_x = s, k_l, k_r, off
-    return best_s, best_l, best_r, best_x
+            # A leg past its motors' limit in the new direction would not deliver its share, nor
+            # the moment (Mars seed 27: the rear leg asked to push forward off a 37 deg wall sat at
+            # 30 N m in both joints, and the feet pitched the robot back past the wheel).
+            strong = s * fz <= leg_capacity(m, left, k_l) and (1.0 - s) * fz <= leg_capacity(m, right, k_r)
+            if strong and (miss < best_m - 1e-9 or (miss <= best_m + 1e-9 and off < best_x)):
+                best_s, best_l, best_r, best_m, best_x = s, k_l, k_r, miss, off
+    return best_s, best_l, best_r, best_m, best_x
 
 
 @njit(cache=True)
@@ -227,6 +233,7 @@ def stance(m, phase: int, body: Body, left: Leg, right: Leg) -> tuple[float, flo
         lo, hi = max(low, 1.0 - top_r), min(1.0 - low, top_l)
         if lo > hi:  # the legs together cannot carry fz: each carries its share of what they can
             lo = hi = min(max(top_l / (top_l + top_r), low), 1.0 - low)
+        wish, band = want, stray / fz if balance else 0.0  # the moment asked (per N), and its slack
         if not lo <= s <= hi:
             s = min(max(s, lo), hi)
             if balance:  # keep the force the CoM needs, within `stray` of the moment wanted
@@ -237,16 +244,29 @@ def stance(m, phase: int, body: Body, left: Leg, right: Leg) -> tuple[float, flo
         # ... because the narrower cone binds, where the other foot's reaches further
         ahead = short > FORCE_MISS and k >= k_hi - 1e-9 and max(hi_l, hi_r) > k_hi + FORCE_MISS
         back = -short > FORCE_MISS and k <= k_lo + 1e-9 and min(lo_l, lo_r) < k_lo - FORCE_MISS
-        if ahead or back:
+        got = rzb * k - rbx + s * ((rza - rzb) * k - (rax - rbx))  # the moment per N it makes
+        gap = max(abs(got - wish) - band, 0.0)  # ... and what it misses beyond the slack
+        cones = (lo_l, hi_l, lo_r, hi_r)
+        if gap > MOMENT_MISS / fz:
+            # One direction cannot make the moment: with its rear foot on a wall falling at 37 deg,
+            # whose cone holds no braking, a landing robot could not brake with its front foot,
+            # and both feet ahead of the CoM pitched it back past the wheel (Mars seed 27). Each
+            # foot in its own cone, the moment first, then the horizontal force.
+            s2, k_l2, k_r2, miss2, _ = split(
+                m, left, right, fz, wish, fx / fz, band, rax, rza, rbx, rzb, *cones, lo, hi
+            )
+            if miss2 < gap - MOMENT_MISS / fz:
+                s, k_l, k_r = s2, k_l2, k_r2
+        elif ahead or back:
             # One direction for both feet falls short of the horizontal force, held to the narrower
             # cone (of a foot on a wall): each foot in its own cone, the share chosen again, for
             # the same moment. With its front foot on a 35 deg wall, whose cone holds next to no
             # forward force, a robot could not move its CoM forward and hopped back into the
             # crater it was climbing out of, hundreds of times (Mars seed 0).
-            got = rzb * k - rbx + s * ((rza - rzb) * k - (rax - rbx))  # the moment per N it makes
-            cones = (lo_l, hi_l, lo_r, hi_r)
-            s2, k_l2, k_r2, off2 = split(got, fx / fz, MOMENT_MISS / fz, rax, rza, rbx, rzb, *cones, lo, hi)
-            if off2 < abs(k - fx / fz) - 1e-6:
+            s2, k_l2, k_r2, miss2, off2 = split(
+                m, left, right, fz, got, fx / fz, MOMENT_MISS / fz, rax, rza, rbx, rzb, *cones, lo, hi
+            )
+            if miss2 <= 1e-9 and off2 < abs(k - fx / fz) - 1e-6:
                 s, k_l, k_r = s2, k_l2, k_r2
         fz_l = s * fz
         fz_r = fz - fz_l
