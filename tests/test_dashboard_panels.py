@@ -356,3 +356,24 @@ def test_the_trail_creates_each_node_once_then_sends_only_its_points() -> None:
     finally:
         probe.close()
         server.stop()
+
+
+def test_a_history_further_back_than_it_reaches_is_clamped_with_a_notice(
+    dashboard: Dashboard, client: ProbeClient
+) -> None:
+    """Typed into the History's Back box, 100 s was taken without a word (and showed the newest
+    moment), and -100 s showed the oldest while its line said 100 s back: both are clamped with a
+    notice, the box and the line show the moment shown."""
+    assert wait_until(lambda: dashboard.history.span >= 1.0, timeout=60)
+    client.set_gui_value("Back (s)", 100.0)
+    assert client.wait_for(lambda p: bodies(p, "Back clamped")), client.notifications
+    assert bodies(client, "Back clamped") == ["Back 100 s is outside [-40, 0] s; clamped to 0 s"]
+    client.set_gui_value("Back (s)", -100.0)
+    assert client.wait_for(lambda p: len(bodies(p, "Back clamped")) == 2), client.notifications
+    body = bodies(client, "Back clamped")[1]
+    assert body.startswith("Back: the history holds ") and body.endswith(" s; showing its oldest moment")
+    held = float(body.removeprefix("Back: the history holds ").split(" s;")[0])
+    replay = dashboard.layout.replay
+    assert wait_until(lambda: replay.scrubbed is not None)
+    assert replay.scrub.value == pytest.approx(-held, abs=0.051)  # the box shows it (to the line's 0.1 s)
+    assert f"({held:.1f} s back of " in replay.scrub_info.content

@@ -610,8 +610,9 @@ class Telemetry:
             rr.send_columns("hops", time_columns(t, h), columns, recording=self.rec)
         expected = self._data_ns() + self._offset_ns
         if check_clock and n and expected != self._next_ns:
-            # Steps without tick() (or a time jump): re-anchor rather than drift, and say so once.
-            if not self._warned:
+            # Steps without tick() (or a time jump): re-anchor rather than drift, and say so once. A
+            # clock that went back is a restore (History, a keyframe), which loses no tick: no warning.
+            if not self._warned and expected > self._next_ns:
                 log.warning(
                     "telemetry missed %d ticks; re-anchoring sim_time", (expected - self._next_ns) // self._dt_ns
                 )

@@ -17,7 +17,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Protocol
 
 import viser
-from hopper.app.dashboard.feedback import guarded, notify
+from hopper.app.dashboard.feedback import checked, guarded, notify
 from hopper.app.dashboard.panels import PanelContext
 from hopper.app.dashboard.plots import ReflyPlots
 from hopper.app.dashboard.scene import GhostRobot
@@ -165,7 +165,7 @@ class ReplayPanel:
         self._scrub_paused = False
         self.scrubbed = snap
         self.host.request_restore(snap)
-        self.scrub_info.content = _scrub_html(snap, seconds_back, history.span)
+        self.scrub_info.content = _scrub_html(snap, min(max(seconds_back, 0.0), history.span), history.span)
         return snap
 
     def resume(self) -> None:
@@ -255,9 +255,16 @@ def build_replay_panel(
 
     @guarded
     def on_scrub(event: viser.GuiEvent) -> None:
-        if event.client is None:  # a program assignment (resume) moves the slider back to 0
+        if event.client is None:  # a program assignment (resume, a clamp) moves the slider
             return
-        if panel.scrub_to(-float(scrub.value)) is None:
+        value, message = checked("Back", scrub.value, -RING_SPAN_S, 0.0, "s")  # Refused: notified, kept
+        span = panel.host.history.span
+        if -value > span:  # further back than the history reaches: its oldest moment
+            value, message = -span, f"Back: the history holds {span:.1f} s; showing its oldest moment"
+        if message:
+            notify(event.client, "Back clamped", message, "warning")
+            scrub.value = value
+        if panel.scrub_to(-value) is None:
             notify(event.client, "No history yet", "The simulation has not run long enough.", "warning")
 
     scrub.on_update(on_scrub)
