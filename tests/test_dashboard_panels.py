@@ -18,6 +18,7 @@ from calls import Call
 from hopper.app.dashboard import feedback
 from hopper.app.dashboard.config import DashboardConfig
 from hopper.app.dashboard.feedback import Refused, format_number, notify, parse_number
+from hopper.app.dashboard.panels.simulation import SPEEDS
 from hopper.app.dashboard.plots import LivePlots
 from hopper.app.dashboard.probe import ProbeClient
 from hopper.app.dashboard.scene import LOOK_OFFSET
@@ -377,3 +378,11 @@ def test_a_history_further_back_than_it_reaches_is_clamped_with_a_notice(
     assert wait_until(lambda: replay.scrubbed is not None)
     assert replay.scrub.value == pytest.approx(-held, abs=0.051)  # the box shows it (to the line's 0.1 s)
     assert f"({held:.1f} s back of " in replay.scrub_info.content
+
+
+def test_every_speed_button_is_a_value_the_speed_box_can_show(dashboard: Dashboard) -> None:
+    """The ¼× button showed 0.3 in the box: the slider's 0.1 step rounded it. Each finite preset is a
+    whole number of steps."""
+    slider = dashboard.layout.simulation.speed
+    for speed in (s for s in SPEEDS.values() if math.isfinite(s)):
+        assert abs(speed / slider.step - round(speed / slider.step)) < 1e-9, (speed, slider.step)
