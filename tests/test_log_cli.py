@@ -50,6 +50,9 @@ def test_check_refuses_a_bad_log_in_one_line_with_exit_2(tmp_path: Path, capsys)
     assert "column wheel_speed has unit 'km/h'; allowed: rad/s, deg/s, rpm" in err
     assert "cannot read a log as '.txt'" in refused(["log", "check", str(tmp_path / "log.txt")], capsys)
     assert "no such file" in refused(["log", "check", str(tmp_path / "absent.mcap")], capsys)
+    (tmp_path / "empty.npz").write_bytes(b"")
+    assert "empty.npz: empty file" in refused(["log", "check", str(tmp_path / "empty.npz")], capsys)
+    assert "empty.npz: empty file" in refused(["log", "export", str(tmp_path / "empty.npz"), str(path)], capsys)
 
 
 def test_export_our_rrd_to_mcap_and_csv(tmp_path: Path, capsys) -> None:

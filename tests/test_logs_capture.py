@@ -6,6 +6,7 @@ import json
 import math
 from pathlib import Path
 
+import bad_logs
 import numpy as np
 import pytest
 
@@ -97,3 +98,20 @@ def test_npz_refuses_what_is_not_a_log(tmp_path: Path, realistic) -> None:
     _rewrite(path, gyro_pitch=pitch)
     with pytest.raises(LogError, match="gyro_pitch is not finite at sample 7"):
         npz.read(path)
+
+
+def test_npz_refuses_an_empty_cut_short_or_damaged_file_in_one_line(tmp_path: Path, realistic) -> None:
+    whole = npz.write(realistic.log, tmp_path / "whole.npz").read_bytes()
+    empty = tmp_path / "empty.npz"
+    empty.write_bytes(b"")
+    assert "empty file" in bad_logs.refused(npz.read, empty)
+    for name, data in (("head.npz", whole[:100]), ("half.npz", whole[: len(whole) // 2])):
+        (tmp_path / name).write_bytes(data)
+        assert "cut short or damaged" in bad_logs.refused(npz.read, tmp_path / name)
+    damaged = bytearray(whole)
+    damaged[len(whole) // 3 : len(whole) // 3 + 64] = b"x" * 64  # inside an entry: its CRC fails when read
+    (tmp_path / "damaged.npz").write_bytes(damaged)
+    assert "cut short or damaged" in bad_logs.refused(npz.read, tmp_path / "damaged.npz")
+    with open(tmp_path / "array.npz", "wb") as out:  # a .npy under a .npz name
+        np.save(out, np.zeros(3))
+    assert "not a .npz archive" in bad_logs.refused(npz.read, tmp_path / "array.npz")

@@ -74,10 +74,14 @@ def test_identify_prints_the_table_and_writes_the_mjcf(logged: Path, tmp_path: P
         (["identify", "LOG", "--out", "OUT", "--windows", "0.1,-1"], "window lengths must be positive"),
         (["capture", "OUT", "--mismatch", "torso_mass=9"], "outside [0.2, 5]"),
         (["capture", "OUT", "--mismatch", "wheel_size=2"], "unknown mismatch 'wheel_size'"),
+        (["replay", "EMPTY"], "empty.npz: empty file (not a .npz log)"),
+        (["identify", "EMPTY", "--out", "OUT"], "empty.npz: empty file (not a .npz log)"),
     ],
 )
 def test_bad_input_is_refused_in_one_line(argv, message, logged: Path, tmp_path: Path, capsys) -> None:  # noqa: ANN001
-    argv = [str(logged) if a == "LOG" else str(tmp_path / "out.xml") if a == "OUT" else a for a in argv]
+    (tmp_path / "empty.npz").write_bytes(b"")
+    names = {"LOG": str(logged), "OUT": str(tmp_path / "out.xml"), "EMPTY": str(tmp_path / "empty.npz")}
+    argv = [names.get(a, a) for a in argv]
     with pytest.raises(SystemExit) as stop:
         main(argv)
     assert stop.value.code == 2

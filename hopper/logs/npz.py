@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import zipfile
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +19,7 @@ from hopper.logs.schema import COLUMNS, TIME, Log, LogError, find_gaps
 from hopper.logs.world import from_meta
 
 FORMAT = "hopper-log-npz-1"  # the archive's `format` entry
+ZIP_MAGIC = b"PK\x03\x04"  # a zip file's first local header: what np.savez writes first
 
 
 def write(log: Log, path: str | Path) -> Path:
@@ -33,15 +35,32 @@ def write(log: Log, path: str | Path) -> Path:
 
 
 def read(path: str | Path) -> Log:
-    """The log in `path`; LogError (one line: what and where) for a file that is not one."""
+    """The log in `path`; LogError (one line: what and where) for a file that is not one, is empty,
+    or is cut short or damaged (numpy reads the archive's entries lazily: each is read here, inside
+    the one try)."""
     path = Path(path)
     try:
-        archive = np.load(path, allow_pickle=False)
+        with open(path, "rb") as head:
+            magic = head.read(4)
     except FileNotFoundError:
         raise LogError(f"{path}: no such file") from None
-    except (OSError, ValueError, zipfile.BadZipFile) as exc:
-        raise LogError(f"{path}: not a .npz archive ({exc})") from None
-    with archive:
+    except OSError as exc:
+        raise LogError(f"{path}: cannot read it ({exc.strerror or exc})") from None
+    if not magic:
+        raise LogError(f"{path}: empty file (not a .npz log)")
+    if magic != ZIP_MAGIC:  # numpy would try it as .npy or a pickle and say so, which misleads
+        raise LogError(f"{path}: not a .npz archive (a .npz is a zip file; this one does not start as one)")
+    try:
+        return _read(path)
+    except LogError:  # a ValueError too: what _read found, said already
+        raise
+    except (OSError, EOFError, ValueError, zipfile.BadZipFile, zlib.error) as exc:
+        raise LogError(f"{path}: not a .npz archive, or one cut short or damaged ({exc})") from None
+
+
+def _read(path: Path) -> Log:
+    """The log in the zip archive `path`: numpy's errors of a damaged archive are left to read."""
+    with np.load(path, allow_pickle=False) as archive:
         names = set(archive.files)
         if "format" not in names or str(archive["format"]) != FORMAT:
             raise LogError(f"{path}: not a hopper log (its 'format' entry is not {FORMAT!r})")
