@@ -15,7 +15,17 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
-from hopper.app.cli_common import EXIT_FELL, EXIT_OK, add_model_flag, fail, finite, gravity, seed, writable_file
+from hopper.app.cli_common import (
+    EXIT_FELL,
+    EXIT_OK,
+    add_model_flag,
+    fail,
+    finite,
+    gravity,
+    make_writable_folder,
+    seed,
+    writable_file,
+)
 
 from hopper.config import GRAVITY_PRESETS, MISMATCH_FACTORS, MISMATCH_OFFSETS, SensingParams, SimConfig, check_mismatch
 from hopper.errors import HopperError
@@ -185,7 +195,20 @@ def error_line(label: str, e: Errors) -> str:
     )
 
 
+def out_folder(out: Path) -> None:
+    """--out DIR is a folder, or can be made one with its parents, and can be written: made and written
+    to now, before the replay (hopper.app.cli_common.make_writable_folder)."""
+    if out.exists() and not out.is_dir():
+        fail(f"--out: {out} is not a folder")
+    try:
+        make_writable_folder(out)
+    except OSError as exc:
+        fail(f"--out: cannot write to {out}: {exc.strerror or exc}")
+
+
 def command_replay(args: argparse.Namespace) -> int:
+    if args.out is not None:
+        out_folder(args.out)
     log = read_log(args.log)
     world = replay_world(args, log)
     model, window = world_model(world)
@@ -228,7 +251,6 @@ def command_replay(args: argparse.Namespace) -> int:
 
         from hopper.report.style import save
 
-        args.out.mkdir(parents=True, exist_ok=True)
         paths = save(error_figure(parts, args.log.name), args.out, "replay")
         print(f"wrote {', '.join(str(p) for p in paths)}")
     return EXIT_OK

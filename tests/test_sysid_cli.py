@@ -87,3 +87,24 @@ def test_bad_input_is_refused_in_one_line(argv, message, logged: Path, tmp_path:
     assert stop.value.code == 2
     err = capsys.readouterr().err.strip()
     assert message in err and len(err.splitlines()) == 1
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--out", "FILE"], "--out: FILE is not a folder"),
+        (["--out", "FILE/sub"], "--out: cannot write to FILE/sub: Not a directory"),
+        (["--out", "/proc/replay"], "--out: cannot write to /proc/replay"),
+    ],
+)
+def test_replay_refuses_an_out_it_cannot_write_before_any_work(
+    argv: list[str], message: str, logged: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    file = tmp_path / "file"
+    file.write_text("")
+    with pytest.raises(SystemExit) as stop:
+        main(["replay", str(logged), *(a.replace("FILE", str(file)) for a in argv)])
+    out, err = capsys.readouterr()
+    assert stop.value.code == 2 and out == ""  # refused before the log is read ("world: ..." not printed)
+    assert err.startswith("hopper-sim: error: ") and len(err.splitlines()) == 1, err
+    assert message.replace("FILE", str(file)) in err
