@@ -195,6 +195,17 @@ def error_line(label: str, e: Errors) -> str:
     )
 
 
+def replay_flags(args: argparse.Namespace) -> None:
+    """Refuse flags that the replay asked would ignore: --from T replays one span (to --to), --hops
+    and --every replay hops from their liftoffs."""
+    if args.start is None and args.stop is not None:
+        fail(f"--to {args.stop:g} needs --from: --to ends the one replay --from starts")
+    if args.start is not None:
+        for flag, value in (("--hops", args.hops), ("--every", args.every)):
+            if value is not None:
+                fail(f"{flag} replays hops from their liftoffs; --from {args.start:g} replays one span: give one")
+
+
 def out_folder(out: Path) -> None:
     """--out DIR is a folder, or can be made one with its parents, and can be written: made and written
     to now, before the replay (hopper.app.cli_common.make_writable_folder)."""
@@ -207,6 +218,7 @@ def out_folder(out: Path) -> None:
 
 
 def command_replay(args: argparse.Namespace) -> int:
+    replay_flags(args)
     if args.out is not None:
         out_folder(args.out)
     log = read_log(args.log)

@@ -95,9 +95,12 @@ def test_bad_input_is_refused_in_one_line(argv, message, logged: Path, tmp_path:
         (["--out", "FILE"], "--out: FILE is not a folder"),
         (["--out", "FILE/sub"], "--out: cannot write to FILE/sub: Not a directory"),
         (["--out", "/proc/replay"], "--out: cannot write to /proc/replay"),
+        (["--to", "3"], "--to 3 needs --from"),
+        (["--from", "1", "--hops", "1"], "--hops replays hops from their liftoffs; --from 1 replays one span"),
+        (["--from", "1", "--every", "0.3"], "--every replays hops from their liftoffs; --from 1 replays one span"),
     ],
 )
-def test_replay_refuses_an_out_it_cannot_write_before_any_work(
+def test_replay_refuses_an_out_it_cannot_write_or_flags_it_would_ignore_before_any_work(
     argv: list[str], message: str, logged: Path, tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:
     file = tmp_path / "file"
