@@ -294,6 +294,9 @@ def command_identify(args: argparse.Namespace) -> int:
     unknown = [n for n in names if n not in sysid.PARAMS] or ([] if names else ["(none)"])
     if unknown:
         fail(f"--params: unknown parameter(s) {', '.join(unknown)}; choose from {', '.join(sysid.PARAMS)}")
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        fail(f"--params: {', '.join(twice)} given more than once")
     if args.hops < 1:
         fail(f"--hops must be at least 1, got {args.hops}")
     log = read_log(args.log)

@@ -66,6 +66,8 @@ def test_bad_requests_are_refused(log: Log) -> None:
     model, _ = world_model(World())
     with pytest.raises(sysid.IdentifyError, match="unknown parameter.*leg_length; choose from torso_mass"):
         sysid.identify(model, log, (0, 1000), ("leg_length",))
+    with pytest.raises(sysid.IdentifyError, match="parameter.*torso_mass given more than once"):
+        sysid.identify(model, log, (0, 1000), ("torso_mass", "gyro_bias", "torso_mass"), stages=(0.1,))
     with pytest.raises(sysid.IdentifyError, match="has 2 hop.*hops 1..7"):
         sysid.hop_span(log, 0, 7)
     with pytest.raises(sysid.IdentifyError, match="positive"):

@@ -70,6 +70,10 @@ def test_identify_prints_the_table_and_writes_the_mjcf(logged: Path, tmp_path: P
         (["replay", "LOG", "--hops", "9"], "--hops 9: the log has 2 hop"),
         (["replay", "LOG", "--every", "0"], "--every must be a positive number of seconds, got 0"),
         (["identify", "LOG", "--out", "OUT", "--params", "leg_length"], "unknown parameter(s) leg_length"),
+        (
+            ["identify", "LOG", "--out", "OUT", "--params", "torso_mass,torso_mass,gyro_bias"],
+            "--params: torso_mass given more than once",
+        ),
         (["identify", "LOG", "--out", "OUT", "--hops", "5"], "has 2 hop(s), the fit asks for hops 1..5"),
         (["identify", "LOG", "--out", "OUT", "--windows", "0.1,-1"], "window lengths must be positive"),
         (["capture", "OUT", "--mismatch", "torso_mass=9"], "outside [0.2, 5]"),

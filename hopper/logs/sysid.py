@@ -261,6 +261,9 @@ class Problem:
             raise IdentifyError(f"unknown parameter(s) {', '.join(unknown)}; choose from {', '.join(PARAMS)}")
         if not names:
             raise IdentifyError("no parameter to fit")
+        twice = sorted({n for n in names if list(names).count(n) > 1})
+        if twice:  # Problem.values keeps the last column: the first has no effect (a zero Jacobian column)
+            raise IdentifyError(f"parameter(s) {', '.join(twice)} given more than once")
         self.robot, self.log, self.spans, self.names, self.delay = robot, log, spans, tuple(names), delay_ticks
         self.data = mujoco.MjData(robot.model)
         n = robot.nominal
