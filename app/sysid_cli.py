@@ -299,6 +299,8 @@ def command_identify(args: argparse.Namespace) -> int:
         fail(f"--params: {', '.join(twice)} given more than once")
     if args.hops < 1:
         fail(f"--hops must be at least 1, got {args.hops}")
+    if args.max_evaluations < 1:
+        fail(f"--max-evaluations must be at least 1, got {args.max_evaluations}")
     log = read_log(args.log)
     world = replay_world(args, log)
     (model, _), (fresh, _) = world_model(world), world_model(world)  # the fit edits `model`

@@ -72,6 +72,8 @@ def test_bad_requests_are_refused(log: Log) -> None:
         sysid.hop_span(log, 0, 7)
     with pytest.raises(sysid.IdentifyError, match="positive"):
         sysid.identify(model, log, (0, 1000), ("friction",), stages=(0.0,))
+    with pytest.raises(sysid.IdentifyError, match="max_evaluations must be at least 1, got 0"):
+        sysid.identify(model, log, (0, 1000), ("friction",), stages=(0.1,), max_evaluations=0)
 
 
 @pytest.mark.parametrize("spin", [0.0325125, 0.0286867, 0.04])

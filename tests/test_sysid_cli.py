@@ -76,6 +76,11 @@ def test_identify_prints_the_table_and_writes_the_mjcf(logged: Path, tmp_path: P
         ),
         (["identify", "LOG", "--out", "OUT", "--hops", "5"], "has 2 hop(s), the fit asks for hops 1..5"),
         (["identify", "LOG", "--out", "OUT", "--windows", "0.1,-1"], "window lengths must be positive"),
+        (["identify", "LOG", "--out", "OUT", "--max-evaluations", "0"], "--max-evaluations must be at least 1, got 0"),
+        (
+            ["identify", "LOG", "--out", "OUT", "--max-evaluations", "-1"],
+            "--max-evaluations must be at least 1, got -1",
+        ),
         (["capture", "OUT", "--mismatch", "torso_mass=9"], "outside [0.2, 5]"),
         (["capture", "OUT", "--mismatch", "wheel_size=2"], "unknown mismatch 'wheel_size'"),
         (["replay", "EMPTY"], "empty.npz: empty file (not a .npz log)"),

@@ -419,6 +419,8 @@ def identify(
         raise ReplayError(f"{log.source}: identification replays from the log's state, and it has none")
     if not stages or any(w <= 0 for w in stages):
         raise IdentifyError(f"window lengths must be positive seconds, got {list(stages)}")
+    if max_evaluations < 1:  # scipy's least_squares takes no max_nfev below 1
+        raise IdentifyError(f"max_evaluations must be at least 1, got {max_evaluations}")
     robot = Robot(model)
     profile: dict[str, tuple[float, float]] = {}
     evaluations = 0  # of the stages before the last
