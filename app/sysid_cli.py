@@ -29,7 +29,7 @@ from hopper.app.cli_common import (
 
 from hopper.config import GRAVITY_PRESETS, MISMATCH_FACTORS, MISMATCH_OFFSETS, SensingParams, SimConfig, check_mismatch
 from hopper.errors import HopperError
-from hopper.logs.io import read_log, write_log
+from hopper.logs.io import read_log, write_log, writer
 from hopper.logs.replay import HELD, REANCHOR_S, Errors, hops, replay_hops, simulate, world_model
 from hopper.logs.schema import Log
 from hopper.logs.sysid import PROFILE_SIGMAS, STAGES
@@ -169,6 +169,7 @@ def command_capture(args: argparse.Namespace) -> int:
 
     if args.hops < 1:
         fail(f"--hops must be at least 1, got {args.hops}")
+    writer(args.out)  # its suffix, before capturing (LogError: one line, exit 2)
     sensor = SensingParams()
     if args.gyro_bias is not None:
         sensor = SensingParams(gyro_turn_on_bias=0.0, gyro_bias_fixed=args.gyro_bias)

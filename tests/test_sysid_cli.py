@@ -120,3 +120,16 @@ def test_replay_refuses_an_out_it_cannot_write_or_flags_it_would_ignore_before_a
     assert stop.value.code == 2 and out == ""  # refused before the log is read ("world: ..." not printed)
     assert err.startswith("hopper-sim: error: ") and len(err.splitlines()) == 1, err
     assert message.replace("FILE", str(file)) in err
+
+
+def test_capture_refuses_a_suffix_it_cannot_write_before_capturing(
+    tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import hopper.logs.capture
+
+    monkeypatch.setattr(hopper.logs.capture, "capture", lambda *_, **__: pytest.fail("captured before the check"))
+    with pytest.raises(SystemExit) as stop:
+        main(["capture", str(tmp_path / "out.rrd")])
+    assert stop.value.code == 2
+    known = "cannot write a log as '.rrd'; known: .csv, .mcap, .npz"
+    assert capsys.readouterr().err == f"hopper-sim: error: {tmp_path / 'out.rrd'}: {known}\n"
