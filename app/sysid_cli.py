@@ -29,7 +29,7 @@ from hopper.app.cli_common import (
 
 from hopper.config import GRAVITY_PRESETS, MISMATCH_FACTORS, MISMATCH_OFFSETS, SensingParams, SimConfig, check_mismatch
 from hopper.errors import HopperError
-from hopper.logs.io import read_log, write_log, writer
+from hopper.logs.io import READERS, WRITERS, read_log, write_log, writer
 from hopper.logs.replay import HELD, REANCHOR_S, Errors, hops, replay_hops, simulate, world_model
 from hopper.logs.schema import Log
 from hopper.logs.sysid import PROFILE_SIGMAS, STAGES
@@ -38,6 +38,7 @@ from hopper.mismatch import Nominal
 from hopper.model import MODEL_XML
 
 COMMANDS = ("capture", "replay", "identify")
+LOG_KINDS = ", ".join(s if s != ".rrd" else "our own .rrd" for s in READERS)  # as `log check` says
 
 
 def mismatch_pair(text: str) -> tuple[str, float]:
@@ -69,8 +70,8 @@ def add_world_flags(p: argparse.ArgumentParser, help_suffix: str, from_log: bool
 
 
 def add_commands(commands: argparse._SubParsersAction) -> None:  # noqa: SLF001 (argparse's own type)
-    cap = commands.add_parser("capture", help="log a simulated robot of known truth (.npz), for replay and identify")
-    cap.add_argument("out", type=writable_file, metavar="OUT", help="the log to write: .npz or .csv")
+    cap = commands.add_parser("capture", help="log a simulated robot of known truth, for replay and identify")
+    cap.add_argument("out", type=writable_file, metavar="OUT", help=f"the log to write: {', '.join(WRITERS)}")
     cap.add_argument("--hops", type=int, default=14, help="hops to log (default 14)")
     cap.add_argument(
         "--mismatch", type=mismatch_pair, action="append", default=[], metavar="NAME=VALUE",
@@ -83,7 +84,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:  # noqa: SLF001 
     add_model_flag(cap)
 
     rep = commands.add_parser("replay", help="fly a log's commands open loop from its state: errors and a figure")
-    rep.add_argument("log", type=Path, help="the log: .npz or .csv")
+    rep.add_argument("log", type=Path, help=f"the log: {LOG_KINDS}")
     add_model_flags(rep)
     rep.add_argument("--from", dest="start", type=finite, metavar="T", help="one replay from the log's state at T s")
     rep.add_argument("--to", dest="stop", type=finite, metavar="T", help="...until T s (default: the log's end)")
@@ -101,7 +102,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:  # noqa: SLF001 
     rep.add_argument("--out", type=Path, metavar="DIR", help="write replay.png and .pdf (errors over time) here")
 
     ide = commands.add_parser("identify", help="fit the model to a log; print estimates, write the MJCF")
-    ide.add_argument("log", type=Path, help="the log: .npz or .csv")
+    ide.add_argument("log", type=Path, help=f"the log: {LOG_KINDS}")
     add_model_flags(ide)
     ide.add_argument("--out", type=writable_file, required=True, metavar="PATH.xml", help="the identified MJCF")
     ide.add_argument("--hops", type=int, default=7, help="fit on hops 1..N (default 7)")

@@ -133,3 +133,19 @@ def test_capture_refuses_a_suffix_it_cannot_write_before_capturing(
     assert stop.value.code == 2
     known = "cannot write a log as '.rrd'; known: .csv, .mcap, .npz"
     assert capsys.readouterr().err == f"hopper-sim: error: {tmp_path / 'out.rrd'}: {known}\n"
+
+
+@pytest.mark.parametrize(
+    ("command", "says"),
+    [
+        ("capture", "the log to write: .csv, .mcap, .npz"),
+        *((c, "the log: .csv, .mcap, .npz, our own .rrd") for c in ("replay", "identify")),
+    ],
+)
+def test_help_names_every_format_the_command_reads_or_writes(
+    command: str, says: str, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("COLUMNS", "200")  # argparse wraps at the terminal's width
+    with pytest.raises(SystemExit) as stop:
+        main([command, "--help"])
+    assert stop.value.code == 0 and says in capsys.readouterr().out
