@@ -54,7 +54,8 @@ def test_stand_measures_steps_and_writes_what_the_report_draws(tmp_path: Path):
 @pytest.mark.parametrize(
     ("flags", "said"),
     [
-        (["--length", "0"], "length must be a positive number"),
+        (["--length", "0"], "chirp length must be in (0, 600] s, got 0"),
+        (["--length", "1e9"], "chirp length must be in (0, 600] s, got 1e+09"),
         (["--f-max", "600"], "beyond the Nyquist frequency"),
         (["--amplitude", "40"], "the motor's limit"),
     ],
