@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+from pathlib import Path
 from typing import Any
 
 from hopper.app.cli_common import (
@@ -29,6 +30,7 @@ from hopper.app.cli_common import (
 from hopper.config import GRAVITY_PRESETS, Gains, InvalidConfig, SimConfig
 
 KICK_WATCH_S = 1.0  # s of the response to a kick that is shown
+FIGURE_FORMATS = (".png", ".pdf")  # --bode's
 
 
 def add_parser(commands: argparse._SubParsersAction, epilog: str) -> None:
@@ -72,11 +74,23 @@ def add_parser(commands: argparse._SubParsersAction, epilog: str) -> None:
     p.add_argument(
         "--settle", type=finite, default=0.5, metavar="S", help="s on the stand before anything (default 0.5)"
     )
-    p.add_argument("--bode", type=writable_file, metavar="PATH", help="write the Bode figure (PNG or PDF)")
+    p.add_argument("--bode", type=figure_file, metavar="PATH", help="write the Bode figure: PATH.png or PATH.pdf")
     p.add_argument(
         "--json", type=writable_file, metavar="PATH", help="write the measurements (hopper-sim report reads it)"
     )
     p.add_argument("--rrd", type=rrd_file, metavar="PATH", help="record the run, the injected signal too (.rrd)")
+
+
+def figure_file(text: str) -> Path:
+    """A .png or .pdf path that can be written (cli_common.writable_file). Its suffix says the format:
+    matplotlib would add .png to a name without one and write elsewhere than the path printed."""
+    path = writable_file(text)
+    if path.suffix.lower() not in FIGURE_FORMATS:
+        raise argparse.ArgumentTypeError(
+            f"{text}: cannot tell the figure's format from '{path.suffix or 'no suffix'}'; "
+            f"known: {', '.join(FIGURE_FORMATS)}"
+        )
+    return path
 
 
 def _config(args: argparse.Namespace) -> SimConfig:
@@ -189,7 +203,7 @@ def command_stand(args: argparse.Namespace) -> int:
 
         fig = frequency.bode(document["measurements"][0])
         fig.tight_layout()
-        fig.savefig(args.bode)
+        fig.savefig(args.bode, format=args.bode.suffix[1:].lower())
         style.close(fig)
         print(f"wrote {args.bode}")
     return EXIT_OK

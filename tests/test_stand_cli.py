@@ -21,7 +21,7 @@ def hopper_sim(*args: str) -> subprocess.CompletedProcess[str]:
 
 
 def test_stand_measures_steps_and_writes_what_the_report_draws(tmp_path: Path):
-    out, bode = tmp_path / "stand.json", tmp_path / "bode.png"
+    out, bode = tmp_path / "stand.json", tmp_path / "bode.PDF"  # the name as given, its format by its suffix
     rrd = tmp_path / "stand.rrd"
     done = hopper_sim(
         "stand",
@@ -44,7 +44,8 @@ def test_stand_measures_steps_and_writes_what_the_report_draws(tmp_path: Path):
     assert m["where"] == "stand (legs locked)" and m["controller"] == "PaperPID"
     measured, predicted = m["measured_margins"], m["predicted_margins"]
     assert measured["crossover_hz"] == pytest.approx(predicted["crossover_hz"], rel=0.05)
-    assert bode.stat().st_size > 10_000
+    assert bode.read_bytes().startswith(b"%PDF") and bode.stat().st_size > 10_000
+    assert f"wrote {bode}\n" in done.stdout and not any(p.name.startswith("bode.PDF.") for p in tmp_path.iterdir())
     assert verify(rrd) and rrd.stat().st_size > 100_000  # the run, its injected signal too (test_stand)
     report = hopper_sim("report", str(out), "--out", str(tmp_path / "report"))
     assert report.returncode == 0, report.stderr
@@ -70,3 +71,14 @@ def test_a_bad_chirp_is_refused_in_one_line(flags: list[str], said: str):
 def test_stand_without_an_action_says_what_it_takes():
     done = hopper_sim("stand")
     assert done.returncode == 2 and "--measure" in done.stderr
+
+
+@pytest.mark.parametrize(("name", "said"), [("bode", "'no suffix'"), ("bode.svg", "'.svg'")])
+def test_a_bode_figure_without_a_png_or_pdf_suffix_is_refused_before_any_work(tmp_path: Path, name: str, said: str):
+    done = hopper_sim("stand", "--measure", "--bode", str(tmp_path / name))
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr == (
+        f"hopper-sim: error: argument --bode: {tmp_path / name}: cannot tell the figure's format from {said}; "
+        "known: .png, .pdf\n"
+    )
+    assert not any(tmp_path.iterdir())
