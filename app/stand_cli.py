@@ -143,6 +143,8 @@ def command_stand(args: argparse.Namespace) -> int:
         fail("stand: say what to do: --measure, --step DEG and/or --kick NMS")
     if args.flight and not args.measure:
         fail("--flight measures the loop in flight: add --measure (kicks and steps are on the stand)")
+    if args.bode is not None and not args.measure:
+        fail("--bode draws the loop that --measure measures: add --measure")
     if args.flights < 1:
         fail(f"--flights must be at least 1, got {args.flights}")
     if not 0.0 <= args.settle <= 60.0:

@@ -68,6 +68,12 @@ def test_a_bad_chirp_is_refused_in_one_line(flags: list[str], said: str):
     assert done.stdout == ""
 
 
+def test_a_bode_figure_without_a_measurement_is_refused(tmp_path: Path):
+    done = hopper_sim("stand", "--step", "2", "--bode", str(tmp_path / "bode.png"))
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr == "hopper-sim: error: --bode draws the loop that --measure measures: add --measure\n"
+
+
 def test_stand_without_an_action_says_what_it_takes():
     done = hopper_sim("stand")
     assert done.returncode == 2 and "--measure" in done.stderr
