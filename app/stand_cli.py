@@ -176,7 +176,7 @@ def command_stand(args: argparse.Namespace) -> int:
             attach(sim)
             sim.settle(args.settle)
         if args.kick is not None:
-            _kick(sim, args.kick)
+            document["kick"] = _kick(sim, args.kick)
         if args.step is not None:
             if not abs(args.step) <= 30.0:
                 fail(f"--step must be within +-30 deg, got {args.step:g}")
@@ -211,8 +211,9 @@ def command_stand(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _kick(sim, magnitude: float) -> None:  # noqa: ANN001 (hopper.stand.StandSimulation)
-    """A pitch kick on the stand, and the pitch's peak and return."""
+def _kick(sim, magnitude: float) -> dict[str, float]:  # noqa: ANN001 (hopper.stand.StandSimulation)
+    """A pitch kick on the stand (N m s): prints the pitch's peak and return, and gives them for the
+    JSON (peak in deg, times in s from the kick)."""
     try:
         sim.disturb("pitch_kick", magnitude)
     except ValueError as exc:
@@ -226,10 +227,18 @@ def _kick(sim, magnitude: float) -> None:  # noqa: ANN001 (hopper.stand.StandSim
         if abs(p) > peak:
             peak, peak_t = abs(p), sim.time - start
     back = next((i for i in range(len(pitch) - 1, -1, -1) if pitch[i] > 0.1 * peak), 0) + 1
+    back_s = back * sim.model.opt.timestep
     print(
         f"kick {magnitude:g} N m s on the stand: peak pitch {math.degrees(peak):.3f} deg at {peak_t * 1e3:.0f} ms, "
-        f"back within 10 % of it from {back * sim.model.opt.timestep * 1e3:.0f} ms"
+        f"back within 10 % of it from {back_s * 1e3:.0f} ms"
     )
+    return {
+        "magnitude_nms": magnitude,
+        "peak_pitch_deg": math.degrees(peak),
+        "peak_s": peak_t,
+        "back_within_10pct_s": back_s,
+        "watched_s": KICK_WATCH_S,
+    }
 
 
 def _settings(args: argparse.Namespace, config: SimConfig) -> dict[str, Any]:

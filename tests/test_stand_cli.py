@@ -30,6 +30,8 @@ def test_stand_measures_steps_and_writes_what_the_report_draws(tmp_path: Path):
         "10",
         "--step",
         "2",
+        "--kick",
+        "0.5",
         "--json",
         str(out),
         "--bode",
@@ -41,6 +43,9 @@ def test_stand_measures_steps_and_writes_what_the_report_draws(tmp_path: Path):
     assert "crossover Hz" in done.stdout and "rise ms" in done.stdout
     document = json.loads(out.read_text())
     (m,) = document["measurements"]
+    kick = document["kick"]  # as printed, in the JSON too
+    assert kick["magnitude_nms"] == 0.5 and 0.0 < kick["peak_s"] < kick["back_within_10pct_s"] <= kick["watched_s"]
+    assert f"kick 0.5 N m s on the stand: peak pitch {kick['peak_pitch_deg']:.3f} deg" in done.stdout
     assert m["where"] == "stand (legs locked)" and m["controller"] == "PaperPID"
     measured, predicted = m["measured_margins"], m["predicted_margins"]
     assert measured["crossover_hz"] == pytest.approx(predicted["crossover_hz"], rel=0.05)
