@@ -94,6 +94,26 @@ def test_measured_margins_match_the_model_margins():
     assert model.crossover_hz == pytest.approx(wc / (2 * math.pi), rel=0.02)
 
 
+@pytest.mark.parametrize(("length", "segments"), [(3.0, 1), (5.1, 4)])
+def test_a_short_chirp_is_estimated_over_its_whole_band(length: float, segments: int):
+    """A record under two 2.048 s segments (f_min 1 Hz) is one segment, the whole record; a longer one
+    takes in its end too. The segment used to stop at 2.048 s, where a 3 s log chirp to 200 Hz had
+    reached 43 Hz (5.1 s: the end's 0.98 s, above 88 Hz, in no segment): above, |L| read flat."""
+    spec = ChirpSpec(f_min=1.0, f_max=200.0, amplitude=1.0, length=length)
+    run, exact = known_loop()
+    response = measure([run(excitation(spec))], spec)
+    assert response.f[-1] >= 0.99 * spec.f_max and response.segments == segments
+    truth = exact_response(exact, response.f)
+    up = response.f >= 2.0  # (5.1 s: the first Hann segment tapers off the chirp's first hertz: 1.9 dB at 1.5 Hz)
+    assert np.abs(20 * np.log10(np.abs(response.loop / truth)))[up].max() < 1.0
+    assert np.abs(np.degrees(np.angle(response.loop / truth)))[up].max() < 5.0
+    found = measured_margins(response)
+    model = margins(response.f, truth)
+    assert found.gain_margin_db == pytest.approx(model.gain_margin_db, abs=0.5)
+    # One segment's coherence is 1 whatever the noise: it is not reported as one
+    assert response.coherent == (segments > 1) and math.isnan(found.coherence) == (segments == 1)
+
+
 def test_short_records_stitched_together_estimate_the_loop():
     """Many 0.4 s records (flights), each a short chirp, average into one estimate (a light torso:
     a crossover near 30 Hz, as in flight)."""

@@ -57,6 +57,21 @@ def test_stand_measures_steps_and_writes_what_the_report_draws(tmp_path: Path):
     assert {p.name for p in (tmp_path / "report").iterdir()} >= {"bode_1.png", "step.png", "report.html"}
 
 
+def test_a_short_chirp_measures_its_whole_band_and_does_not_report_one_segments_coherence(tmp_path: Path):
+    """3 s, 1-200 Hz: one Welch segment of the whole record (it was 2.048 s of it, to 43 Hz: |L| read
+    flat above, no gain margin, and the one segment's coherence printed 1.000)."""
+    out = tmp_path / "stand.json"
+    done = hopper_sim("stand", "--measure", "--length", "3", "--f-max", "200", "--json", str(out))
+    assert done.returncode == 0, done.stderr
+    (m,) = json.loads(out.read_text())["measurements"]
+    assert m["f"][-1] >= 199.0 and m["segments"] == 1
+    measured, predicted = m["measured_margins"], m["predicted_margins"]
+    assert measured["gain_margin_db"] == pytest.approx(predicted["gain_margin_db"], abs=0.5)
+    assert measured["coherence"] is None and "coherence at the crossover" not in done.stdout
+    assert "coherence not estimated: the record is one Welch segment" in done.stdout
+    assert "a chirp of 4.096 s or more gives two" in done.stdout
+
+
 @pytest.mark.parametrize(
     ("flags", "said"),
     [

@@ -15,7 +15,16 @@ from collections.abc import Callable
 
 import numpy as np
 
-from hopper.analysis.frequency import ChirpSpec, Margins, NotMeasured, Response, excitation, measure, measured_margins
+from hopper.analysis.frequency import (
+    ChirpSpec,
+    Margins,
+    NotMeasured,
+    Response,
+    coherent_length,
+    excitation,
+    measure,
+    measured_margins,
+)
 from hopper.analysis.predict import Predicted, linear_law, loop_of, response
 from hopper.analysis.step import StepMetrics, metrics, predicted_step
 from hopper.config import SimConfig
@@ -63,6 +72,7 @@ class Measurement:
             "at": self.spec.at,
             "spec": dataclasses.asdict(self.spec),
             "records": self.records,
+            "segments": r.segments,
             "saturated_ticks": self.saturated_ticks,
             "note": self.note,
             "f": r.f.tolist(),
@@ -91,7 +101,12 @@ class Measurement:
             mv = getattr(m, name) if m else math.nan
             pv = getattr(p.margins, name) if p else math.nan
             out.append(f"  {label + ' ' + unit:14s} {_fmt(mv):>10s} {_fmt(pv):>10s}")
-        if m is not None:
+        if m is not None and math.isnan(m.coherence):
+            out.append(
+                f"  coherence not estimated: the record is one Welch segment (its coherence is 1 whatever the "
+                f"noise); a chirp of {coherent_length(self.spec):g} s or more gives two"
+            )
+        elif m is not None:
             out.append(f"  coherence at the crossover {m.coherence:.3f}")
         if self.saturated_ticks:
             out.append(f"  the motor saturated on {self.saturated_ticks} ticks: lower the amplitude")

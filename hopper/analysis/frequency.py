@@ -147,6 +147,9 @@ class Response:
     complementary: np.ndarray  # T: d -> -u_c at the input; r -> pitch at the reference
     coherence: np.ndarray  # 0..1, of the weaker of the two spectra each estimate divides
     at: str
+    # Welch segments averaged, all records (stepped sines: their steps). With one the coherence is
+    # 1 by construction (|S_dx|^2 = S_dd S_xx for a single segment): no estimate of anything.
+    segments: int = 2
 
     def band(self, low: float, high: float) -> Response:
         keep = (self.f >= low) & (self.f <= high)
@@ -158,14 +161,42 @@ class Response:
             pick(self.complementary),
             self.coherence[keep],
             self.at,
+            self.segments,
         )
+
+    @property
+    def coherent(self) -> bool:
+        """Whether the coherence was estimated (from two segments or more)."""
+        return self.segments >= 2
+
+
+def resolving_segment(spec: ChirpSpec) -> int:
+    """The Welch segment (samples) that resolves f_min / 2: a power of 2."""
+    return 2 ** math.ceil(math.log2(2.0 / (spec.f_min * spec.dt)))
 
 
 def segment_length(spec: ChirpSpec, record_ticks: int | None = None) -> int:
-    """Welch segment (samples): a resolution of f_min / 2 at least, no longer than the record."""
+    """Welch segment (samples): a resolution of f_min / 2 at least; the whole record if it holds
+    fewer than two such segments. A shorter segment than the record would leave the record's end
+    out of every segment, and a chirp sweeps its highest frequencies there: a 3 s log chirp to
+    200 Hz, in one 2.048 s segment, reached 43 Hz, and the bins above read the segment's edge."""
     n = spec.ticks if record_ticks is None else record_ticks
-    wanted = 2 ** math.ceil(math.log2(2.0 / (spec.f_min * spec.dt)))
-    return int(min(wanted, n))
+    wanted = resolving_segment(spec)
+    return int(n if n < 2 * wanted else wanted)
+
+
+def coherent_length(spec: ChirpSpec) -> float:
+    """The shortest record (s) whose coherence is estimated: two segments (segment_length)."""
+    return 2 * resolving_segment(spec) * spec.dt
+
+
+def segments(record_ticks: int, nperseg: int) -> tuple[int, int]:
+    """Half-overlapping Welch segments of `nperseg` in a record (as scipy.signal.welch lays them),
+    and the samples at its end that none of them covers (welch leaves them out)."""
+    if record_ticks <= nperseg:
+        return 1, 0
+    step = nperseg - nperseg // 2
+    return 1 + (record_ticks - nperseg) // step, (record_ticks - nperseg) % step
 
 
 def window_for(record_ticks: int, nperseg: int) -> str:
@@ -191,19 +222,23 @@ def estimate(records: list[dict[str, np.ndarray]], spec: ChirpSpec, nperseg: int
     nper = nperseg or min(segment_length(spec, len(r["d"])) for r in records)
     names = ("u", "uc") if spec.at == "input" else ("pitch", "error")
     sums: dict[str, np.ndarray] = {}
-    weight = 0.0
+    weight = 0
     for rec in records:
         d = np.asarray(rec["d"], float)
         outs = [np.asarray(rec[n], float) for n in names] if spec.at == "input" else _reference_outputs(rec)
         fs, window = 1.0 / spec.dt, window_for(len(d), nper)
         welch = {"fs": fs, "nperseg": nper, "detrend": False, "window": window}
-        f, pdd = signal.welch(d, **welch)
-        pa, pb = (signal.csd(d, x, **welch)[1] for x in outs)
-        paa, pbb = (signal.welch(x, **welch)[1] for x in outs)
-        w = max(len(d) - nper // 2, 1) / (nper / 2)  # Welch segments in this record (half overlap)
-        for key, value in (("dd", pdd), ("da", pa), ("db", pb), ("aa", paa), ("bb", pbb)):
-            sums[key] = sums.get(key, 0.0) + w * value
-        weight += w
+        count, tail = segments(len(d), nper)
+        # A tail no segment covers is where a chirp sweeps its highest frequencies: one more
+        # segment, ending with the record, takes it in (the others stay half-overlapping).
+        parts = [(d, outs, count)] + ([(d[-nper:], [x[-nper:] for x in outs], 1)] if tail else [])
+        for dp, xs, w in parts:
+            f, pdd = signal.welch(dp, **welch)
+            pa, pb = (signal.csd(dp, x, **welch)[1] for x in xs)
+            paa, pbb = (signal.welch(x, **welch)[1] for x in xs)
+            for key, value in (("dd", pdd), ("da", pa), ("db", pb), ("aa", paa), ("bb", pbb)):
+                sums[key] = sums.get(key, 0.0) + w * value
+            weight += w
     s = {k: v / weight for k, v in sums.items()}
     coherence = np.minimum(_coherence(s["dd"], s["da"], s["aa"]), _coherence(s["dd"], s["db"], s["bb"]))
     if spec.at == "input":
@@ -212,7 +247,7 @@ def estimate(records: list[dict[str, np.ndarray]], spec: ChirpSpec, nperseg: int
     else:
         comp, sens = s["da"] / s["dd"], s["db"] / s["dd"]
         loop = None
-    response = Response(f, loop, sens, comp, coherence, spec.at).band(spec.f_min, spec.f_max)
+    response = Response(f, loop, sens, comp, coherence, spec.at, weight).band(spec.f_min, spec.f_max)
     # A bin the chirp barely excites (its ends, a taper) is estimated from what leaks into it; a
     # record's transient can dominate it while the coherence of one segment still reads ~1.
     inside = (f >= spec.f_min) & (f <= spec.f_max)
@@ -265,7 +300,7 @@ def stepped_estimate(record: dict[str, np.ndarray], spec: ChirpSpec) -> Response
         sens, comp, loop = out["a"] / out["d"], -out["b"] / out["d"], -out["b"] / out["a"]
     else:
         comp, sens, loop = out["a"] / out["d"], out["b"] / out["d"], None
-    return Response(fs, loop, sens, comp, np.minimum(coherence, 1.0), spec.at)
+    return Response(fs, loop, sens, comp, np.minimum(coherence, 1.0), spec.at, len(fs))
 
 
 def measure(records: list[dict[str, np.ndarray]], spec: ChirpSpec) -> Response:
@@ -359,6 +394,8 @@ def measured_margins(response: Response) -> Margins:
     found = margins(response.f, loop, response.coherence)
     if math.isnan(found.crossover_hz):
         raise NotMeasured(f"no gain crossover measured: {found.note}")
+    if not response.coherent:  # one segment's coherence is 1 whatever the noise: none is reported
+        found = dataclasses.replace(found, coherence=math.nan)
     resolution = float(np.min(np.diff(response.f))) if len(response.f) > 1 else math.inf
     if found.crossover_hz < max(response.f[0], RESOLVED_BINS * resolution):
         raise NotMeasured(
