@@ -198,14 +198,18 @@ def error_line(label: str, e: Errors) -> str:
 
 
 def replay_flags(args: argparse.Namespace) -> None:
-    """Refuse flags that the replay asked would ignore: --from T replays one span (to --to), --hops
-    and --every replay hops from their liftoffs."""
+    """Refuse flags that the replay asked would ignore (--from T replays one span, to --to; --hops
+    and --every replay hops from their liftoffs) or cannot take, before the log is read."""
     if args.start is None and args.stop is not None:
         fail(f"--to {args.stop:g} needs --from: --to ends the one replay --from starts")
     if args.start is not None:
         for flag, value in (("--hops", args.hops), ("--every", args.every)):
             if value is not None:
                 fail(f"{flag} replays hops from their liftoffs; --from {args.start:g} replays one span: give one")
+    if args.hops is not None and args.hops < 1:
+        fail(f"--hops must be at least 1, got {args.hops}")
+    if args.every is not None and args.every <= 0.0:
+        fail(f"--every must be a positive number of seconds, got {args.every:g}")
 
 
 def out_folder(out: Path) -> None:
@@ -241,10 +245,6 @@ def command_replay(args: argparse.Namespace) -> int:
         traj = simulate(model, log, a, b, delay_ticks=world.command_delay, window=window, servo=servo)
         parts = [(f"from {t[a]:.3f} s" + (f", {HELD}" if servo else ""), errors(log, traj))]
     else:
-        if args.hops is not None and args.hops < 1:
-            fail(f"--hops must be at least 1, got {args.hops}")
-        if args.every is not None and args.every <= 0.0:
-            fail(f"--every must be a positive number of seconds, got {args.every:g}")
         found = len(hops(log))
         if args.hops is not None and args.hops > found:
             fail(f"--hops {args.hops}: the log has {found} hop(s)")

@@ -107,6 +107,8 @@ def test_bad_input_is_refused_in_one_line(argv, message, logged: Path, tmp_path:
         (["--to", "3"], "--to 3 needs --from"),
         (["--from", "1", "--hops", "1"], "--hops replays hops from their liftoffs; --from 1 replays one span"),
         (["--from", "1", "--every", "0.3"], "--every replays hops from their liftoffs; --from 1 replays one span"),
+        (["--hops", "0"], "--hops must be at least 1, got 0"),
+        (["--every", "-1"], "--every must be a positive number of seconds, got -1"),
     ],
 )
 def test_replay_refuses_an_out_it_cannot_write_or_flags_it_would_ignore_before_any_work(
