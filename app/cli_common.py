@@ -73,6 +73,20 @@ def make_writable_folder(path: Path) -> None:
     probe.unlink()
 
 
+def check_out(out: Path, flag: str = "--out") -> None:
+    """OUT is a folder (or can be made one, with its missing parents) that can be written: made and
+    written to now, before any work; one line and exit 2 otherwise."""
+    folder = out.absolute()
+    while not folder.exists():  # OUT itself, or the nearest of its parents that exists
+        folder = folder.parent
+    if not folder.is_dir():
+        fail(f"{flag}: {folder} is not a folder")
+    try:  # written to, not judged by permission bits (root, /proc, read-only mounts)
+        make_writable_folder(out)
+    except OSError as exc:
+        fail(f"{flag}: cannot write to {out}: {exc.strerror or exc}")
+
+
 def seed(text: str) -> int:
     """A terrain seed, a non-negative integer (numpy's generators take no negative seed)."""
     try:

@@ -26,6 +26,7 @@ from hopper.app.cli_common import (
     add_controller_flags,
     add_model_flag,
     add_run_flags,
+    check_out,
     checked_controller,
     fail,
     finite,
@@ -512,6 +513,8 @@ def command_envelope(args: argparse.Namespace) -> int:
         fail(f"--sizes must lie in (0, {top:g}] N m s")
     if not all(0 < v < 1 for v in args.moments):
         fail("--moments are fractions of the flight, between 0 and 1")
+    if args.out:
+        check_out(args.out)  # before the minutes of flying, not after
     config = SimConfig(terrain="flat", model=args.model)
     moments = envelope.flight_moments(config)
     flight = moments[-1].t + moments[-1].to_go
@@ -529,7 +532,6 @@ def command_envelope(args: argparse.Namespace) -> int:
     if args.out:
         from hopper.report.envelope import figure
 
-        args.out.mkdir(parents=True, exist_ok=True)
         figure(outcomes, moments, args.out)
         cases_json = [
             {"size": o.case.disturbance.magnitude, "delay_s": o.case.disturbance.delay_s, "fell": o.fell,

@@ -11,9 +11,9 @@ from typing import Any
 from hopper.app.cli_common import (
     EXIT_OK,
     add_model_flag,
+    check_out,
     checked_controller,
     fail,
-    make_writable_folder,
     model_file,
     writable_file,
 )
@@ -253,20 +253,6 @@ def check_controllers(spec: Any) -> None:  # noqa: ANN401 (hopper.experiments.sp
     first = [(name, values[0]) for name, values in spec.params]
     for controller in spec.controller:
         checked_controller(SimConfig(model=spec.mjcf), controller, [] if controller == "pid" else first)
-
-
-def check_out(out: Path) -> None:
-    """OUT is a folder (or can be made one, with its missing parents, as the store does) that can be
-    written, checked before any work."""
-    folder = out.absolute()
-    while not folder.exists():  # OUT itself, or the nearest of its parents that exists
-        folder = folder.parent
-    if not folder.is_dir():
-        fail(f"--out: {folder} is not a folder")
-    try:  # made and written to now, the last check before any work
-        make_writable_folder(out)
-    except OSError as exc:
-        fail(f"--out: cannot write to {out}: {exc.strerror or exc}")
 
 
 def check_workers(args: argparse.Namespace) -> None:

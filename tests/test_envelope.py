@@ -115,6 +115,21 @@ def test_hopper_sim_envelope_refuses_bad_input_in_one_line(flags: list[str]) -> 
     assert "Traceback" not in result.stderr
 
 
+@pytest.mark.parametrize("out", ["file", "/proc/no-such/env"])
+def test_hopper_sim_envelope_refuses_an_unwritable_out_before_flying(tmp_path: Path, out: str) -> None:
+    if out == "file":
+        out = str(tmp_path / "run.out")
+        Path(out).write_text("kept")
+    result = subprocess.run(
+        [sys.executable, "-m", "hopper.app.sim_cli", "envelope", "--sizes", "1", "--moments", "0.5",
+         "--workers", "1", "--out", out],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr
+    assert "--out" in result.stderr and "kicks" not in result.stderr  # refused before any kick flew
+    assert out.startswith("/proc") or Path(out).read_text() == "kept"
+
+
 def _kicked_peak(share: float, kick: float, delay: float) -> float:
     """Peak |pitch| (deg) of the second flight after `kick` N m s `delay` s into it, legs' share `share`."""
     sim = Simulation(FLAT)
