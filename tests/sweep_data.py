@@ -34,7 +34,8 @@ def episode(config: SimConfig, hops: int, kick: float) -> tuple[dict[str, Any], 
     settings = {
         "kp": config.gains.kp, "ki": config.gains.ki, "kd": config.gains.kd, "gravity": config.gravity,
         "seed": config.seed, "hops_target": hops, "terrain": config.terrain, "wheel": config.wheel,
-        "sensing": config.sensing, "disturbance": f"pitch kick {kick:g} N m s in flight" if kick else "",
+        "sensing": config.sensing,
+        "disturbance": f"pitch_kick {kick:+g} N m s at flight +0.1 s of hop 2" if kick else "",  # spec.describe's
         "disturbance_size": float(kick),
     }  # fmt: skip
     episode_id = hashlib.sha1(json.dumps(settings, sort_keys=True).encode()).hexdigest()[:16]

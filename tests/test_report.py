@@ -25,7 +25,7 @@ from hopper.config import SimConfig
 from hopper.report import build, page
 from hopper.report.rrd import read_run
 from hopper.report.runs import run_from_result
-from hopper.report.sweep import LANDING_LIMIT_DEG, gain_map, load, sweep_report
+from hopper.report.sweep import LANDING_LIMIT_DEG, Sweep, gain_map, load, sweep_report
 from hopper.sim import Simulation
 from hopper.telemetry import Telemetry
 from hopper.trace import TRACE_COLUMNS, TraceRecorder
@@ -220,6 +220,37 @@ def test_a_sweep_report_maps_the_gains_and_the_success_rates(sweep_dir: Path, tm
     assert "spec.toml" in (out / "report.html").read_text()
     part = sorted((sweep_dir / "episodes").glob("*.parquet"))[0]  # one part file is a sweep too
     assert load(part).episodes.num_rows == len(ds.dataset(part).to_table())
+
+
+def test_success_against_disturbance_gives_each_kind_its_own_panel_and_unit(tmp_path: Path) -> None:
+    """A push (N s) and a kick (N m s) share no axis: one panel each, labelled in its unit, the
+    undisturbed episodes the size 0 of both; a kind not recorded says so instead of guessing a unit."""
+    import pyarrow as pa
+
+    when = " at stance +0.1 s of hop 2"
+    texts = ["", f"push_forward +4 N s{when}", f"push_forward +8 N s{when}", f"pitch_kick +0.5 N m s{when}",
+             f"pitch_kick +3 N m s{when}"]  # fmt: skip
+    sizes, fell = [0.0, 4.0, 8.0, 0.5, 3.0], [False, False, True, False, True]
+    n = len(texts)
+    table = pa.table({
+        "kp": [450.0] * n, "kd": [40.0] * n, "gravity": [1.625] * n, "wheel": [True] * n, "disturbance": texts,
+        "disturbance_size": sizes, "hops_target": [3] * n, "hops_completed": [2 if f else 3 for f in fell],
+        "fell": fell, "worst_landing_deg": [1.0] * n,
+    })  # fmt: skip
+    report = sweep_report(Sweep(table, None, None, tmp_path), "t")
+    (named,) = [f for f in report.figures if f.name == "success_vs_disturbance_size"]
+    axes = named.figure.axes
+    assert [ax.get_xlabel() for ax in axes] == ["pitch_kick size (N m s); 0: undisturbed",
+                                                "push_forward size (N s); 0: undisturbed"]  # fmt: skip
+    kick, push = (ax.lines[0].get_xydata().tolist() for ax in axes)
+    assert kick == [[0.0, 100.0], [0.5, 100.0], [3.0, 0.0]] and push == [[0.0, 100.0], [4.0, 100.0], [8.0, 0.0]]
+    for f in report.figures:
+        build.style.close(f.figure)
+    unknown = Sweep(table.set_column(4, "disturbance", pa.array(["", "a kick", "a kick", "a kick", "a kick"])),
+                    None, None, tmp_path)  # fmt: skip
+    (named,) = [f for f in sweep_report(unknown, "t").figures if f.name == "success_vs_disturbance_size"]
+    assert [ax.get_xlabel() for ax in named.figure.axes] == ["disturbance size (kind and unit not recorded)"]
+    build.style.close(named.figure)
 
 
 def test_a_gain_cell_whose_robots_never_landed_says_so_instead_of_a_perfect_zero(tmp_path: Path, capsys) -> None:  # noqa: ANN001

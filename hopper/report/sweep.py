@@ -15,6 +15,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 
 from hopper.config import GaitParams
+from hopper.disturbances import DISTURBANCE_LIMITS
 from hopper.experiments.store import worst_landing
 from hopper.report import page, style
 from hopper.report.build import Named, Report
@@ -143,10 +144,43 @@ def gain_map(sweep: Sweep, wheel: bool = True) -> Figure:
 def success_against(sweep: Sweep, column: str, label: str) -> Figure:
     """Share of successful episodes (all hops, no fall, landings within 3.5 deg) per value of
     `column`, one line per wheel state, with the episode count at each point."""
-    x_all, ok, wheel = sweep.column(column).astype(float), sweep.success(), sweep.column("wheel").astype(bool)
     fig, (ax,) = style.new_figure(1, height=2.8, sharex=False, title=f"Success rate against {label.split(' (')[0]}")
+    _success_lines(ax, sweep, np.ones(sweep.episodes.num_rows, dtype=bool), column, label)
+    return fig
+
+
+def disturbance_kinds(sweep: Sweep) -> np.ndarray:
+    """Per episode, its disturbance's kind (a DISTURBANCE_LIMITS key), "" for none and "?" for a
+    description that names no known kind (the column holds hopper.experiments.spec.describe's text)."""
+    if "disturbance" not in sweep.episodes.column_names:
+        return np.where(sweep.column("disturbance_size").astype(float) == 0.0, "", "?")
+    first = [text.split(" ", 1)[0] for text in sweep.column("disturbance").astype(str)]
+    return np.array([word if word in DISTURBANCE_LIMITS or not word else "?" for word in first])
+
+
+def success_against_disturbance(sweep: Sweep) -> Figure:
+    """Success rate against the disturbance's size, one panel per kind with that kind's unit (an
+    N m s kick and an N s push share no axis); the undisturbed episodes are each panel's size 0."""
+    kinds = disturbance_kinds(sweep)
+    shown = sorted(set(kinds.tolist()) - {""}) or [""]
+    fig, axes = style.new_figure(len(shown), height=2.8, sharex=False, title="Success rate against disturbance size")
+    for ax, kind in zip(axes, shown, strict=True):
+        rows = (kinds == kind) | (kinds == "")
+        if kind == "?":
+            label = "disturbance size (kind and unit not recorded)"
+        elif kind:
+            label = f"{kind} size ({DISTURBANCE_LIMITS[kind][1]}); 0: undisturbed"
+        else:
+            label = "disturbance size"
+        _success_lines(ax, sweep, rows, "disturbance_size", label)
+    return fig
+
+
+def _success_lines(ax, sweep: Sweep, chosen: np.ndarray, column: str, label: str) -> None:  # noqa: ANN001 (Axes)
+    """On `ax`, the success rate of the `chosen` episodes per value of `column`, one line per wheel state."""
+    x_all, ok, wheel = sweep.column(column).astype(float), sweep.success(), sweep.column("wheel").astype(bool)
     for state, color in ((True, style.WHEEL_ON), (False, style.WHEEL_OFF)):
-        rows = wheel == state
+        rows = chosen & (wheel == state)
         if not rows.any():
             continue
         xs = _unique(x_all[rows])
@@ -160,7 +194,6 @@ def success_against(sweep: Sweep, column: str, label: str) -> Figure:
     ax.set_xlabel(label)
     ax.set_ylabel("successful episodes (%)")
     style.legend_above(ax)
-    return fig
 
 
 def axis_table(sweep: Sweep) -> page.Section:
@@ -196,11 +229,15 @@ def sweep_report(sweep: Sweep, title: str) -> Report:
                                  "red crosses and counts: episodes that fell; grey, no landing: every episode in the "
                                  "cell fell before its first landing. White line on the scale: 3.5 deg.",
                                  gain_map(sweep, wheel)))  # fmt: skip
-    for column, label in (("gravity", "gravity (m/s²)"), ("disturbance_size", "disturbance size (N m s)")):
+    for column, label in (("gravity", "gravity (m/s²)"), ("disturbance_size", "disturbance size")):
         if len(_unique(sweep.column(column))) > 1:
-            figures.append(Named(f"success_vs_{column}", f"Success rate against {label}",
-                                 "Episodes with all hops done, no fall and every landing within 3.5 deg.",
-                                 success_against(sweep, column, label)))  # fmt: skip
+            note = "Episodes with all hops done, no fall and every landing within 3.5 deg."
+            if column == "disturbance_size":
+                figure = success_against_disturbance(sweep)
+                note += " One panel per disturbance kind, in its unit; the undisturbed episodes are each one's 0."
+            else:
+                figure = success_against(sweep, column, label)
+            figures.append(Named(f"success_vs_{column}", f"Success rate against {label}", note, figure))
         else:
             skipped.append(f"{column} takes one value ({_unique(sweep.column(column))[0]:g}): no figure against it")
     tables = [axis_table(sweep)]
