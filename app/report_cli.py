@@ -85,7 +85,7 @@ def _flown_by(settings: dict[str, Any], spec: str) -> dict[str, Any]:
 
 def _json_report(path: Path, args: argparse.Namespace):  # noqa: ANN202 (hopper.report.build.Report)
     from hopper.report.build import run_report
-    from hopper.report.runs import kind_of, run_from_result
+    from hopper.report.runs import hop_dicts, kind_of, run_from_result
 
     try:
         document = json.loads(path.read_text())
@@ -104,6 +104,12 @@ def _json_report(path: Path, args: argparse.Namespace):  # noqa: ANN202 (hopper.
     source = f"{what} JSON"
     runs = []
     for result in results:
+        try:  # a hand-edited result: one line naming what is wrong, before any simulation
+            if not isinstance(result, dict) or not isinstance(result.get("settings"), dict):
+                raise ValueError("a result must be an object with a settings object")
+            hop_dicts(result.get("hops"))
+        except ValueError as exc:
+            raise ValueError(f"{path}: {exc}") from None
         # The same flights by another controller (getattr: a Namespace may be built without the flag).
         if getattr(args, "controller", None):
             settings = {**result["settings"], **_flown_by(result["settings"], args.controller)}
@@ -166,7 +172,7 @@ def command_report(args: argparse.Namespace) -> int:
         else:
             report = _sweep_report(args.input)
     except (ValueError, KeyError, ControllerError) as exc:
-        fail(str(exc).strip("'\""))
+        fail(str(exc.args[0]) if isinstance(exc, KeyError) and exc.args else str(exc))  # a KeyError's str quotes
     paths = write(report, out)
     print(f"{len(paths)} files in {out}: {', '.join(p.name for p in paths)}")
     return EXIT_OK

@@ -168,9 +168,9 @@ def parser() -> Parser:
         "terrain", help="export a crater field as a grayscale PNG (as the paper does)", epilog=EXIT_STATUSES
     )
     export.add_argument("--seed", type=seed, default=0, help="terrain seed (default 0)")
-    export.add_argument("--png", type=writable_file, required=True, metavar="PATH", help="16-bit grayscale PNG")
+    export.add_argument("--png", type=png_file, required=True, metavar="PATH.png", help="16-bit grayscale PNG")
     export.add_argument(
-        "--x0", type=finite, default=CRATER_DEFAULTS.x0, metavar="M",
+        "--x0", type=terrain_x0, default=CRATER_DEFAULTS.x0, metavar="M",
         help=f"world x (m) of the window's -x edge; the field has no end (default {CRATER_DEFAULTS.x0:g}, the start)",
     )  # fmt: skip
     report_cli.add_parser(commands, EXIT_STATUSES)
@@ -178,6 +178,24 @@ def parser() -> Parser:
     log_cli.add_parser(commands, EXIT_STATUSES)
     size_cli.add_parser(commands, EXIT_STATUSES)
     return top
+
+
+X0_LIMIT_M = 1e9  # float64 still resolves the 0.05 m cells there (to ~1e-7 m), and numpy's tile seeds fit
+
+
+def png_file(text: str) -> Path:
+    """A writable PATH.png (PIL picks the format from the suffix; only PNG holds 16-bit grey)."""
+    if Path(text).suffix.lower() != ".png":
+        raise argparse.ArgumentTypeError(f"{text}: the file must end in .png (16-bit grayscale PNG)")
+    return writable_file(text)
+
+
+def terrain_x0(text: str) -> float:
+    """--x0, m: a finite number within X0_LIMIT_M of the start."""
+    value = finite(text)
+    if abs(value) > X0_LIMIT_M:
+        raise argparse.ArgumentTypeError(f"must lie within +-{X0_LIMIT_M:g} m, got {text}")
+    return value
 
 
 def make_config(args: argparse.Namespace, seed: int, wheel: bool) -> SimConfig:

@@ -285,6 +285,18 @@ def test_a_gain_cell_whose_robots_never_landed_says_so_instead_of_a_perfect_zero
         (lambda d: _write(d / "x.txt", "hello"), "expected a .json, .rrd, .parquet or a sweep directory"),
         (lambda d: _write(d / "x.json", '{"a": 1}'), "not a hopper-sim run or compare result"),
         (lambda d: _write(d / "x.json", "{not json"), "x.json: Expecting property name"),
+        (
+            lambda d: _write(d / "x.json", '{"settings": {}, "hops": "abc", "fell": false}'),
+            "x.json: hops must be a list of hops, got a string",
+        ),  # hand-edited: was a TypeError
+        (
+            lambda d: _write(d / "x.json", '{"settings": {}, "hops": [{"index": "1"}], "fell": false}'),
+            'x.json: hops[0].index must be a number, got "1"',
+        ),
+        (
+            lambda d: _write(d / "x.json", '{"runs": [{"settings": 3, "hops": []}]}'),
+            "x.json: a result must be an object with a settings object",
+        ),
         (lambda d: _write(d / "x.rrd", "not a recording"), "cannot read it as a rerun recording"),
         (lambda d: _write(d / "x.parquet", "not parquet"), "cannot read it as Parquet"),
         (lambda d: d, "is a folder without an episodes/ dataset or Parquet files"),

@@ -126,6 +126,9 @@ def test_compare_reports_the_median_reduction(tmp_path) -> None:
         (["terrain", "--png", "/proc/x.png"], "cannot write /proc/x.png"),
         (["terrain", "--seed", "-4", "--png", "y.png"], "seed must be a non-negative integer"),
         (["terrain"], "the following arguments are required: --png"),
+        (["terrain", "--png", "t.jpg"], "t.jpg: the file must end in .png"),  # PIL: cannot write mode I;16 as JPEG
+        (["terrain", "--png", "t"], "t: the file must end in .png"),  # PIL: unknown file extension
+        (["terrain", "--png", "t.png", "--x0", "1e300"], "--x0: must lie within +-1e+09 m, got 1e300"),
         ([], "the following arguments are required: command"),
     ],
 )

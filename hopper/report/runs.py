@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 from typing import Any
 
 import numpy as np
@@ -64,19 +65,52 @@ def trace_arrays(trace: dict[str, Any]) -> dict[str, np.ndarray]:
     return out
 
 
+# The hop keys the figures and tables read (hopper.report.build.HOP_TABLE, run_figures), all numbers.
+HOP_NUMBERS = ("index", "distance_m", "apex_height_m", "flight_time_s", "peak_pitch_deg", "rms_pitch_rate_deg_s",
+               "landing_pitch_deg", "saturation_time_s", "peak_wheel_rpm", "touchdown_time_s")  # fmt: skip
+
+
+def _json_type(value: Any) -> str:  # noqa: ANN401
+    """What a JSON value is, in JSON's words ("a string", "null")."""
+    if value is None or isinstance(value, bool):
+        return {None: "null", True: "true", False: "false"}[value]
+    names = {str: "a string", int: "a number", float: "a number", list: "a list", dict: "an object"}
+    return names.get(type(value), type(value).__name__)
+
+
+def hop_dicts(hops: Any) -> list[dict[str, Any]]:  # noqa: ANN401 (a hand-edited JSON may hold anything)
+    """A result's `hops`, checked: a list of objects with a number for each of HOP_NUMBERS and a
+    true/false `completed`; ValueError, one line, naming the first thing that is not."""
+    if not isinstance(hops, list):
+        raise ValueError(f"hops must be a list of hops, got {_json_type(hops)}")
+    for i, hop in enumerate(hops):
+        if not isinstance(hop, dict):
+            raise ValueError(f"hops[{i}] must be an object, got {_json_type(hop)}")
+        for key in HOP_NUMBERS:
+            value = hop.get(key)
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise ValueError(f"hops[{i}].{key} must be a number, got {json.dumps(value)}")
+        if not isinstance(hop.get("completed"), bool):
+            raise ValueError(f"hops[{i}].completed must be true or false, got {json.dumps(hop.get('completed'))}")
+    return list(hops)
+
+
 def run_from_result(result: dict[str, Any], source: str) -> Run:
     """A Run from one result of `hopper-sim run --json` (or one of `compare --json`'s runs).
 
     The result must hold a `trace` (hopper-sim writes one since the report existed; an older
-    result is re-simulated from its settings by the CLI first)."""
+    result is re-simulated from its settings by the CLI first). ValueError, one line, for a
+    result whose settings or hops are not what hopper-sim writes (a hand-edited one)."""
     settings = result["settings"]
+    if not isinstance(settings, dict):
+        raise ValueError(f"settings must be an object, got {_json_type(settings)}")
     wheel = bool(result.get("wheel", settings.get("wheel", True)))
     return Run(
         label=f"seed {settings.get('seed', '?')}, {wheel_label(wheel)}",
         wheel=wheel,
         fell=bool(result["fell"]),
         settings=settings,
-        hops=list(result["hops"]),
+        hops=hop_dicts(result["hops"]),
         trace=trace_arrays(result["trace"]),
         source=source,
     )
