@@ -376,21 +376,34 @@ def robust_models(args: argparse.Namespace) -> tuple[Any, Any]:  # (ModelAxis | 
         raise SpecError(f"{args.robust} is not valid TOML: {exc}") from None
     if not isinstance(data.get("model"), dict):
         raise SpecError(f"{args.robust} has no [model] table of distributions")
-    try:
+    if args.judge_samples is not None and args.judge_samples < 1:  # 0 is not "the file's count"
+        raise SpecError(f"--judge-samples must be at least 1, got {args.judge_samples}")
+    try:  # the tuning robots: the file's [model] table, --samples, --model-seed and --vary over it
         model = parse_model({**data["model"], **flags})
-        # The judging robots: the same distributions, the file's count (--samples is the tuning's), another seed.
-        judge = parse_model(
-            {
-                **data["model"],
-                **flags,
-                "samples": args.judge_samples or data["model"].get("samples", model.samples),
-                "seed": model.seed + 1 if args.judge_seed is None else args.judge_seed,
-            }
-        )
     except UncertaintyError as exc:
-        text = str(exc).replace("model.samples", "--judge-samples").replace("model.seed", "--judge-seed")
-        raise SpecError(text) from None
+        tuning = {"model.samples": ("--samples", args.samples), "model.seed": ("--model-seed", args.model_seed)}
+        raise SpecError(_flag_named(str(exc), args.robust, tuning)) from None
+    # The judging robots: the same distributions, the file's count (--samples is the tuning's), another seed.
+    samples = data["model"].get("samples", model.samples) if args.judge_samples is None else args.judge_samples
+    try:
+        judge = parse_model({**data["model"], **flags, "samples": samples,
+                             "seed": model.seed + 1 if args.judge_seed is None else args.judge_seed})  # fmt: skip
+    except UncertaintyError as exc:
+        judging = {
+            "model.samples": ("--judge-samples", args.judge_samples),
+            "model.seed": ("--judge-seed", args.judge_seed),
+        }
+        raise SpecError(_flag_named(str(exc), args.robust, judging)) from None
     return model, judge
+
+
+def _flag_named(text: str, spec: Path, flags: dict[str, tuple[str, int | None]]) -> str:
+    """A [model] error in the words of what set the value: `flags` maps model.samples and model.seed
+    to (flag, its value); a flag given is named, else the value is SPEC's."""
+    for key, (flag, given) in flags.items():
+        if text.startswith(f"{key}:"):
+            return f"{flag}{text[len(key) :]}" if given is not None else f"{spec}: {text}"
+    return text
 
 
 def controller_ranges(args: argparse.Namespace) -> dict[str, tuple[float, float, bool]]:

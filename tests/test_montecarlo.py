@@ -248,6 +248,27 @@ def test_tune_robust_scores_a_quantile_over_robots_and_judges_on_fresh_ones(tmp_
     assert bad.returncode == 2 and "another seed" in bad.stderr and bad.stderr.count("\n") == 1, bad.stderr
 
 
+@pytest.mark.integration
+@pytest.mark.parametrize(
+    "file_samples, args, message",
+    [
+        (3, ["--samples", "0", "--judge-samples", "3"], "error: --samples: expected an integer in [1, 1000000], got 0"),
+        (3, ["--judge-samples", "0"], "error: --judge-samples must be at least 1, got 0"),  # was: the file's 3
+        (3, ["--judge-samples", "2000000"], "error: --judge-samples: expected an integer in [1, 1000000]"),
+        (0, ["--samples", "2"], "error: mc.toml: model.samples: expected an integer in [1, 1000000], got 0"),
+    ],
+)
+def test_tune_robust_names_the_flag_or_file_whose_count_is_wrong(
+    tmp_path: Path, file_samples: int, args: list[str], message: str
+) -> None:
+    (tmp_path / "mc.toml").write_text(
+        f"[model]\nsamples = {file_samples}\nseed = 0\nmass_torso = {{uniform = [0.9, 1.1]}}\n"
+    )
+    result = hopper_sim("tune", "--robust", "mc.toml", "--trials", "1", *args, cwd=tmp_path, timeout=60)
+    assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr
+    assert message in result.stderr and result.stdout == "", result.stderr
+
+
 def test_a_robust_score_is_a_quantile_where_a_failure_counts_90_deg_and_energy_its_weight() -> None:
     from hopper.experiments.robust import FAILED_LANDING_DEG, robust_score
     from hopper.experiments.worker import Worker, energy_per_hop
