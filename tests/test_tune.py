@@ -86,6 +86,8 @@ def test_tune_searches_a_gait_field_too() -> None:
         (["--seeds", "0:3", "--heldout", "2:5"], "held-out seeds overlap the tuning seeds: [2]"),
         (["--kd-range", "0:50"], "LOW > 0"),
         (["--energy-weight", "-1"], "--energy-weight) must be a finite number of J/hop >= 0"),
+        (["--kd-range", "5:1e9"], "goes beyond the gain's limits [0, 100] N m s/rad"),  # was: 3 of 4 scored 1e6
+        (["--gait", "apex_height=-1:0.3"], "apex_height must be a finite number in [0.02, 3], got -1.0"),
     ],
 )
 def test_bad_tune_arguments_fail_in_one_line(tmp_path: Path, args: list[str], message: str) -> None:
@@ -99,6 +101,8 @@ def test_bad_tune_arguments_fail_in_one_line(tmp_path: Path, args: list[str], me
     [
         ({"kp": (500.0, 900.0, False)}, "kp's range [500, 900] leaves out its default 450"),
         ({"wings": (1.0, 2.0, False)}, "cannot search 'wings'"),
+        ({"kd": (5.0, 1e9, True)}, "kd's range [5, 1e+09] goes beyond the gain's limits [0, 100] N m s/rad"),
+        ({"apex_height": (-1.0, 0.3, False)}, "apex_height's range [-1, 0.3] goes beyond its limits: apex_height must"),
     ],
 )
 def test_a_search_that_cannot_start_from_the_defaults_is_refused(ranges: dict, message: str) -> None:

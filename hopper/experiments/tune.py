@@ -22,7 +22,7 @@ import sys
 from collections.abc import Callable
 from typing import Any
 
-from hopper.config import Gains, GaitParams, InvalidConfig
+from hopper.config import GAIN_RANGES, Gains, GaitParams, InvalidConfig
 from hopper.controllers import Param
 from hopper.controllers.loading import declared_params, load_class
 from hopper.experiments.executor import Executor, chunks
@@ -114,10 +114,30 @@ class TuneSetup:
             if name not in (declared or GAIN_SEARCH) and name not in GAIT_FIELDS:
                 what = f"a param of {self.controller}" if declared else "a gain"
                 raise ValueError(f"cannot search {name!r}: not {what} nor a GaitParams field")
+        for name, (low, high, _) in self.ranges.items():
+            self._check_limits(name, low, high, declared)
         defaults = self.defaults()
         for name, (low, high, _) in self.ranges.items():
             if not low <= defaults[name] <= high:
                 raise ValueError(f"{name}'s range [{low:g}, {high:g}] leaves out its default {defaults[name]:g}")
+
+    @staticmethod
+    def _check_limits(name: str, low: float, high: float, declared: dict[str, Param]) -> None:
+        """A gain's or gait field's range within what a run accepts (run --kd 1e30 is refused), so that
+        no candidate is scored INVALID_SCORE for its value alone. A gait bound that depends on
+        another field (crouch_height below stand_height) is left to the candidates."""
+        span = f"{name}'s range [{low:g}, {high:g}]"
+        if not declared and name in GAIN_RANGES:
+            r = GAIN_RANGES[name]
+            if not (math.isfinite(low) and math.isfinite(high) and r.low <= low and high <= r.high):
+                raise ValueError(f"{span} goes beyond the gain's limits [{r.low:g}, {r.high:g}] {r.unit}")
+        elif name in GAIT_FIELDS:
+            for end in (low, high):
+                try:
+                    GaitParams(**{name: end})
+                except InvalidConfig as exc:
+                    if str(exc).startswith(f"{name} "):  # this field's own limit, not another's
+                        raise ValueError(f"{span} goes beyond its limits: {exc}") from None
 
     def _check_robust(self) -> None:
         """Fresh robots for the judgement (the terrain seeds may then repeat), a known objective."""
