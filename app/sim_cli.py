@@ -480,6 +480,9 @@ def command_league(args: argparse.Namespace) -> int:
     specs = [canonical(c) for c in args.controllers.split(",") if c.strip()]
     if not specs:
         fail("--controllers: name at least one controller")
+    twice = sorted({spec for spec in specs if specs.count(spec) > 1})
+    if twice:  # its rows would pool the episodes of both
+        fail(f"--controllers: {', '.join(twice)} named more than once")
     for spec in specs:  # each flies a probe tick before any episode
         checked_controller(SimConfig(sensing="realistic", model=args.model), spec)
     from hopper.model import robot_of
@@ -590,9 +593,9 @@ def main(argv: list[str] | None = None) -> int:
             return log_cli.run(args)
         if args.command == "size":
             return size_cli.run(args)
+        check_counts(args)
         if args.command == "league":
             return command_league(args)
-        check_counts(args)
         if args.command == "stress":
             return command_stress(args)
         if args.command == "envelope":

@@ -81,6 +81,8 @@ def test_compare_stress_sweep_and_league_fly_it(example: Path) -> None:
         (("stress", "--quick", "--controller", SPEC, "--controller-param", "boost=9"), "outside [0, 5]"),
         (("sweep", "--out", "never", "--controller", "lqr", "--param", "boost=1"), "lqr declares no such param"),
         (("league", "--controllers", "pid,nope"), "unknown controller 'nope'"),
+        (("league", "--quick", "--controllers", f"pid,{SPEC},./{SPEC}"), "named more than once"),  # pooled rows
+        (("league", "--quick", "--workers", "0"), "--workers must be at least 1, got 0"),  # ran on all cores
     ],
 )
 def test_a_bad_controller_stops_every_command_with_one_line_and_exit_2(example: Path, args, message: str) -> None:
