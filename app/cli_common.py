@@ -215,8 +215,34 @@ def checked_controller(config: SimConfig, spec: str, values: object = ()) -> Sim
 
 
 def with_controller_flags(config: SimConfig, args: argparse.Namespace) -> SimConfig:
-    """`config` flying the flags' controller (--controller, --controller-param), checked."""
+    """`config` flying the flags' controller (--controller, --controller-param), checked; a param
+    given twice is refused, not the last one taken."""
+    names = [name for name, _ in args.controller_param]
+    twice = sorted({name for name in names if names.count(name) > 1})
+    if twice:
+        fail(f"--controller-param {', '.join(twice)} given more than once: give each param once")
     return checked_controller(config, args.controller, args.controller_param)
+
+
+def gains_flags(args: argparse.Namespace) -> Gains:
+    """--kp, --ki, --kd (each None unless given) as the PID's gains, the defaults for those not given.
+
+    One line and exit 2 if a given gain would be ignored: another --controller flies no PID, and
+    --controller-param kp=... sets the same gain."""
+    given = [name for name in ("kp", "ki", "kd") if getattr(args, name) is not None]
+    if given and args.controller.strip() != "pid":
+        fail(f"--{given[0]} is the PID's gain, which --controller {args.controller} does not fly: "
+             "set its params with --controller-param")  # fmt: skip
+    both = [name for name in given if name in {n for n, _ in args.controller_param}]
+    if both:
+        fail(f"--{both[0]} and --controller-param {both[0]}=... both set {both[0]}: give one")
+    return Gains(**{name: getattr(args, name) for name in given})
+
+
+def check_executor(args: argparse.Namespace) -> None:
+    """--address names a Ray cluster: refused with --executor local, which would not use it."""
+    if args.executor == "local" and args.address:
+        fail("--address names a Ray cluster, which --executor local does not use: drop one of them")
 
 
 def run_all(episodes: list, executor_kind: str, workers: int, address: str | None, desc: str) -> dict:
@@ -242,7 +268,7 @@ def run_all(episodes: list, executor_kind: str, workers: int, address: str | Non
 
 def add_run_flags(p: argparse.ArgumentParser) -> None:
     """The flags of one simulated robot (terrain, gravity, gains, sensing, gait), as run and compare take them."""
-    defaults = Gains()
+    defaults = Gains()  # the flags' defaults are None, to tell a gain given from one left (gains_flags)
     p.add_argument("--hops", type=int, default=7, help="hops to complete (default 7)")
     p.add_argument("--terrain", choices=("crater", "flat"), default="crater")
     p.add_argument(
@@ -251,9 +277,9 @@ def add_run_flags(p: argparse.ArgumentParser) -> None:
         default=GRAVITY_PRESETS["moon"],
         help="m/s^2 or moon|mars|ceres|earth (default moon, 1.625)",
     )
-    p.add_argument("--kp", type=finite, default=defaults.kp, help=f"N m/rad (default {defaults.kp:g})")
-    p.add_argument("--ki", type=finite, default=defaults.ki, help=f"N m/(rad s) (default {defaults.ki:g})")
-    p.add_argument("--kd", type=finite, default=defaults.kd, help=f"N m s/rad (default {defaults.kd:g})")
+    p.add_argument("--kp", type=finite, help=f"the PID's, N m/rad (default {defaults.kp:g})")
+    p.add_argument("--ki", type=finite, help=f"the PID's, N m/(rad s) (default {defaults.ki:g})")
+    p.add_argument("--kd", type=finite, help=f"the PID's, N m s/rad (default {defaults.kd:g})")
     add_controller_flags(p)
     add_model_flag(p)
     p.add_argument(

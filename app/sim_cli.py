@@ -26,10 +26,12 @@ from hopper.app.cli_common import (
     add_controller_flags,
     add_model_flag,
     add_run_flags,
+    check_executor,
     check_out,
     checked_controller,
     fail,
     finite,
+    gains_flags,
     part_limit,
     rrd_file,
     run_all,
@@ -43,7 +45,7 @@ from hopper.app.episode import sim_config as sim_config  # re-exported: results'
 from hopper.app.recordings import FileLimits
 from hopper.terrain import CraterParams
 
-from hopper.config import TOTAL_MASS, Gains, GaitParams, InvalidConfig, SimConfig
+from hopper.config import TOTAL_MASS, GaitParams, InvalidConfig, SimConfig
 from hopper.interrupts import children_ignore_ctrl_c, each, stop_like_ctrl_c
 from hopper.scenarios import scenario
 
@@ -118,8 +120,8 @@ def parser() -> Parser:
         help="the controller's stress battery (terrains, gravities, pushes, kicks): a pass/fail table",
         epilog=EXIT_STATUSES,
     )
-    stress.add_argument("--seeds", type=int, default=100, help="Moon terrain seeds, 20 hops each (default 100)")
-    stress.add_argument("--gravity-seeds", type=int, default=5, help="seeds per gravity, 10 hops each (default 5)")
+    stress.add_argument("--seeds", type=int, help="Moon terrain seeds, 20 hops each (default 100)")
+    stress.add_argument("--gravity-seeds", type=int, help="seeds per gravity, 10 hops each (default 5)")
     stress.add_argument("--groups", type=groups, default=STRESS_GROUPS, help="any of terrain,gravity,ground,flight")
     stress.add_argument("--quick", action="store_true", help="a few cases of each group (what the tests run)")
     stress.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
@@ -205,7 +207,7 @@ def make_config(args: argparse.Namespace, seed: int, wheel: bool) -> SimConfig:
         terrain=args.terrain,
         gravity=args.gravity,
         wheel=wheel,
-        gains=Gains(kp=args.kp, ki=args.ki, kd=args.kd),
+        gains=gains_flags(args),
         sensing=args.sensing,
         gait=scenario(args.scenario).gait,
         model=args.model,
@@ -453,7 +455,8 @@ def command_stress(args: argparse.Namespace) -> int:
     from hopper.experiments.stress import battery, run_case, table
 
     flown = with_controller_flags(SimConfig(model=args.model), args)
-    cases = battery(seeds=args.seeds, gravity_seeds=args.gravity_seeds, quick=args.quick, controller=flown)
+    seeds, gravity_seeds = args.seeds or 100, args.gravity_seeds or 5  # None: not given (check_counts refuses 0)
+    cases = battery(seeds=seeds, gravity_seeds=gravity_seeds, quick=args.quick, controller=flown)
     cases = [c for c in cases if c.group in args.groups]
     workers = max(1, min(args.workers, len(cases)))
     with children_ignore_ctrl_c():  # pool workers leave Ctrl-C to this process, which stops them
@@ -568,10 +571,18 @@ def command_envelope(args: argparse.Namespace) -> int:
 
 
 def check_counts(args: argparse.Namespace) -> None:
-    """Refuse counts below one before any work (argparse's int accepts 0 and negatives)."""
+    """Refuse counts below one before any work (argparse's int accepts 0 and negatives), and flags
+    the command would ignore: --executor local with --address, stress --quick with its seed counts."""
     for name in ("hops", "seeds", "workers", "gravity_seeds"):
-        if getattr(args, name, 1) < 1:
-            fail(f"--{name.replace('_', '-')} must be at least 1, got {getattr(args, name)}")
+        value = getattr(args, name, None)
+        if value is not None and value < 1:
+            fail(f"--{name.replace('_', '-')} must be at least 1, got {value}")
+    if hasattr(args, "executor"):
+        check_executor(args)
+    if args.command == "stress" and args.quick:
+        given = [f"--{n.replace('_', '-')}" for n in ("seeds", "gravity_seeds") if getattr(args, n) is not None]
+        if given:
+            fail(f"--quick flies its own few seeds, so it ignores {given[0]}: drop one of them")
 
 
 def main(argv: list[str] | None = None) -> int:

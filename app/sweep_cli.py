@@ -11,6 +11,7 @@ from typing import Any
 from hopper.app.cli_common import (
     EXIT_OK,
     add_model_flag,
+    check_executor,
     check_out,
     checked_controller,
     fail,
@@ -256,8 +257,10 @@ def check_controllers(spec: Any) -> None:  # noqa: ANN401 (hopper.experiments.sp
 
 
 def check_workers(args: argparse.Namespace) -> None:
+    """--workers at least 1, and no --address that --executor local would ignore."""
     if args.workers is not None and args.workers < 1:
         fail(f"--workers must be at least 1, got {args.workers}")
+    check_executor(args)
 
 
 # -- commands ------------------------------------------------------------------------------------

@@ -130,6 +130,13 @@ def test_compare_reports_the_median_reduction(tmp_path) -> None:
         (["terrain", "--png", "t"], "t: the file must end in .png"),  # PIL: unknown file extension
         (["terrain", "--png", "t.png", "--x0", "1e300"], "--x0: must lie within +-1e+09 m, got 1e300"),
         ([], "the following arguments are required: command"),
+        # Flags the command would have ignored, or one silently overriding the other:
+        (["run", "--controller", "lqr", "--kp", "300"], "--kp is the PID's gain, which --controller lqr does not fly"),
+        (["run", "--kp", "300", "--controller-param", "kp=600"], "--kp and --controller-param kp=... both set kp"),
+        (["run", "--controller-param", "kd=20", "--controller-param", "kd=40"], "--controller-param kd given more"),
+        (["stress", "--quick", "--seeds", "5"], "--quick flies its own few seeds, so it ignores --seeds"),
+        (["compare", "--executor", "local", "--address", "1.2.3.4:1"], "--address names a Ray cluster, which"),
+        (["sweep", "--out", "o", "--executor", "local", "--address", "1.2.3.4:1"], "--executor local does not use"),
     ],
 )
 def test_bad_arguments_fail_in_one_line_before_any_work(tmp_path: Path, args: list[str], message: str) -> None:
