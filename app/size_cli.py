@@ -1,8 +1,10 @@
 """`hopper-sim size --gravity BODY --out PATH.xml`: the robot with its actuators sized for another gravity.
 
 Writes the packaged robot (or --model's) with its leg and wheel motors scaled from the gravity it
-was sized for (--design, default the Moon's: the paper's robot) by dynamic similarity
-(hopper.similarity): torques x g / g_design, the wheel's momentum capacity x sqrt(g / g_design).
+was sized for (--design; default the one a model this command wrote records, else the Moon's: the
+paper's robot) by dynamic similarity (hopper.similarity): torques x g / g_design, the wheel's
+momentum capacity x sqrt(g / g_design). The written MJCF records the gravity each part is sized for
+(<custom><numeric name="hopper_design_gravity_legs|wheel">), so sizing it again is idempotent.
 --only legs (or wheel) scales one of them and keeps the other: which one a gravity overloads.
 Fly it anywhere with --model PATH.xml.
 """
@@ -10,6 +12,8 @@ Fly it anywhere with --model PATH.xml.
 from __future__ import annotations
 
 import argparse
+import math
+from pathlib import Path
 
 from hopper.app.cli_common import EXIT_OK, add_model_flag, fail, gravity, writable_file
 
@@ -17,7 +21,7 @@ from hopper.config import GRAVITY_PRESETS, GaitParams, SimConfig
 from hopper.errors import ModelError
 from hopper.model import model_source, model_spec, robot_of
 from hopper.robot import Robot
-from hopper.similarity import PARTS, size_for
+from hopper.similarity import PARTS, design_gravity, size_for
 
 
 def add_parser(commands: argparse._SubParsersAction, epilog: str) -> None:
@@ -31,8 +35,9 @@ def add_parser(commands: argparse._SubParsersAction, epilog: str) -> None:
     )
     p.add_argument("--gravity", type=gravity, required=True, help="m/s^2 or a preset: the gravity to size for")
     p.add_argument(
-        "--design", type=gravity, default=GRAVITY_PRESETS["moon"],
-        help="m/s^2 or a preset: the gravity the robot was sized for (default moon, the paper's)",
+        "--design", type=gravity,
+        help="m/s^2 or a preset: the gravity the robot was sized for (default: the one a model written by size "
+        "records, else moon, the paper's)",
     )  # fmt: skip
     p.add_argument(
         "--only", choices=PARTS, default=None,
@@ -43,12 +48,22 @@ def add_parser(commands: argparse._SubParsersAction, epilog: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.gravity <= 0.0 or args.design <= 0.0:
-        fail(f"gravities must be positive (got --gravity {args.gravity:g} and --design {args.design:g} m/s^2)")
+    if args.gravity <= 0.0 or (args.design is not None and args.design <= 0.0):
+        design = "" if args.design is None else f" and --design {args.design:g}"
+        fail(f"gravities must be positive (got --gravity {args.gravity:g}{design} m/s^2)")
+    if args.model is not None and args.out.absolute().resolve() == Path(args.model).resolve():
+        fail(f"{args.out}: is --model's file; write the sized robot to another file")
     base = SimConfig(model=args.model, terrain="flat")
     before = robot_of(base)
     spec = model_spec(base)
     parts = (args.only,) if args.only else PARTS
+    designs = {part: design_gravity(spec, part) or GRAVITY_PRESETS["moon"] for part in parts}
+    if args.design is not None:
+        recorded = {part: g for part in parts if (g := design_gravity(spec, part)) is not None}
+        clash = [f"{part} for {g:g}" for part, g in recorded.items() if not math.isclose(g, args.design)]
+        if clash:
+            fail(f"--design {args.design:g}: {model_source(base)} records its {', '.join(clash)} m/s^2; drop --design")
+        designs = dict.fromkeys(parts, args.design)
     k = size_for(spec, args.gravity, args.design, parts)
     args.out.write_text(spec.to_xml(), encoding="utf-8")
     try:  # what --model will read back: the file loads and the controller can fly it
@@ -57,8 +72,13 @@ def run(args: argparse.Namespace) -> int:
         args.out.unlink()
         fail(f"the sized robot does not load, nothing written: {exc}")
     which = f"; {args.only} only" if args.only else ""
-    source, scale = model_source(base), f"{args.design:g} to {args.gravity:g} m/s^2 (torques x {k:.3g}{which})"
-    print(f"wrote {args.out}: {source} sized from {scale}")
+    if len(set(designs.values())) == 1:
+        scale = f"from {designs[parts[0]]:g} to {args.gravity:g} m/s^2 (torques x {k:.3g}{which})"
+    else:  # one part sized before (--only): each from its own
+        each = ", ".join(f"{part} from {g:g} (x {args.gravity / g:.3g})" for part, g in designs.items())
+        scale = f"to {args.gravity:g} m/s^2, each part from its own: {each}"
+    source = model_source(base)
+    print(f"wrote {args.out}: {source} sized {scale}")
     rows = (
         ("leg motors", "N m", before.leg_torque_limit, after.leg_torque_limit),
         ("wheel stall torque", "N m", before.wheel_torque_limit, after.wheel_torque_limit),

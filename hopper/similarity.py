@@ -28,6 +28,9 @@ from hopper.config import MOON_GRAVITY
 LEGS = ("hip_L", "knee_L", "hip_R", "knee_R")  # hopper.layout.NAMES: the leg actuators
 PARTS = ("legs", "wheel")  # what size_for can scale: the leg motors, the wheel and its motor
 DIGITS = 6  # significant digits MjSpec.to_xml writes
+# The gravity (m/s^2) each part was sized for, written into the sized MJCF as <custom><numeric>, so
+# that sizing a sized robot again starts from it (idempotent); a model without it is the paper's, Moon.
+DESIGN_NUMERIC = "hopper_design_gravity_{part}"
 
 
 def factor(gravity: float, design: float = MOON_GRAVITY) -> float:
@@ -37,23 +40,38 @@ def factor(gravity: float, design: float = MOON_GRAVITY) -> float:
     return gravity / design
 
 
-def size_for(
-    spec: mujoco.MjSpec, gravity: float, design: float = MOON_GRAVITY, parts: tuple[str, ...] = PARTS
-) -> float:
-    """Scale `spec`'s actuators (in place) from `design` gravity to `gravity` (m/s^2); returns k.
+def design_gravity(spec: mujoco.MjSpec, part: str) -> float | None:
+    """m/s^2, the gravity `spec`'s `part` (of PARTS) records it was sized for; None if it records none."""
+    numeric = spec.numeric(DESIGN_NUMERIC.format(part=part))
+    return None if numeric is None or len(numeric.data) != 1 else float(numeric.data[0])
 
-    `parts` (of PARTS) limits the scaling to the legs or the wheel: which of them a gravity
+
+def _record(spec: mujoco.MjSpec, part: str, gravity: float) -> None:
+    name = DESIGN_NUMERIC.format(part=part)
+    numeric = spec.numeric(name)
+    if numeric is None:
+        numeric = spec.add_numeric()
+        numeric.name = name
+    numeric.size, numeric.data = 1, [gravity]
+
+
+def size_for(spec: mujoco.MjSpec, gravity: float, design: float | None = None, parts: tuple[str, ...] = PARTS) -> float:
+    """Scale `spec`'s actuators (in place) from their design gravity to `gravity` (m/s^2) and record
+    `gravity` as their design; returns k (the first part's, if the parts were sized for different gravities).
+
+    `design` (m/s^2) defaults to the gravity each part records (design_gravity), else the Moon's, the
+    paper's. `parts` (of PARTS) limits the scaling to the legs or the wheel: which of them a gravity
     overloads (README: A robot sized for another gravity).
     """
     unknown = set(parts) - set(PARTS)
     if unknown or not parts:
         raise ValueError(f"parts must be some of {', '.join(PARTS)}, got {', '.join(parts) or 'none'}")
-    k = factor(gravity, design)
-    if "legs" in parts:
-        _scale_legs(spec, k)
-    if "wheel" in parts:
-        _scale_wheel(spec, k)
-    return k
+    designs = {part: design if design is not None else design_gravity(spec, part) or MOON_GRAVITY for part in parts}
+    ks = {part: factor(gravity, was) for part, was in designs.items()}  # all checked before any is scaled
+    for part, k in ks.items():
+        (_scale_legs if part == "legs" else _scale_wheel)(spec, k)
+        _record(spec, part, gravity)
+    return ks[parts[0]]
 
 
 def _scale_legs(spec: mujoco.MjSpec, k: float) -> None:

@@ -16,7 +16,7 @@ from hopper.control import gait
 from hopper.model import MODEL_XML, robot_of
 from hopper.robot import PACKAGED
 from hopper.sim import Simulation
-from hopper.similarity import PARTS, factor, size_for
+from hopper.similarity import PARTS, design_gravity, factor, size_for
 
 
 def sized(tmp_path: Path, gravity: float, parts: tuple[str, ...] = PARTS) -> Path:
@@ -115,6 +115,44 @@ def test_hopper_sim_size_writes_a_model_that_run_flies(tmp_path: Path):
     done = hopper_sim("size", "--gravity", "earth", "--only", "legs", "--out", str(legs))
     assert done.returncode == 0 and "x 6.04; legs only" in done.stdout, done.stdout + done.stderr
     assert "wheel stall torque            29.5 ->      29.5 N m" in done.stdout
+
+
+def test_a_sized_robot_records_its_design_gravity_so_sizing_it_again_is_idempotent(tmp_path: Path):
+    earth = GRAVITY_PRESETS["earth"]
+    once = mujoco.MjSpec.from_file(str(sized(tmp_path, earth)))  # written and read back
+    assert design_gravity(once, "legs") == design_gravity(once, "wheel") == earth
+    assert mujoco.MjModel.from_xml_string(once.to_xml()).numeric("hopper_design_gravity_legs").data[0] == earth
+    assert size_for(once, earth) == 1.0  # was x 6.04 again: 36 times the Moon's torques
+    again = tmp_path / "again.xml"
+    again.write_text(once.to_xml())
+    first = robot_of(SimConfig(model=str(sized(tmp_path, earth)), terrain="flat"))
+    assert robot_of(SimConfig(model=str(again), terrain="flat")) == first
+    legs = mujoco.MjSpec.from_file(str(sized(tmp_path, earth, ("legs",))))  # each part from its own design
+    assert (design_gravity(legs, "legs"), design_gravity(legs, "wheel")) == (earth, None)
+    size_for(legs, earth)
+    assert robot_of(SimConfig(model=str(_written(tmp_path / "both.xml", legs)), terrain="flat")) == first
+
+
+def _written(path: Path, spec: mujoco.MjSpec) -> Path:
+    path.write_text(spec.to_xml())
+    return path
+
+
+@pytest.mark.integration  # processes
+def test_hopper_sim_size_of_a_sized_model_keeps_it_and_refuses_its_own_file_as_out(tmp_path: Path):
+    earth = tmp_path / "earth.xml"
+    assert hopper_sim("size", "--gravity", "earth", "--out", str(earth)).returncode == 0
+    again = hopper_sim("size", "--gravity", "earth", "--model", str(earth), "--out", str(tmp_path / "s2.xml"))
+    assert again.returncode == 0 and "sized from 9.81 to 9.81 m/s^2 (torques x 1)" in again.stdout, again.stdout
+    assert "leg motors                   181.1 ->     181.1 N m" in again.stdout
+    before = earth.read_text()
+    same = hopper_sim("size", "--gravity", "mars", "--model", str(earth), "--out", str(earth))
+    assert same.returncode == 2 and same.stderr.count("\n") == 1 and "is --model's file" in same.stderr
+    clash = hopper_sim(
+        "size", "--gravity", "mars", "--model", str(earth), "--design", "moon", "--out", str(tmp_path / "x.xml")
+    )
+    assert clash.returncode == 2 and "records its legs for 9.81" in clash.stderr, clash.stderr
+    assert earth.read_text() == before and not (tmp_path / "x.xml").exists()
 
 
 @pytest.mark.integration  # processes
