@@ -15,11 +15,11 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.dataset as ds
 import pytest
-from net import wait_until
+from net import free_port, wait_until
 
 from hopper.config import GRAVITY_PRESETS, SimConfig
 from hopper.control.phases import Phase
-from hopper.experiments.executor import InProcess, chunks
+from hopper.experiments.executor import InProcess, chunks, unreachable
 from hopper.experiments.runner import run_sweep
 from hopper.experiments.spec import SpecError, parse_spec
 from hopper.experiments.store import RESULT_COLUMNS, SETTING_COLUMNS, SweepStore
@@ -244,3 +244,24 @@ def test_a_sweep_on_a_local_ray_interrupted_half_way_resumes_without_redoing_epi
         theirs = rows[episode.episode_id]
         assert {k: v for k, v in mine.items() if k != "wall_s"} == {k: v for k, v in theirs.items() if k != "wall_s"}
     assert SweepStore(out, spec).done_ids() == set(ids)
+
+
+def test_unreachable_tells_a_closed_loopback_port_from_a_listening_one() -> None:
+    import socket
+
+    with socket.socket() as listening:
+        listening.bind(("127.0.0.1", 0))
+        listening.listen(1)
+        assert unreachable(f"127.0.0.1:{listening.getsockname()[1]}", timeout_s=2.0) is None
+    assert unreachable(f"127.0.0.1:{free_port()}", timeout_s=2.0) == "connection refused"
+    assert unreachable(f"ray://127.0.0.1:{free_port()}", timeout_s=2.0) == "connection refused"
+    assert unreachable("auto") is None  # Ray finds the cluster `ray start` runs here itself
+
+
+@pytest.mark.integration  # a process (Ray is never started: the probe fails first)
+def test_a_ray_address_where_nothing_listens_fails_in_one_line_not_minutes_of_retries(tmp_path: Path) -> None:
+    port = free_port()  # 127.0.0.1 only, nothing listening
+    result = hopper_sim("sweep", "--out", str(tmp_path / "t"), "--seeds", "1", "--hops", "1", "--executor", "ray",
+                        "--address", f"127.0.0.1:{port}", timeout=60)  # fmt: skip
+    assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr
+    assert f"cannot reach the Ray cluster at 127.0.0.1:{port}: connection refused" in result.stderr

@@ -13,6 +13,7 @@ import math
 import multiprocessing
 import os
 import signal
+import socket
 import threading
 import time
 from collections.abc import Iterable, Iterator
@@ -121,6 +122,24 @@ class LocalPool:
         self.pool.join()
 
 
+PROBE_S = 5.0  # s, the TCP connect to a named Ray cluster before ray.init: a head answers in well under that
+
+
+def unreachable(address: str, timeout_s: float = PROBE_S) -> str | None:
+    """Why nothing accepts a TCP connection at a Ray address HOST:PORT (or ray://HOST:PORT) within
+    `timeout_s`; None if something does, or for an address Ray resolves itself (auto, local)."""
+    host, sep, port = address.removeprefix("ray://").rpartition(":")
+    if not sep or not port.isdigit() or not host:
+        return None
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s):
+            return None
+    except TimeoutError:
+        return f"no answer within {timeout_s:g} s"
+    except OSError as exc:  # refused, unreachable, an unknown host
+        return (exc.strerror or str(exc)).lower()
+
+
 class RayExecutor:
     """Ray actors, one per CPU of the cluster (a local one unless `address` or RAY_ADDRESS says where).
 
@@ -130,13 +149,16 @@ class RayExecutor:
     name = "ray"
 
     def __init__(self, address: str | None = None, workers: int | None = None) -> None:
+        start = time.perf_counter()
+        connect = address or os.environ.get("RAY_ADDRESS")
+        why = unreachable(connect) if connect else None
+        if why:  # ray.init retries a closed port for minutes, warning as it goes
+            raise ExecutorError(f"cannot reach the Ray cluster at {connect}: {why}")
         import ray
 
-        start = time.perf_counter()
         # ray.init replaces the SIGTERM handler with one that exits 1 (or 15); keep the caller's
         # (the CLIs turn SIGTERM into Ctrl-C so that results are written and the exit is 130).
         sigterm = signal.getsignal(signal.SIGTERM) if threading.current_thread() is threading.main_thread() else None
-        connect = address or os.environ.get("RAY_ADDRESS")
         options = {"include_dashboard": False, "log_to_driver": False, "logging_level": logging.ERROR}
         try:
             if connect:
