@@ -316,6 +316,17 @@ def test_bad_input_in_a_real_process_is_one_line_too(tmp_path: Path) -> None:
     assert "Traceback" not in result.stderr
 
 
+def test_a_truncated_recording_is_one_line_without_rerun_warning_first(tmp_path: Path) -> None:
+    sim = Simulation(SimConfig(terrain="flat"))
+    with Telemetry(sim, path=tmp_path / "run.rrd"):
+        sim.run(1)
+    whole = (tmp_path / "run.rrd").read_bytes()
+    (tmp_path / "cut.rrd").write_bytes(whole[: len(whole) // 2])  # no footer, a frame past the end
+    result = hopper_sim("report", str(tmp_path / "cut.rrd"), "--out", str(tmp_path / "out"))
+    assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr  # was: a RerunWarning's 2 lines
+    assert result.stderr.startswith("hopper-sim: error: ") and "cannot read it as a rerun recording" in result.stderr
+
+
 def test_a_hops_dataset_or_an_unwritable_out_is_refused(sweep_dir: Path, tmp_path: Path, capsys) -> None:  # noqa: ANN001
     code, _, err = cli(capsys, "report", str(sweep_dir / "hops"), "--out", str(tmp_path / "o"))
     assert code == 2 and "holds a sweep's hops" in err, err

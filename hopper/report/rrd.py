@@ -10,6 +10,7 @@ the trace's rate and the torso's x, z interpolated onto them.
 
 from __future__ import annotations
 
+import warnings
 from collections import defaultdict
 from pathlib import Path
 from typing import Any
@@ -34,9 +35,13 @@ class RecordingError(HopperError, ValueError):
 def _tables(path: Path) -> dict[str, pa.Table]:
     batches: dict[str, list[pa.RecordBatch]] = defaultdict(list)
     try:
-        for chunk in RrdReader(path).stream():
-            if chunk.entity_path in _TABLES:
-                batches[chunk.entity_path].append(chunk.to_record_batch())
+        with warnings.catch_warnings():
+            # A file without rerun's footer (truncated, or written by an older rerun) warns on two lines
+            # that store() is unsupported; stream() is all this reads, and a bad file gets the error below.
+            warnings.filterwarnings("ignore", message="RRD file has no footer")
+            for chunk in RrdReader(path).stream():
+                if chunk.entity_path in _TABLES:
+                    batches[chunk.entity_path].append(chunk.to_record_batch())
     except Exception as exc:  # rerun raises its own types for a bad file
         raise RecordingError(f"{path}: cannot read it as a rerun recording ({exc})") from None
     return {entity: pa.Table.from_batches(b) for entity, b in batches.items() if b}
