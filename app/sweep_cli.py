@@ -276,6 +276,10 @@ def command_sweep(args: argparse.Namespace) -> int:
         spec = load_spec(args.spec, overrides) if args.spec is not None else parse_spec(overrides)
     except SpecError as exc:
         fail(str(exc))
+    gains = [n for n in ("kp", "ki", "kd") if getattr(args, n) is not None or len(getattr(spec, n)) > 1]
+    if gains and "pid" not in spec.controller:  # its episodes would differ in a gain nothing flies
+        fail(f"{gains[0]} is the PID's gain, which controller {', '.join(spec.controller)} does not fly: "
+             "sweep its params with --param")  # fmt: skip
     if spec.mjcf is not None:  # a spec file's, checked as --model's
         try:
             model_file(spec.mjcf)

@@ -80,6 +80,7 @@ def test_compare_stress_sweep_and_league_fly_it(example: Path) -> None:
         (("compare", "--controller", "my_controller.py:Nope", "--seeds", "1"), "has no class 'Nope'"),
         (("stress", "--quick", "--controller", SPEC, "--controller-param", "boost=9"), "outside [0, 5]"),
         (("sweep", "--out", "never", "--controller", "lqr", "--param", "boost=1"), "lqr declares no such param"),
+        (("sweep", "--out", "never", "--controller", "lqr", "--kp", "300,600"), "kp is the PID's gain, which"),
         (("league", "--controllers", "pid,nope"), "unknown controller 'nope'"),
         (("league", "--quick", "--controllers", f"pid,{SPEC},./{SPEC}"), "named more than once"),  # pooled rows
         (("league", "--quick", "--workers", "0"), "--workers must be at least 1, got 0"),  # ran on all cores
