@@ -69,7 +69,7 @@ def test_the_selector_switches_to_a_users_controller_and_back(browser, start, tm
         _shot(page, tmp_path, "controller-lqr.png")
         # Re-fly: the last flight (the user's controller's) flown again by the LQR, both in the A/B table.
         page.get_by_role("tab", name="Replay").click()
-        page.get_by_role("button", name="Re-fly last flight with these gains and controller").click()
+        page.get_by_role("button", name="Re-fly last flight").click()
         assert wait_until(lambda: dashboard.layout.replay.last is not None, timeout=60)
         c = dashboard.layout.replay.last
         assert c.recorded.controller == spec and c.after.controller == "lqr" and c.before_identical

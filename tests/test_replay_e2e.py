@@ -87,7 +87,7 @@ def test_refly_overlays_before_and_after(browser, dashboard: Dashboard, tmp_path
         _type(page, dashboard.layout.gains.entries["kd"], "70")
         assert wait_until(lambda: dashboard.sim.gains.kd == 70.0, timeout=30)
         page.get_by_role("tab", name="Replay").click()
-        page.get_by_role("button", name="Re-fly last flight with these gains").click()
+        page.get_by_role("button", name="Re-fly last flight").click()
         replay = dashboard.layout.replay
         assert wait_until(lambda: replay.last is not None, timeout=30)
         c = replay.last
@@ -98,6 +98,12 @@ def test_refly_overlays_before_and_after(browser, dashboard: Dashboard, tmp_path
         # Both traces reach the page: hovering the middle of the re-fly pitch chart, its legend shows a
         # value for "before" and for "after" (uPlot shows "--" where a series has no data).
         wait_for_ab_table(page, "identical to the recorded flight", "450/50/30", "450/50/70")
+        # Every cell holds its text: the first row's label and liftoff time once ran over its gains.
+        spills = page.evaluate(
+            "() => [...document.querySelectorAll('table.hd-ab td')]"
+            ".filter(td => td.scrollWidth > td.clientWidth + 1).map(td => td.innerText)"
+        )
+        assert spills == [], spills
         x, y = page.evaluate(REFLY_CHART_JS)
         page.mouse.move(x, y)
         page.wait_for_function(

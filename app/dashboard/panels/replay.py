@@ -96,7 +96,7 @@ def ab_table_html(rows: list[tuple[str, float, str, dict[str, float]]], note: st
     for label, t, g, summary in rows:
         cells = "".join(f"<td>{_fmt(summary[f], fmt)}</td>" for f, _, _, fmt in _COLUMNS)
         gains = html.escape(g)
-        where = f"<td style='text-align:left;white-space:nowrap'>{html.escape(label)} <span>{t:.1f} s</span></td>"
+        where = f"<td style='text-align:left'>{html.escape(label)}<br><span>{t:.1f} s</span></td>"
         body.append(f"<tr>{where}<td style='white-space:nowrap'>{gains}</td>{cells}</tr>")
     if not body:
         body.append(f"<tr><td colspan={len(_COLUMNS) + 2} class='hd-empty'>re-fly a flight to compare gains</td></tr>")
@@ -227,10 +227,10 @@ def build_replay_panel(
 ) -> ReplayPanel:
     with gui.add_folder("Re-fly and compare"):
         refly_button = gui.add_button(
-            "Re-fly last flight with these gains and controller",
+            "Re-fly last flight",  # a longer label is cut off in the side panel
             icon=viser.Icon.PLANE_DEPARTURE,
             hint="Restore the last liftoff state in a scratch simulation and fly it with the recorded and "
-            "the current gains; the charts overlay both, the ghost shows the new flight",
+            "the current gains and controller; the charts overlay both, the ghost shows the new flight",
         )
         ab = gui.add_html(ab_table_html([]))
     with gui.add_folder("History"):
