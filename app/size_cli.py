@@ -17,11 +17,11 @@ from pathlib import Path
 
 from hopper.app.cli_common import EXIT_OK, add_model_flag, fail, gravity, writable_file
 
-from hopper.config import GRAVITY_PRESETS, GaitParams, SimConfig
+from hopper.config import GaitParams, SimConfig
 from hopper.errors import ModelError
 from hopper.model import model_source, model_spec, robot_of
 from hopper.robot import Robot
-from hopper.similarity import PARTS, design_gravity, size_for
+from hopper.similarity import PARTS, design_gravity, designs, size_for
 
 
 def add_parser(commands: argparse._SubParsersAction, epilog: str) -> None:
@@ -57,13 +57,12 @@ def run(args: argparse.Namespace) -> int:
     before = robot_of(base)
     spec = model_spec(base)
     parts = (args.only,) if args.only else PARTS
-    designs = {part: design_gravity(spec, part) or GRAVITY_PRESETS["moon"] for part in parts}
     if args.design is not None:
         recorded = {part: g for part in parts if (g := design_gravity(spec, part)) is not None}
         clash = [f"{part} for {g:g}" for part, g in recorded.items() if not math.isclose(g, args.design)]
         if clash:
             fail(f"--design {args.design:g}: {model_source(base)} records its {', '.join(clash)} m/s^2; drop --design")
-        designs = dict.fromkeys(parts, args.design)
+    sized_from = designs(spec, parts, args.design)  # before size_for records the new gravity
     k = size_for(spec, args.gravity, args.design, parts)
     args.out.write_text(spec.to_xml(), encoding="utf-8")
     try:  # what --model will read back: the file loads and the controller can fly it
@@ -72,10 +71,10 @@ def run(args: argparse.Namespace) -> int:
         args.out.unlink()
         fail(f"the sized robot does not load, nothing written: {exc}")
     which = f"; {args.only} only" if args.only else ""
-    if len(set(designs.values())) == 1:
-        scale = f"from {designs[parts[0]]:g} to {args.gravity:g} m/s^2 (torques x {k:.3g}{which})"
+    if len(set(sized_from.values())) == 1:
+        scale = f"from {sized_from[parts[0]]:g} to {args.gravity:g} m/s^2 (torques x {k:.3g}{which})"
     else:  # one part sized before (--only): each from its own
-        each = ", ".join(f"{part} from {g:g} (x {args.gravity / g:.3g})" for part, g in designs.items())
+        each = ", ".join(f"{part} from {g:g} (x {args.gravity / g:.3g})" for part, g in sized_from.items())
         scale = f"to {args.gravity:g} m/s^2, each part from its own: {each}"
     source = model_source(base)
     print(f"wrote {args.out}: {source} sized {scale}")

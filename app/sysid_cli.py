@@ -19,10 +19,10 @@ from hopper.app.cli_common import (
     EXIT_FELL,
     EXIT_OK,
     add_model_flag,
+    check_out,
     fail,
     finite,
     gravity,
-    make_writable_folder,
     seed,
     writable_file,
 )
@@ -212,21 +212,10 @@ def replay_flags(args: argparse.Namespace) -> None:
         fail(f"--every must be a positive number of seconds, got {args.every:g}")
 
 
-def out_folder(out: Path) -> None:
-    """--out DIR is a folder, or can be made one with its parents, and can be written: made and written
-    to now, before the replay (hopper.app.cli_common.make_writable_folder)."""
-    if out.exists() and not out.is_dir():
-        fail(f"--out: {out} is not a folder")
-    try:
-        make_writable_folder(out)
-    except OSError as exc:
-        fail(f"--out: cannot write to {out}: {exc.strerror or exc}")
-
-
 def command_replay(args: argparse.Namespace) -> int:
     replay_flags(args)
     if args.out is not None:
-        out_folder(args.out)
+        check_out(args.out)  # made and written to now, before the replay
     log = read_log(args.log)
     world = replay_world(args, log)
     model, window = world_model(world)

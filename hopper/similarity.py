@@ -55,19 +55,23 @@ def _record(spec: mujoco.MjSpec, part: str, gravity: float) -> None:
     numeric.size, numeric.data = 1, [gravity]
 
 
+def designs(spec: mujoco.MjSpec, parts: tuple[str, ...] = PARTS, design: float | None = None) -> dict[str, float]:
+    """m/s^2, the gravity each part is scaled from: `design` if given, else the one the part records
+    (design_gravity), else the Moon's, the paper's."""
+    return {part: design if design is not None else design_gravity(spec, part) or MOON_GRAVITY for part in parts}
+
+
 def size_for(spec: mujoco.MjSpec, gravity: float, design: float | None = None, parts: tuple[str, ...] = PARTS) -> float:
     """Scale `spec`'s actuators (in place) from their design gravity to `gravity` (m/s^2) and record
     `gravity` as their design; returns k (the first part's, if the parts were sized for different gravities).
 
-    `design` (m/s^2) defaults to the gravity each part records (design_gravity), else the Moon's, the
-    paper's. `parts` (of PARTS) limits the scaling to the legs or the wheel: which of them a gravity
-    overloads (README: A robot sized for another gravity).
+    `design` (m/s^2) defaults to each part's own (designs). `parts` (of PARTS) limits the scaling to
+    the legs or the wheel: which of them a gravity overloads (README: A robot sized for another gravity).
     """
     unknown = set(parts) - set(PARTS)
     if unknown or not parts:
         raise ValueError(f"parts must be some of {', '.join(PARTS)}, got {', '.join(parts) or 'none'}")
-    designs = {part: design if design is not None else design_gravity(spec, part) or MOON_GRAVITY for part in parts}
-    ks = {part: factor(gravity, was) for part, was in designs.items()}  # all checked before any is scaled
+    ks = {part: factor(gravity, was) for part, was in designs(spec, parts, design).items()}  # all checked first
     for part, k in ks.items():
         (_scale_legs if part == "legs" else _scale_wheel)(spec, k)
         _record(spec, part, gravity)

@@ -102,7 +102,7 @@ def test_bad_input_is_refused_in_one_line(argv, message, logged: Path, tmp_path:
     ("argv", "message"),
     [
         (["--out", "FILE"], "--out: FILE is not a folder"),
-        (["--out", "FILE/sub"], "--out: cannot write to FILE/sub: Not a directory"),
+        (["--out", "FILE/sub"], "--out: FILE is not a folder"),  # the nearest folder that exists
         (["--out", "/proc/replay"], "--out: cannot write to /proc/replay"),
         (["--to", "3"], "--to 3 needs --from"),
         (["--from", "1", "--hops", "1"], "--hops replays hops from their liftoffs; --from 1 replays one span"),
