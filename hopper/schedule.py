@@ -55,12 +55,14 @@ class KickSchedule:
         return f"{self.kind}:{self.magnitude:g}@{self.delay_s * 1000:g}ms{every}"
 
 
-_SPEC = re.compile(r"^(?P<kind>[a-z_]+):(?P<mag>[^@]+)(?:@(?P<when>.+))?$")
+# The delay and the count after "@" in any order; the count alone may also follow a comma
+# (`pitch_kick:0.3,every:3`), as the form reads with the delay left out.
+_SPEC = re.compile(r"^(?P<kind>[a-z_]+):(?P<mag>[^@,]+)(?:@(?P<when>.+)|,(?P<every>every:[^,@]*))?$")
 
 
 def parse(text: str) -> KickSchedule:
     """`KIND:MAGNITUDE[@DELAYms][,every:N]`, e.g. `pitch_kick:0.3@150ms`, `torque_pulse:10@every:3`,
-    `push_forward:2@200ms,every:2`. Raises ValueError with a one-line message."""
+    `push_forward:2@200ms,every:2`, `pitch_kick:0.3,every:3`. Raises ValueError with a one-line message."""
     form = "expected KIND:MAGNITUDE[@DELAYms][,every:N], e.g. pitch_kick:0.3@150ms"
     match = _SPEC.match(text.strip())
     if not match:
@@ -70,7 +72,7 @@ def parse(text: str) -> KickSchedule:
     except ValueError:
         raise ValueError(f"bad schedule magnitude {match['mag']!r}: {form}") from None
     delay, every = DEFAULT_DELAY_S, 1
-    for part in (match["when"] or "").split(","):
+    for part in (match["when"] or match["every"] or "").split(","):
         part = part.strip()
         if not part:
             continue

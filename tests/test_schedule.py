@@ -35,6 +35,7 @@ DT = 0.001
         ("torque_pulse:10@every:3", KickSchedule("torque_pulse", 10.0, 0.15, 3)),
         ("push_forward:2@200ms,every:2", KickSchedule("push_forward", 2.0, 0.2, 2)),
         ("push_backward:1@every:2,0ms", KickSchedule("push_backward", 1.0, 0.0, 2)),
+        ("pitch_kick:0.3,every:3", KickSchedule("pitch_kick", 0.3, 0.15, 3)),  # the delay left out of the form
     ],
 )
 def test_parse_reads_kind_magnitude_delay_and_every(text: str, expected: KickSchedule) -> None:
@@ -56,6 +57,8 @@ def test_parse_reads_kind_magnitude_delay_and_every(text: str, expected: KickSch
         ("pitch_kick:0.3@every:0", "schedule 'every' must be a whole number of hops in [1, 1000]"),
         ("pitch_kick:0.3@every:x", "bad schedule 'every' 'x'"),
         ("pitch_kick:0.3@soon", "bad schedule part 'soon'"),
+        ("pitch_kick:0.3,150ms", "expected KIND:MAGNITUDE"),  # a delay needs its "@"
+        ("pitch_kick:0.3,every:2,150ms", "expected KIND:MAGNITUDE"),
     ],
 )
 def test_bad_schedules_fail_with_one_line(text: str, message: str) -> None:
