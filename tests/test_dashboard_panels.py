@@ -18,6 +18,7 @@ from calls import Call
 from hopper.app.dashboard import feedback
 from hopper.app.dashboard.config import DashboardConfig
 from hopper.app.dashboard.feedback import Refused, format_number, notify, parse_number
+from hopper.app.dashboard.panels.entry import QUIET_S, UNFINISHED_QUIET_S, NumberEntry
 from hopper.app.dashboard.panels.simulation import SPEEDS
 from hopper.app.dashboard.plots import LivePlots
 from hopper.app.dashboard.probe import ProbeClient
@@ -224,6 +225,40 @@ def test_typed_numbers_are_clamped_with_the_range_and_units() -> None:
     assert parse_number("Seed", "1e3", 0, 2**31 - 1, integer=True) == (1000, None)
     with pytest.raises(Refused, match="whole number"):
         parse_number("Seed", "12.5", 0, 2**31 - 1, integer=True)
+
+
+class _Box:
+    """A text box as NumberEntry uses it: a value, and the callback viser calls when it changes."""
+
+    def __init__(self) -> None:
+        self.value = ""
+        self.changed: Any = None
+
+    def on_update(self, callback: Any) -> None:
+        self.changed = callback
+
+
+def test_a_word_the_box_takes_stands_for_its_value_and_its_start_waits_as_a_half_typed_number() -> None:
+    """Speed's box shows Max and takes it typed in any case; text that is neither a number nor the word
+    is refused and the box shows the value in use; "ma" waits before it is read as long as "1e" does."""
+    box, applied = _Box(), []
+    entry = NumberEntry(
+        box, "Speed", 0.1, 64.0, "x", value=1.0, words={"Max": math.inf}, on_apply=lambda v, _: applied.append(v)
+    )  # type: ignore[arg-type]
+    assert box.value == "1"
+    box.value = "mAX"
+    assert entry.commit() == math.inf and box.value == "Max" and applied == [math.inf]
+    box.value = "abc"
+    assert entry.commit() is None and box.value == "Max" and entry.value == math.inf
+    entry.show(4.0)
+    assert box.value == "4" and applied == [math.inf]  # shown, not applied
+    for text, wait in (("ma", UNFINISHED_QUIET_S), ("1e", UNFINISHED_QUIET_S), ("max", QUIET_S), ("2", QUIET_S)):
+        box.value = text
+        box.changed(viser.GuiEvent(client=object(), client_id=0, target=box))  # type: ignore[arg-type]
+        timer = entry._timer
+        assert timer is not None
+        timer.cancel()
+        assert timer.interval == wait, text
 
 
 # -- charts ----------------------------------------------------------------------------------------

@@ -67,7 +67,7 @@ def _input(page, handle):
 
 
 def _fast(dashboard: Dashboard) -> None:
-    dashboard.layout.simulation.speed.value = 4.0  # the panel's own handler sets the loop's speed
+    dashboard.layout.simulation.set_speed(4.0)
 
 
 def _state(dashboard: Dashboard) -> list[bytes]:
