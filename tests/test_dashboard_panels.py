@@ -415,6 +415,16 @@ def test_a_history_further_back_than_it_reaches_is_clamped_with_a_notice(
     assert f"({held:.1f} s back of " in replay.scrub_info.content
 
 
+def test_the_speed_sliders_marks_read_its_range(dashboard: Dashboard, client: ProbeClient) -> None:
+    """The lowest mark read 1 at the left end of a 0.1-64 slider: the marks the page gets start at
+    0.1 and end at 64, each reading its own value, in order."""
+    slider = client.gui[client.input_uuid("Speed ×")]["props"]
+    marks = [(m["value"], m["label"]) for m in slider["_marks"]]
+    assert [float(label) for _, label in marks] == [value for value, _ in marks], marks
+    assert marks[0][0] == slider["min"] == 0.1 and marks[-1][0] == slider["max"] == 64.0, marks
+    assert [v for v, _ in marks] == sorted({v for v, _ in marks}), marks
+
+
 def test_every_speed_button_is_a_value_the_speed_box_can_show(dashboard: Dashboard) -> None:
     """The ¼× button showed 0.3 in the box: the slider's 0.1 step rounded it. Each finite preset is a
     whole number of steps."""

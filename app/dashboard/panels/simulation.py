@@ -18,6 +18,8 @@ STEPS = {"+1 ms": 1, "+10 ms": 10, "+100 ms": 100}  # control ticks of 1 ms
 # scene at a lower frame rate, the charts' window stretched); the status shows what it delivers.
 SPEEDS = {"¼×": 0.25, "1×": 1.0, "4×": 4.0, "16×": 16.0, "64×": 64.0, "Max": MAX}
 UNIT = "x"  # x real time, as the notices say it
+# The slider is linear: its ends and even steps between (a mark "1" at 1 sat at the left end and read as its lowest).
+SPEED_MARKS = (MIN_SPEED, 16.0, 32.0, 48.0, MAX_SPEED)
 
 
 @dataclasses.dataclass
@@ -76,7 +78,7 @@ def build_simulation_panel(gui: viser.GuiApi, ctx: PanelContext, speed: float = 
         MAX_SPEED,
         0.05,  # the box shows 0.25 for the 1/4x button, not 0.3
         min(speed, MAX_SPEED),
-        marks=((1.0, "1"), (16.0, "16"), (32.0, "32"), (64.0, "64")),
+        marks=tuple((mark, f"{mark:g}") for mark in SPEED_MARKS),
     )
     box = gui.add_text("× real time", "", hint="Type a speed, 0.1 to 64, or max; applied after a pause")
     hide_slider_boxes(gui, [slider])
