@@ -415,6 +415,34 @@ def test_a_history_further_back_than_it_reaches_is_clamped_with_a_notice(
     assert f"({held:.1f} s back of " in replay.scrub_info.content
 
 
+@pytest.mark.parametrize(
+    "label, refusal",
+    [
+        ("× real time", "Speed: {!r} is not a number (or Max); kept 1 x"),
+        ("s", "Back: {!r} is not a number; kept 0 s"),
+    ],
+)
+def test_text_in_the_speed_or_back_box_is_refused_and_the_box_shows_the_value_in_use_again(
+    dashboard: Dashboard, client: ProbeClient, label: str, refusal: str
+) -> None:
+    """NaN or abc typed into viser's number box left it blank and sent nothing: no notice, no value.
+    The boxes are text now: the server refuses the text, says why, and sends the value in use back."""
+    uuid = client.input_uuid(label)
+    kept = client.shown_value(label)
+
+    def refills(p: ProbeClient) -> int:
+        """How often the page was sent the value in use for the box."""
+        return sum(1 for u, update in p.gui_log if u == uuid and update.get("value") == kept)
+
+    for n, text in enumerate(("NaN", "abc"), start=1):
+        before = refills(client)
+        client.set_gui_value(label, text)
+        assert client.wait_for(lambda p, n=n: len(bodies(p, "Value refused")) == n), client.notifications
+        assert bodies(client, "Value refused")[-1] == refusal.format(text)
+        assert client.wait_for(lambda p, b=before: refills(p) == b + 1), "the page was not sent the value in use"
+    assert dashboard.pacer.speed == 1.0 and dashboard.layout.replay.scrubbed is None
+
+
 def test_the_speed_sliders_marks_read_its_range(dashboard: Dashboard, client: ProbeClient) -> None:
     """The lowest mark read 1 at the left end of a 0.1-64 slider: the marks the page gets start at
     0.1 and end at 64, each reading its own value, in order."""
