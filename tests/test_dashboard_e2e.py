@@ -56,7 +56,7 @@ def distinct_colours(path: Path) -> int:
 
 
 HOP_ROWS_JS = """() => [...document.querySelectorAll('table.hd-hops:not(.hd-resp) tr:not(.hd-mean)')]
-    .slice(1).map(row => row.innerText.trim().split(/\\s+/))"""
+    .filter(row => row.querySelector('td')).map(row => row.innerText.trim().split(/\\s+/))"""
 LOG_TEXT_JS = "() => [...document.querySelectorAll('table.hd-log')].map(t => t.textContent).join(' | ')"
 LOG_HAS_JS = "line => [...document.querySelectorAll('table.hd-log')].some(t => t.textContent.includes(line))"
 LARGEST_CANVAS_JS = """() => { const cs = [...document.querySelectorAll('canvas')];

@@ -198,6 +198,33 @@ def test_the_disturb_and_world_boxes_take_typed_numbers_checked_on_the_server(pa
     assert wait_until(lambda: dashboard.sim.config.seed == 1000, timeout=20)
 
 
+def test_text_typed_into_the_speed_and_back_boxes_is_refused_and_the_box_filled_again(
+    page, dashboard: Dashboard, tmp_path: Path
+) -> None:
+    """viser's number boxes beside the Speed and Back sliders went blank on NaN or abc, without a
+    word: the browser never sent the text. They are text boxes now: the server says why and fills
+    the box with the value in use again. Speed's box also takes Max typed, and says Max."""
+    speed = box(page, dashboard.layout.simulation.entry.handle)
+    for text in ("NaN", "abc"):
+        type_into(page, speed, text)
+        notice(page, f"Speed: '{text}' is not a number (or Max); kept 1 x")
+        assert wait_until(lambda: speed.input_value() == "1"), speed.input_value()
+    page.screenshot(path=str(tmp_path / "speed-refilled.png"))
+    type_into(page, speed, "max")
+    assert wait_until(lambda: dashboard.pacer.flat_out), dashboard.pacer.speed
+    assert wait_until(lambda: speed.input_value() == "Max"), speed.input_value()
+
+    page.get_by_role("tab", name="Replay").click()
+    back = box(page, dashboard.layout.replay.back.handle)
+    for text in ("NaN", "abc"):
+        type_into(page, back, text)
+        notice(page, f"Back: '{text}' is not a number; kept 0 s")
+        assert wait_until(lambda: back.input_value() == "0"), back.input_value()
+    assert dashboard.layout.replay.scrubbed is None
+    page.screenshot(path=str(tmp_path / "back-refilled.png"))
+    print(f"\nscreenshots: {tmp_path}")
+
+
 def test_gains_given_at_start_show_as_given(browser, tmp_path: Path) -> None:  # noqa: F811
     """`hopper-dashboard --kp 1500 --ki 120 --kd 12.25`: every handle and box shows those, not a default."""
     dashboard = start(tmp_path, kp=1500.0, ki=120.0, kd=12.25)

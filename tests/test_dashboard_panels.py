@@ -18,6 +18,7 @@ from calls import Call
 from hopper.app.dashboard import feedback
 from hopper.app.dashboard.config import DashboardConfig
 from hopper.app.dashboard.feedback import Refused, format_number, notify, parse_number
+from hopper.app.dashboard.panels.entry import QUIET_S, UNFINISHED_QUIET_S, NumberEntry
 from hopper.app.dashboard.panels.simulation import SPEEDS
 from hopper.app.dashboard.plots import LivePlots
 from hopper.app.dashboard.probe import ProbeClient
@@ -226,6 +227,40 @@ def test_typed_numbers_are_clamped_with_the_range_and_units() -> None:
         parse_number("Seed", "12.5", 0, 2**31 - 1, integer=True)
 
 
+class _Box:
+    """A text box as NumberEntry uses it: a value, and the callback viser calls when it changes."""
+
+    def __init__(self) -> None:
+        self.value = ""
+        self.changed: Any = None
+
+    def on_update(self, callback: Any) -> None:
+        self.changed = callback
+
+
+def test_a_word_the_box_takes_stands_for_its_value_and_its_start_waits_as_a_half_typed_number() -> None:
+    """Speed's box shows Max and takes it typed in any case; text that is neither a number nor the word
+    is refused and the box shows the value in use; "ma" waits before it is read as long as "1e" does."""
+    box, applied = _Box(), []
+    entry = NumberEntry(
+        box, "Speed", 0.1, 64.0, "x", value=1.0, words={"Max": math.inf}, on_apply=lambda v, _: applied.append(v)
+    )  # type: ignore[arg-type]
+    assert box.value == "1"
+    box.value = "mAX"
+    assert entry.commit() == math.inf and box.value == "Max" and applied == [math.inf]
+    box.value = "abc"
+    assert entry.commit() is None and box.value == "Max" and entry.value == math.inf
+    entry.show(4.0)
+    assert box.value == "4" and applied == [math.inf]  # shown, not applied
+    for text, wait in (("ma", UNFINISHED_QUIET_S), ("1e", UNFINISHED_QUIET_S), ("max", QUIET_S), ("2", QUIET_S)):
+        box.value = text
+        box.changed(viser.GuiEvent(client=object(), client_id=0, target=box))  # type: ignore[arg-type]
+        timer = entry._timer
+        assert timer is not None
+        timer.cancel()
+        assert timer.interval == wait, text
+
+
 # -- charts ----------------------------------------------------------------------------------------
 def test_the_torque_and_speed_charts_draw_the_wheel_limits() -> None:
     server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
@@ -378,6 +413,44 @@ def test_a_history_further_back_than_it_reaches_is_clamped_with_a_notice(
     assert wait_until(lambda: replay.scrubbed is not None)
     assert replay.scrub.value == pytest.approx(-held, abs=0.051)  # the box shows it (to the line's 0.1 s)
     assert f"({held:.1f} s back of " in replay.scrub_info.content
+
+
+@pytest.mark.parametrize(
+    "label, refusal",
+    [
+        ("× real time", "Speed: {!r} is not a number (or Max); kept 1 x"),
+        ("s", "Back: {!r} is not a number; kept 0 s"),
+    ],
+)
+def test_text_in_the_speed_or_back_box_is_refused_and_the_box_shows_the_value_in_use_again(
+    dashboard: Dashboard, client: ProbeClient, label: str, refusal: str
+) -> None:
+    """NaN or abc typed into viser's number box left it blank and sent nothing: no notice, no value.
+    The boxes are text now: the server refuses the text, says why, and sends the value in use back."""
+    uuid = client.input_uuid(label)
+    kept = client.shown_value(label)
+
+    def refills(p: ProbeClient) -> int:
+        """How often the page was sent the value in use for the box."""
+        return sum(1 for u, update in p.gui_log if u == uuid and update.get("value") == kept)
+
+    for n, text in enumerate(("NaN", "abc"), start=1):
+        before = refills(client)
+        client.set_gui_value(label, text)
+        assert client.wait_for(lambda p, n=n: len(bodies(p, "Value refused")) == n), client.notifications
+        assert bodies(client, "Value refused")[-1] == refusal.format(text)
+        assert client.wait_for(lambda p, b=before: refills(p) == b + 1), "the page was not sent the value in use"
+    assert dashboard.pacer.speed == 1.0 and dashboard.layout.replay.scrubbed is None
+
+
+def test_the_speed_sliders_marks_read_its_range(dashboard: Dashboard, client: ProbeClient) -> None:
+    """The lowest mark read 1 at the left end of a 0.1-64 slider: the marks the page gets start at
+    0.1 and end at 64, each reading its own value, in order."""
+    slider = client.gui[client.input_uuid("Speed ×")]["props"]
+    marks = [(m["value"], m["label"]) for m in slider["_marks"]]
+    assert [float(label) for _, label in marks] == [value for value, _ in marks], marks
+    assert marks[0][0] == slider["min"] == 0.1 and marks[-1][0] == slider["max"] == 64.0, marks
+    assert [v for v, _ in marks] == sorted({v for v, _ in marks}), marks
 
 
 def test_every_speed_button_is_a_value_the_speed_box_can_show(dashboard: Dashboard) -> None:

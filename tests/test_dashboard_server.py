@@ -95,7 +95,7 @@ def test_a_valid_gain_reaches_the_controller_at_the_next_tick(dashboard: Dashboa
 def test_out_of_range_values_are_clamped_with_a_notification(dashboard: Dashboard, client: ProbeClient) -> None:
     client.set_gui_value("Speed ×", 99.0)
     assert client.wait_for(lambda p: "Speed clamped" in titles(p))
-    assert dashboard.pacer.speed == 64.0
+    assert wait_until(lambda: dashboard.pacer.speed == 64.0)  # the loop applies it between steps
     client.set_gui_value("Kp", 1e9)
     assert client.wait_for(lambda p: "Gain clamped" in titles(p))
     assert wait_until(lambda: dashboard.sim.gains.kp == 2000.0)
@@ -519,13 +519,14 @@ def test_loop_controls_are_commands_the_loop_applies_in_order(dashboard: Dashboa
 
 def test_max_asked_at_start_runs_flat_out_and_the_slider_can_take_over(start) -> None:
     """`hopper-dashboard --speed max`: the loop starts at Max (the status says so, frames go out);
-    the slider, which cannot show Max, sits at its top until a speed is chosen."""
+    the slider sits at its top and the box says Max until a speed is chosen."""
     dashboard = start(speed=MAX)
-    assert dashboard.pacer.flat_out and dashboard.layout.simulation.speed.value == 64.0
+    panel = dashboard.layout.simulation
+    assert dashboard.pacer.flat_out and (panel.speed.value, panel.entry.handle.value) == (64.0, "Max")
     assert wait_until(lambda: "(Max)" in dashboard.layout.status.html.content)
     frames = dashboard.frames
     assert wait_until(lambda: dashboard.frames >= frames + 3), "no frames at Max"
-    dashboard.layout.simulation.choose("4×")
+    panel.choose("4×")
     assert wait_until(lambda: dashboard.pacer.speed == 4.0 and not dashboard.pacer.flat_out)
 
 
@@ -549,5 +550,34 @@ def test_max_runs_flat_out_with_frames_stretched_charts_and_says_so(dashboard: D
     assert wait_until(lambda: "(Max)" not in dashboard.layout.status.html.content, timeout=10)
     panel.choose("Max")
     assert wait_until(lambda: dashboard.pacer.flat_out)
-    panel.reset()  # the slider still shows 1: the defaults bring the loop back to 1x all the same
+    panel.reset()
     assert wait_until(lambda: dashboard.pacer.speed == 1.0)
+
+
+def test_the_speed_box_says_max_at_max_and_every_way_out_shows_the_speed(
+    dashboard: Dashboard, client: ProbeClient
+) -> None:
+    """The Max button ran the loop flat out but left the box at the speed before (64 after 64×). Now
+    the box says Max and the slider sits at its top; a button, a drag, a typed speed or the defaults
+    leave Max, and box and slider show the speed. Max typed, in any case, is Max."""
+    panel = dashboard.layout.simulation
+
+    def shows(box: str, slider: float) -> bool:
+        """The server's box and slider (viser keeps every page in step with them) show these."""
+        return wait_until(lambda: (panel.entry.handle.value, panel.speed.value) == (box, slider), timeout=20)
+
+    client.set_gui_value("Speeds", "64×")
+    assert wait_until(lambda: dashboard.pacer.speed == 64.0) and shows("64", 64.0)
+    client.set_gui_value("Speeds", "Max")
+    assert wait_until(lambda: dashboard.pacer.flat_out) and shows("Max", 64.0)
+    assert client.wait_for(lambda p: p.shown_value("× real time") == "Max"), "the page was not told"
+    client.set_gui_value("Speed ×", 8.0)  # a drag
+    assert wait_until(lambda: dashboard.pacer.speed == 8.0) and shows("8", 8.0)
+    client.set_gui_value("× real time", "MAX")
+    assert wait_until(lambda: dashboard.pacer.flat_out) and shows("Max", 64.0)
+    client.set_gui_value("× real time", "64")  # the slider is at 64 already: the loop is told all the same
+    assert wait_until(lambda: dashboard.pacer.speed == 64.0) and shows("64", 64.0)
+    client.set_gui_value("Speeds", "Max")
+    assert wait_until(lambda: dashboard.pacer.flat_out) and shows("Max", 64.0)
+    client.set_gui_value("Defaults", True)
+    assert wait_until(lambda: dashboard.pacer.speed == 1.0) and shows("1", 1.0)

@@ -8,9 +8,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import viser
+from hopper.app.dashboard import assets
 from hopper.app.dashboard.access import page_url
 from hopper.app.dashboard.server import Dashboard
-from net import wait_until
+from net import free_port, wait_until
 from pages import close_notices
 from test_dashboard_e2e import MIN_CANVAS_COLOURS, PAGE_LOAD_MS, distinct_colours
 from test_dashboard_inputs_e2e import HIDE_SCENE, box, notice, start, type_into
@@ -40,10 +42,23 @@ def open_page(browser, d: Dashboard, clients: int):  # noqa: F811
     return page
 
 
+def slider_box(page, handle):
+    """The number box viser draws beside the slider `handle` (right after the slider's root)."""
+    return page.locator(f'[id="{handle._impl.uuid}"] + .mantine-NumberInput-root input')
+
+
+def greyed(locator) -> bool:
+    """Whether the element looks read-only: faded, and clicks pass it by."""
+    return locator.evaluate(
+        "e => { const s = getComputedStyle(e); return s.opacity < 1 && s.pointerEvents == 'none'; }"
+    )
+
+
 def controls(page, d: Dashboard) -> dict[str, bool]:
     """Whether each of a few shared controls is disabled on this page."""
     gains = d.layout.gains
     return {
+        "Speed box": box(page, d.layout.simulation.entry.handle).is_disabled(),
         "Kp box": box(page, gains.entries["kp"].handle).is_disabled(),
         "Kd box": box(page, gains.entries["kd"].handle).is_disabled(),
         "Wheel on": page.locator(f'[id="{gains.wheel._impl.uuid}"]').is_disabled(),
@@ -140,3 +155,34 @@ def test_off_loopback_the_printed_url_opens_the_dashboard_and_the_bare_address_g
             if page is not None:
                 page.close()
         d.stop()
+
+
+def test_a_disabled_sliders_own_number_box_is_greyed(browser, tmp_path: Path) -> None:  # noqa: F811
+    """viser draws a slider's number box without the slider's `disabled`: a viewer's box looked live.
+    The dashboard's stylesheet greys it and keeps clicks out while the slider is disabled, whether
+    from the start or later (as the roles grey a viewer's controls), and no longer once enabled."""
+    server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
+    page = None
+    try:
+        server.gui.add_html(f"<style>{assets.stylesheet()}</style>")
+        live = server.gui.add_slider("Live", 0.0, 10.0, 1.0, 5.0)
+        off = server.gui.add_slider("Off", 0.0, 10.0, 1.0, 5.0, disabled=True)
+        page = browser.new_page(viewport=VIEWPORT)
+        page.goto(f"http://127.0.0.1:{server.get_port()}", timeout=PAGE_LOAD_MS)
+        slider_box(page, off).wait_for(timeout=PAGE_LOAD_MS)
+        assert greyed(slider_box(page, off)) and not greyed(slider_box(page, live))
+        live.disabled, off.disabled = True, False
+        page.wait_for_function(
+            "u => document.querySelector(`[id='${u}'] .mantine-Slider-track[data-disabled='true']`)",
+            arg=live._impl.uuid,
+        )
+        page.wait_for_function(
+            "u => !document.querySelector(`[id='${u}'] .mantine-Slider-track[data-disabled='true']`)",
+            arg=off._impl.uuid,
+        )
+        assert greyed(slider_box(page, live)) and not greyed(slider_box(page, off))
+        screenshot(page, tmp_path / "slider-boxes.png")
+    finally:
+        if page is not None:
+            page.close()
+        server.stop()

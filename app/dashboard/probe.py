@@ -274,6 +274,12 @@ class ProbeClient:
             dtype, data = self._resolve(points, raw, compressed, lengths)
             self.scene_points[name] = np.frombuffer(data, dtype=dtype).reshape(-1, 2, 3)
 
+    def shown_value(self, label: str) -> Any:
+        """The value the page shows in the GUI input labelled `label`: as created, then as last updated."""
+        with self._lock:
+            uuid = self.uuid_of(label)
+            return {**self.gui[uuid], **self.gui_updates.get(uuid, {})}.get("value")
+
     def shown_html(self, container: str) -> str:
         """The HTML elements of a container as the page shows them: the visible ones, by order, their content."""
         with self._lock:

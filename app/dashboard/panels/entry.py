@@ -3,22 +3,25 @@
 viser's number boxes (Mantine NumberInput) filter keys in the browser and send every keystroke:
 "1e9" arrives as 1 then 19, "1,5" as 15, "abc" or "NaN" empties the box and sends nothing, and
 typing 800 sends 8, 80, 800. So the text goes to the server as typed and is checked there.
+A slider keeps its drag; its own box is hidden (`hide_slider_boxes`) and a NumberEntry goes beside it.
 """
 
 from __future__ import annotations
 
 import logging
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 
 import viser
+from hopper.app.dashboard import viser_compat as compat
 from hopper.app.dashboard.feedback import Refused, format_number, notify, parse_number
 
 log = logging.getLogger(__name__)
 
 QUIET_S = 0.5  # s without a keystroke before typed text is applied
 # Text that ends like this is a number being typed ("0.", "1e", "-"): applied only after a longer
-# pause, so that a slow typist's "0." is not clamped and rewritten before the 5 arrives.
+# pause, so that a slow typist's "0." is not clamped and rewritten before the 5 arrives. So is
+# the start of a word the box takes ("ma" of "max").
 UNFINISHED = (".", "e", "E", "+", "-")
 UNFINISHED_QUIET_S = 3.0
 
@@ -32,7 +35,8 @@ class NumberEntry:
     value), the text is parsed: text that is not a number is refused with a notification and the
     box shows the value in use again; a number out of [low, high] is clamped, with a notification
     that gives the range and units. `on_apply(value, client)` then receives the new value (on a
-    timer or viser thread: it must only validate and queue).
+    timer or viser thread: it must only validate and queue). `words` name values that are no
+    number in range (Speed's Max): the box shows the word and takes it typed, in any case.
     """
 
     def __init__(
@@ -47,14 +51,16 @@ class NumberEntry:
         integer: bool = False,
         on_apply: Apply | None = None,
         quiet_s: float = QUIET_S,
+        words: Mapping[str, float] | None = None,
     ) -> None:
         self.handle, self.name, self.low, self.high, self.unit = handle, name, low, high, unit
         self.integer, self.on_apply, self.quiet_s = integer, on_apply, quiet_s
+        self.words = dict(words or {})
         self._value = value
         self._lock = threading.Lock()
         self._timer: threading.Timer | None = None
         self._client: viser.ClientHandle | None = None
-        handle.value = format_number(value)
+        handle.value = self.text(value)
         handle.on_update(self._typed)
 
     @property
@@ -66,7 +72,7 @@ class NumberEntry:
         """Keep and show a value set by the program (a slider, a reset); no notification, no on_apply."""
         with self._lock:
             self._value = value
-            self.handle.value = format_number(value)  # its own update event has no client: ignored
+            self.handle.value = self.text(value)  # its own update event has no client: ignored
 
     def commit(self, client: viser.ClientHandle | None = None) -> float | None:
         """Apply what is typed now; the value in use, or None if the text was refused (and notified)."""
@@ -76,18 +82,21 @@ class NumberEntry:
                 self._timer = None
             client = client or self._client
             text = self.handle.value
-            if text == format_number(self._value):
+            if text == self.text(self._value):
                 return self._value
             try:
-                value, message = parse_number(self.name, text, self.low, self.high, self.unit, integer=self.integer)
+                value, message = self._parse(text)
             except Refused as exc:
-                self.handle.value = format_number(self._value)
-                refusal = f"{exc}; kept {format_number(self._value)}{' ' + self.unit if self.unit else ''}"
+                self.handle.value = self.text(self._value)
+                kept = self.text(self._value)
+                if self.unit and self._value not in self.words.values():
+                    kept += f" {self.unit}"
+                refusal = f"{exc}; kept {kept}"
             else:
                 refusal = None
                 changed = value != self._value
                 self._value = value
-                self.handle.value = format_number(value)
+                self.handle.value = self.text(value)
         if refusal is not None:
             notify(client, "Value refused", refusal, "warning")
             return None
@@ -97,6 +106,28 @@ class NumberEntry:
             self.on_apply(value, client)
         return value
 
+    def text(self, value: float) -> str:
+        """What the box shows for `value`: its word, if it has one, or the number."""
+        return next((word for word, named in self.words.items() if named == value), None) or format_number(value)
+
+    def _parse(self, text: str) -> tuple[float, str | None]:
+        """Typed text as (value, clamp message): a word, or a number (Refused: why not)."""
+        for word, value in self.words.items():
+            if text.strip().lower() == word.lower():
+                return value, None
+        try:
+            return parse_number(self.name, text, self.low, self.high, self.unit, integer=self.integer)
+        except Refused as exc:
+            if not self.words:
+                raise
+            raise Refused(f"{exc} (or {' / '.join(self.words)})") from None
+
+    def _unfinished(self, text: str) -> bool:
+        """Whether `text` looks half typed: a number ("1e", "-") or the start of a word ("ma")."""
+        typed = text.lower()
+        starts = [word.lower() for word in self.words if word.lower().startswith(typed)]
+        return text.endswith(UNFINISHED) or bool(typed and starts and typed not in starts)
+
     def _typed(self, event: viser.GuiEvent) -> None:
         if event.client is None:  # the program's own assignment, not typing
             return
@@ -105,7 +136,7 @@ class NumberEntry:
             if self._timer is not None:
                 self._timer.cancel()
             wait = self.quiet_s
-            if self.handle.value.strip().endswith(UNFINISHED):
+            if self._unfinished(self.handle.value.strip()):
                 wait = max(wait, UNFINISHED_QUIET_S)
             self._timer = threading.Timer(wait, self._quiet)
             self._timer.daemon = True
@@ -118,3 +149,13 @@ class NumberEntry:
         except Exception as exc:  # a timer thread has nobody to report to but the typist
             log.exception("applying %s failed", self.name)
             notify(client, "Something went wrong", f"{type(exc).__name__}: {exc}", "error")
+
+
+def hide_slider_boxes(gui: viser.GuiApi, sliders: list[viser.GuiSliderHandle[float]]) -> None:
+    """Hide the number box viser draws beside each slider: it has the faults NumberEntry avoids.
+
+    viser gives a slider's root element the handle's id and draws the box right after it (no
+    option of add_slider leaves it out).
+    """
+    selectors = ", ".join(f'[id="{compat.element_id(s)}"] + .mantine-NumberInput-root' for s in sliders)
+    gui.add_html(f"<style>{selectors} {{ display: none; }}</style>")

@@ -7,10 +7,9 @@ import threading
 from collections.abc import Callable
 
 import viser
-from hopper.app.dashboard import viser_compat as compat
 from hopper.app.dashboard.feedback import Refused, checked, guarded, notify
 from hopper.app.dashboard.panels import PanelContext
-from hopper.app.dashboard.panels.entry import NumberEntry
+from hopper.app.dashboard.panels.entry import NumberEntry, hide_slider_boxes
 
 from hopper.commands import SetGains, SetSensing, SetWheel
 from hopper.config import GAIN_RANGES, Gains
@@ -69,16 +68,6 @@ class GainsPanel:
         self.sensing.value = self.default_sensing
 
 
-def _hide_slider_boxes(gui: viser.GuiApi, sliders: list[viser.GuiSliderHandle[float]]) -> None:
-    """Hide the number box viser draws beside each slider: it has the faults NumberEntry avoids.
-
-    viser gives a slider's root element the handle's id and draws the box right after it (no
-    option of add_slider leaves it out).
-    """
-    selectors = ", ".join(f'[id="{compat.element_id(s)}"] + .mantine-NumberInput-root' for s in sliders)
-    gui.add_html(f"<style>{selectors} {{ display: none; }}</style>")
-
-
 def build_gains_panel(
     gui: viser.GuiApi, ctx: PanelContext, initial: Gains, wheel: bool = True, sensing: bool = False
 ) -> GainsPanel:
@@ -92,7 +81,7 @@ def build_gains_panel(
         sliders[name] = gui.add_slider(label, low, high, STEPS[name], value, marks=marks, hint=f"{HINTS[name]}, {unit}")
         box = gui.add_text(unit, "", hint=f"Type {label} in {unit}: 800, 12.5 or 1e3; applied after a pause")
         entries[name] = NumberEntry(box, label, low, high, unit, value=value)
-    _hide_slider_boxes(gui, list(sliders.values()))
+    hide_slider_boxes(gui, list(sliders.values()))
     panel = GainsPanel(
         ctx=ctx,
         kp=sliders["kp"],

@@ -5,6 +5,8 @@ without one, from liftoff."""
 from __future__ import annotations
 
 import dataclasses
+import html
+import itertools
 import math
 
 import viser
@@ -23,10 +25,24 @@ COLUMNS = (
     ("saturation_time_s", "sat", "s", "{:.2f}"),
     ("peak_wheel_rpm", "wheel", "rpm", "{:.0f}"),
     # Electrical energy over the hop, ground and flight (hopper.control.energy), and its cost of transport.
-    ("wheel_energy_j", "E wheel", "J", "{:.0f}"),
-    ("leg_energy_j", "E legs", "J", "{:.0f}"),
+    ("wheel_energy_j", "wheel", "J", "{:.0f}"),  # under one "wheel" with the speed (hop_header_html)
+    ("leg_energy_j", "legs", "J", "{:.0f}"),
     ("cost_of_transport", "CoT", "", "{:.1f}"),  # dimensionless
 )
+# What each header means, on hover (hopper.metrics.HopMetrics): the side panel leaves room for a word.
+TITLES = {
+    "distance_m": "distance since the last touchdown",
+    "apex_height_m": "apex above the liftoff height",
+    "flight_time_s": "flight time",
+    "peak_pitch_deg": "peak |pitch| in flight",
+    "rms_pitch_rate_deg_s": "RMS pitch rate in flight",
+    "landing_pitch_deg": "|pitch| at touchdown",
+    "saturation_time_s": "time at the wheel's torque limit",
+    "peak_wheel_rpm": "peak wheel speed",
+    "wheel_energy_j": "wheel motor's electrical energy",
+    "leg_energy_j": "leg motors' electrical energy",
+    "cost_of_transport": "cost of transport: energy / (m g distance)",
+}
 # The response: from the scheduled kick (its delay after liftoff in the "kick" column) or the liftoff.
 RESPONSE_COLUMNS = (
     ("response_peak_deg", "peak", "°", "{:.1f}"),
@@ -59,8 +75,15 @@ def _mark(hop: HopMetrics) -> str:
 
 
 def hop_header_html() -> str:
-    head = "".join(f"<th>{h}<br><span>{u}</span></th>" for _, h, u, _ in COLUMNS)
-    return _table(f"<tr><th>#</th>{head}</tr>")
+    """Names over units; neighbouring columns of one name (the wheel's rpm and J) share one header."""
+    names = []
+    for name, group in itertools.groupby(COLUMNS, key=lambda column: column[1]):
+        columns = list(group)
+        title = html.escape("; ".join(f"{TITLES[f]}, {u}" if u else TITLES[f] for f, _, u, _ in columns))
+        span = f" colspan={len(columns)}" if len(columns) > 1 else ""
+        names.append(f'<th{span} title="{title}">{name}</th>')
+    units = "".join(f'<th title="{html.escape(TITLES[f])}"><span>{u}</span></th>' for f, _, u, _ in COLUMNS)
+    return _table(f"<tr class='hd-names'><th>#</th>{''.join(names)}</tr><tr><th></th>{units}</tr>")
 
 
 def hop_row_html(hop: HopMetrics, stale: bool = False) -> str:

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Protocol
 import viser
 from hopper.app.dashboard.feedback import checked, guarded, notify
 from hopper.app.dashboard.panels import PanelContext
+from hopper.app.dashboard.panels.entry import NumberEntry, hide_slider_boxes
 from hopper.app.dashboard.plots import ReflyPlots
 from hopper.app.dashboard.scene import GhostRobot
 
@@ -115,6 +116,7 @@ class ReplayPanel:
     refly_button: viser.GuiButtonHandle
     ab: viser.GuiHtmlHandle
     scrub: viser.GuiSliderHandle[float]
+    back: NumberEntry  # the typed Back, beside the slider (its own box is hidden)
     scrub_info: viser.GuiHtmlHandle
     resume_here: viser.GuiButtonHandle
     name: viser.GuiTextHandle
@@ -155,6 +157,24 @@ class ReplayPanel:
         return comparison
 
     # -- history scrubber ------------------------------------------------------------------
+    def go_back(self, value: float, client: viser.ClientHandle | None, message: str | None = None) -> None:
+        """Show the moment `-value` s back (`value` in [-RING_SPAN_S, 0], `message` if it was clamped to
+        that), or the history's oldest if it holds less; slider and box show the moment shown."""
+        span = self.host.history.span
+        if -value > span:  # further back than the history reaches: its oldest moment
+            value, message = -span, f"Back: the history holds {span:.1f} s; showing its oldest moment"
+        if message:
+            notify(client, "Back clamped", message, "warning")
+        self._show_back(value)
+        if self.scrub_to(-value) is None:
+            notify(client, "No history yet", "The simulation has not run long enough.", "warning")
+
+    def _show_back(self, value: float) -> None:
+        self.scrub.value = value  # a program assignment: the slider's handler ignores it
+        shown = round(value, 1)  # to the ring's period, as the history line says it
+        if self.back.value != shown:  # a typed value is shown by its box already
+            self.back.show(shown)
+
     def scrub_to(self, seconds_back: float) -> Snapshot | None:
         """Pause and put the live simulation back `seconds_back` s before the newest ring entry."""
         history = self.host.history
@@ -171,7 +191,7 @@ class ReplayPanel:
     def resume(self) -> None:
         """Continue the live simulation from the moment shown; later history is dropped."""
         self.scrubbed = None
-        self.scrub.value = 0.0  # a program assignment: the handler ignores it
+        self._show_back(0.0)
         self.scrub_info.content = _scrub_html(None, 0.0, self.host.history.span)
         self.host.pause(False)
 
@@ -181,7 +201,7 @@ class ReplayPanel:
             self._scrub_paused = True  # the loop has applied the scrub's pause
         elif self.scrubbed is not None and self._scrub_paused:  # resumed by the Simulation panel's button
             self.scrubbed = None
-            self.scrub.value = 0.0
+            self._show_back(0.0)
         if self.scrubbed is None:
             self.scrub_info.content = _scrub_html(None, 0.0, self.host.history.span)
 
@@ -237,6 +257,9 @@ def build_replay_panel(
         scrub = gui.add_slider(
             "Back (s)", -RING_SPAN_S, 0.0, SCRUB_STEP_S, 0.0, hint="Pause and show the robot this long ago"
         )
+        hint = f"Type how far back, -{RING_SPAN_S:g} to 0 s; applied after a pause"
+        back = NumberEntry(gui.add_text("s", "", hint=hint), "Back", -RING_SPAN_S, 0.0, "s", value=0.0)
+        hide_slider_boxes(gui, [scrub])
         scrub_info = gui.add_html(_scrub_html(None, 0.0, 0.0))
         resume_here = gui.add_button("Resume from here", icon=viser.Icon.PLAYER_PLAY, color="green")
     with gui.add_folder("Keyframes"):
@@ -247,8 +270,8 @@ def build_replay_panel(
         export = gui.add_button("Export keyframe", icon=viser.Icon.DOWNLOAD, color="gray")
         upload = gui.add_upload_button("Import keyframe", icon=viser.Icon.UPLOAD, color="gray", mime_type=".json")
     panel = ReplayPanel(
-        host, plots, ghost, refly_button, ab, scrub, scrub_info, resume_here, name, save, choice, restore_button,
-        export, upload,
+        host, plots, ghost, refly_button, ab, scrub, back, scrub_info, resume_here, name, save, choice,
+        restore_button, export, upload,
     )  # fmt: skip
 
     panel.refly_button.on_click(guarded(lambda event: panel.refly(event.client)))
@@ -258,16 +281,10 @@ def build_replay_panel(
         if event.client is None:  # a program assignment (resume, a clamp) moves the slider
             return
         value, message = checked("Back", scrub.value, -RING_SPAN_S, 0.0, "s")  # Refused: notified, kept
-        span = panel.host.history.span
-        if -value > span:  # further back than the history reaches: its oldest moment
-            value, message = -span, f"Back: the history holds {span:.1f} s; showing its oldest moment"
-        if message:
-            notify(event.client, "Back clamped", message, "warning")
-            scrub.value = value
-        if panel.scrub_to(-value) is None:
-            notify(event.client, "No history yet", "The simulation has not run long enough.", "warning")
+        panel.go_back(value, event.client, message)
 
     scrub.on_update(on_scrub)
+    back.on_apply = panel.go_back  # (value, client): out of [-RING_SPAN_S, 0] the box clamps and says so
     resume_here.on_click(guarded(lambda _: panel.resume()))
 
     @guarded
