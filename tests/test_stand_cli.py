@@ -88,6 +88,13 @@ def test_a_bad_chirp_is_refused_in_one_line(flags: list[str], said: str):
     assert done.stdout == ""
 
 
+@pytest.mark.parametrize("flights", ["0", "1001", "100000000"])
+def test_flights_beyond_their_bound_are_refused_before_any_flight(flights: str):
+    done = hopper_sim("stand", "--measure", "--flight", "--flights", flights)
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr == f"hopper-sim: error: --flights must be in [1, 1000], got {flights}\n"
+
+
 def test_a_bode_figure_without_a_measurement_is_refused(tmp_path: Path):
     done = hopper_sim("stand", "--step", "2", "--bode", str(tmp_path / "bode.png"))
     assert done.returncode == 2 and done.stdout == ""
