@@ -21,6 +21,7 @@ from hopper.app.cli_common import (
     add_model_flag,
     fail,
     finite,
+    gains_flags,
     gravity,
     rrd_file,
     with_controller_flags,
@@ -55,10 +56,10 @@ def add_parser(commands: argparse._SubParsersAction, epilog: str) -> None:
         help=f"flights a --flight measurement averages (default 30; 1 to {MAX_FLIGHTS})",
     )
     p.add_argument("--gravity", type=gravity, default=GRAVITY_PRESETS["moon"], help="m/s^2 or a preset (default moon)")
-    defaults = Gains()
-    p.add_argument("--kp", type=finite, default=defaults.kp, help=f"N m/rad (default {defaults.kp:g})")
-    p.add_argument("--ki", type=finite, default=defaults.ki, help=f"N m/(rad s) (default {defaults.ki:g})")
-    p.add_argument("--kd", type=finite, default=defaults.kd, help=f"N m s/rad (default {defaults.kd:g})")
+    defaults = Gains()  # the flags' defaults are None, to tell a gain given from one left (gains_flags)
+    p.add_argument("--kp", type=finite, help=f"the PID's, N m/rad (default {defaults.kp:g})")
+    p.add_argument("--ki", type=finite, help=f"the PID's, N m/(rad s) (default {defaults.ki:g})")
+    p.add_argument("--kd", type=finite, help=f"the PID's, N m s/rad (default {defaults.kd:g})")
     add_controller_flags(p)
     add_model_flag(p)
     p.add_argument("--sensing", choices=("ideal", "realistic"), default="ideal", help="default ideal")
@@ -107,7 +108,7 @@ def _config(args: argparse.Namespace) -> SimConfig:
         config = SimConfig(
             terrain="flat" if not args.flight else "crater",
             gravity=args.gravity,
-            gains=Gains(kp=args.kp, ki=args.ki, kd=args.kd),
+            gains=gains_flags(args),  # refused with another --controller, which flies no PID
             sensing=args.sensing,
             model=args.model,
         )
