@@ -267,9 +267,17 @@ def gains_flags(args: argparse.Namespace) -> Gains:
 
 
 def check_executor(args: argparse.Namespace) -> None:
-    """--address names a Ray cluster: refused with --executor local, which would not use it."""
+    """--address names a Ray cluster: refused with --executor local, which would not use it, and, as
+    any other executor joins it (or RAY_ADDRESS's), refused now if no Ray head answers there."""
     if args.executor == "local" and args.address:
         fail("--address names a Ray cluster, which --executor local does not use: drop one of them")
+    if args.executor != "local":
+        from hopper.experiments.executor import ExecutorError, check_address
+
+        try:
+            check_address(args.address)
+        except ExecutorError as exc:
+            fail(str(exc))
 
 
 def run_all(episodes: list, executor_kind: str, workers: int, address: str | None, desc: str) -> dict:
