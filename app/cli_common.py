@@ -290,6 +290,9 @@ def run_all(episodes: list, executor_kind: str, workers: int, address: str | Non
         executor = choose(executor_kind, episodes, workers, address)  # type: ignore[arg-type]
     except ExecutorError as exc:
         fail(str(exc))
+    why = getattr(executor, "why", "")  # InProcess's: why not the workers asked for
+    if why:
+        print(f"running {len(episodes)} {desc} in this process: {why}", file=sys.stderr)
     done = {}
     try:
         with tqdm(total=len(episodes), desc=desc, unit="ep", file=sys.stderr) as bar:

@@ -171,6 +171,19 @@ def test_a_ray_address_that_accepts_tcp_but_is_no_ray_head_fails_in_one_line_in_
     assert took < 60.0 and result.stdout == "" and not any(tmp_path.iterdir())
 
 
+def test_a_small_job_says_why_it_runs_in_process_instead_of_on_the_workers_asked(tmp_path: Path) -> None:
+    """5 one-hop episodes are ~0.2 s of work: choose keeps them in this process (a pool starts in ~1 s)
+    and says so, and that --workers 2 is not used, in one line."""
+    why = "s of work, too little for a pool of processes to repay its start-up (~1 s); --workers 2 not used\n"
+    sweep = hopper_sim("sweep", "--out", str(tmp_path / "s"), "--seeds", "5", "--hops", "1", "--workers", "2")
+    assert sweep.returncode == 0, sweep.stderr
+    line = next(x for x in sweep.stderr.splitlines(keepends=True) if x.startswith("running 5 episodes"))
+    assert line.startswith("running 5 episodes on in-process (1 worker): about 0.") and line.endswith(why), line
+    compare = hopper_sim("compare", "--seeds", "1", "--hops", "1", "--workers", "2")
+    assert compare.returncode in (0, 1), compare.stderr
+    assert compare.stderr.startswith("running 2 runs in this process: about 0.") and why in compare.stderr
+
+
 def test_help_documents_the_exit_statuses() -> None:
     for command in ([], ["run"], ["compare"], ["stress"]):
         result = hopper_sim(*command, "--help")

@@ -36,6 +36,9 @@ STEP_CPU_S = 15e-6  # s of one core per 1 kHz control tick (closed loop, ideal s
 # run or less. Conservative: under load bench_sweep.py --line measured the pool at 11.5 s against
 # Ray's 13 s (a line at 17 s of work per core), 24 s against 28 s at the heaviest (44 s).
 RAY_MIN_WORK_PER_CORE_S = 120.0
+# Below this much work (s of one core) a job runs in this process: a pool's spawned processes, each
+# importing MuJoCo, took 1.2 s to start here, about what two workers would save on 2.4 s of work.
+POOL_MIN_WORK_S = 2.0
 CHUNK_CPU_S = 1.0  # s of work per chunk: Ray's per-call cost (~1 ms) is noise, and Ctrl-C loses little
 IN_FLIGHT_PER_WORKER = 2  # chunks queued per Ray actor, so it never waits for the driver
 
@@ -73,12 +76,14 @@ class ExecutorError(HopperError, RuntimeError):
 
 
 class InProcess:
-    """One worker in this process: no start-up at all, one core."""
+    """One worker in this process: no start-up at all, one core. `why` says why not more, for the
+    user ("" when no more were to be had)."""
 
     name, workers = "in-process", 1
 
-    def __init__(self) -> None:
+    def __init__(self, why: str = "") -> None:
         self.worker = Worker()
+        self.why = why
 
     def map(self, chunks: Iterable[Chunk]) -> Iterator[list[EpisodeResult]]:
         for chunk in chunks:
@@ -252,6 +257,18 @@ def choose(kind: Kind, episodes: list[Episode], workers: int | None = None, addr
         work = sum(map(estimated_cpu_s, episodes))
         if kind == "auto" and work / cores >= RAY_MIN_WORK_PER_CORE_S:
             return RayExecutor(address, workers)
-        cores = min(cores, len(episodes))
-        return InProcess() if cores <= 1 or work < 2.0 else LocalPool(cores)
+        if min(cores, len(episodes)) > 1 and work >= POOL_MIN_WORK_S:
+            return LocalPool(min(cores, len(episodes)))
+        return InProcess(in_process_why(len(episodes), work, cores, workers))
     return RayExecutor(address, workers)
+
+
+def in_process_why(episodes: int, work_s: float, cores: int, asked: int | None) -> str:
+    """Why a job that `cores` workers could share runs in this process, in words; "" for one core
+    (--workers 1 or a one-core machine), where there is nothing to explain."""
+    if cores <= 1:
+        return ""
+    why = f"about {work_s:.1f} s of work, too little for a pool of processes to repay its start-up (~1 s)"
+    if episodes == 1:
+        why = "one episode"
+    return why + (f"; --workers {asked} not used" if asked else "")
