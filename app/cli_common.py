@@ -7,9 +7,10 @@ imports none of them, so hopper-sim's modules form no import cycle.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import NoReturn
 
@@ -73,18 +74,44 @@ def make_writable_folder(path: Path) -> None:
     probe.unlink()
 
 
-def check_out(out: Path, flag: str = "--out") -> None:
+def check_out(out: Path, flag: str = "--out") -> list[Path]:
     """OUT is a folder (or can be made one, with its missing parents) that can be written: made and
-    written to now, before any work; one line and exit 2 otherwise."""
-    folder = out.absolute()
+    written to now, before any work; one line and exit 2 otherwise. Returns the folders it made, OUT
+    first (see made_out)."""
+    folder, made = out.absolute(), []
     while not folder.exists():  # OUT itself, or the nearest of its parents that exists
+        made.append(folder)
         folder = folder.parent
     if not folder.is_dir():
         fail(f"{flag}: {folder} is not a folder")
     try:  # written to, not judged by permission bits (root, /proc, read-only mounts)
         make_writable_folder(out)
     except OSError as exc:
+        remove_empty(made)
         fail(f"{flag}: cannot write to {out}: {exc.strerror or exc}")
+    return made
+
+
+@contextlib.contextmanager
+def made_out(out: Path | None, flag: str = "--out") -> Iterator[None]:
+    """check_out(OUT) (nothing without one); if the block then stops on an exception (a check that
+    refuses, Ctrl-C), the folders check_out made are removed again if still empty: a refused command
+    leaves no empty folder behind, and never removes one it did not make or that holds anything."""
+    made = check_out(out, flag) if out is not None else []
+    try:
+        yield
+    except BaseException:
+        remove_empty(made)
+        raise
+
+
+def remove_empty(folders: list[Path]) -> None:
+    """Remove each of `folders` (innermost first) while they are empty; stop at the first that is not."""
+    for folder in folders:
+        try:
+            folder.rmdir()  # refuses a folder that holds anything
+        except OSError:
+            return
 
 
 def seed(text: str) -> int:
@@ -240,9 +267,17 @@ def gains_flags(args: argparse.Namespace) -> Gains:
 
 
 def check_executor(args: argparse.Namespace) -> None:
-    """--address names a Ray cluster: refused with --executor local, which would not use it."""
+    """--address names a Ray cluster: refused with --executor local, which would not use it, and, as
+    any other executor joins it (or RAY_ADDRESS's), refused now if no Ray head answers there."""
     if args.executor == "local" and args.address:
         fail("--address names a Ray cluster, which --executor local does not use: drop one of them")
+    if args.executor != "local":
+        from hopper.experiments.executor import ExecutorError, check_address
+
+        try:
+            check_address(args.address)
+        except ExecutorError as exc:
+            fail(str(exc))
 
 
 def run_all(episodes: list, executor_kind: str, workers: int, address: str | None, desc: str) -> dict:
@@ -255,6 +290,9 @@ def run_all(episodes: list, executor_kind: str, workers: int, address: str | Non
         executor = choose(executor_kind, episodes, workers, address)  # type: ignore[arg-type]
     except ExecutorError as exc:
         fail(str(exc))
+    why = getattr(executor, "why", "")  # InProcess's: why not the workers asked for
+    if why:
+        print(f"running {len(episodes)} {desc} in this process: {why}", file=sys.stderr)
     done = {}
     try:
         with tqdm(total=len(episodes), desc=desc, unit="ep", file=sys.stderr) as bar:

@@ -267,7 +267,8 @@ def check_workers(args: argparse.Namespace) -> None:
 
 
 def command_sweep(args: argparse.Namespace) -> int:
-    from hopper.experiments.spec import SpecError, load_spec, parse_spec
+    from hopper.config import Gains
+    from hopper.experiments.spec import GAINS, SpecError, load_spec, parse_spec
     from hopper.experiments.store import SpecMismatch
 
     check_workers(args)
@@ -276,8 +277,9 @@ def command_sweep(args: argparse.Namespace) -> int:
         spec = load_spec(args.spec, overrides) if args.spec is not None else parse_spec(overrides)
     except SpecError as exc:
         fail(str(exc))
-    gains = [n for n in ("kp", "ki", "kd") if getattr(args, n) is not None or len(getattr(spec, n)) > 1]
-    if gains and "pid" not in spec.controller:  # its episodes would differ in a gain nothing flies
+    default = Gains()  # what the episodes of a controller other than the PID hold (SweepSpec.flown)
+    gains = [n for n in GAINS if getattr(args, n) is not None or getattr(spec, n) != (getattr(default, n),)]
+    if gains and "pid" not in spec.controller:  # a gain axis that no episode would fly
         fail(f"{gains[0]} is the PID's gain, which controller {', '.join(spec.controller)} does not fly: "
              "sweep its params with --param")  # fmt: skip
     if spec.mjcf is not None:  # a spec file's, checked as --model's

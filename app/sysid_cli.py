@@ -19,10 +19,10 @@ from hopper.app.cli_common import (
     EXIT_FELL,
     EXIT_OK,
     add_model_flag,
-    check_out,
     fail,
     finite,
     gravity,
+    made_out,
     seed,
     writable_file,
 )
@@ -214,8 +214,11 @@ def replay_flags(args: argparse.Namespace) -> None:
 
 def command_replay(args: argparse.Namespace) -> int:
     replay_flags(args)
-    if args.out is not None:
-        check_out(args.out)  # made and written to now, before the replay
+    with made_out(args.out):  # made and written to now, before the replay; unmade if the log's checks refuse
+        return _replay(args)
+
+
+def _replay(args: argparse.Namespace) -> int:
     log = read_log(args.log)
     world = replay_world(args, log)
     model, window = world_model(world)

@@ -94,6 +94,36 @@ def test_a_bad_controller_stops_every_command_with_one_line_and_exit_2(example: 
     assert not (example / "never").exists()
 
 
+def test_a_mixed_sweep_sweeps_the_gains_on_the_pid_alone_and_reports_it(example: Path) -> None:
+    """pid,lqr over 2 kp values is 3 episodes, not 4: the LQR flies no kp, so it flies once, with the
+    default gains its fallback PID would take (as `run --controller lqr`); the summary and the
+    report's gain map count the PID's episodes only."""
+    import pyarrow.dataset as ds
+
+    from hopper.config import Gains
+
+    out = example / "mixed"
+    sweep = hopper_sim("sweep", "--out", str(out), "--controller", "pid,lqr", "--kp", "300,600", "--hops", "1",
+                       "--terrain", "flat", cwd=example)  # fmt: skip
+    assert sweep.returncode == 0, sweep.stderr
+    rows = ds.dataset(out / "episodes").to_table(columns=["controller", "kp", "ki", "kd"]).to_pylist()
+    default = Gains()
+    lqr = {"controller": "lqr", "kp": default.kp, "ki": default.ki, "kd": default.kd}
+    assert sorted(rows, key=str) == sorted([{**lqr, "controller": "pid", "kp": 300.0},
+                                            {**lqr, "controller": "pid", "kp": 600.0}, lqr], key=str)  # fmt: skip
+    assert "running 3 episodes" in sweep.stderr and "kp (N m/rad, pid episodes): 300: 0/1 fell" in sweep.stdout
+    assert "controller: pid: 0/2 fell" in sweep.stdout and "lqr: 0/1 fell" in sweep.stdout
+    report = hopper_sim("report", str(out), "--out", str(example / "mixed-report"), cwd=example)
+    assert report.returncode == 0, report.stderr
+    assert (example / "mixed-report" / "gain_map_wheel_on.png").stat().st_size > 10_000
+    # A spec file's one gain other than the default, with no PID to fly it: refused, not dropped.
+    (example / "lqr.toml").write_text('kp = 300\ncontroller = "lqr"\n')
+    refused = hopper_sim("sweep", "lqr.toml", "--out", str(example / "never"), cwd=example)
+    assert refused.returncode == 2 and refused.stderr.count("\n") == 1, refused.stderr
+    assert "kp is the PID's gain, which controller lqr does not fly" in refused.stderr
+    assert not (example / "never").exists()
+
+
 def test_a_recording_holds_the_controller_and_its_params(example: Path) -> None:
     from hopper.report.rrd import read_run
 

@@ -148,6 +148,42 @@ def test_bad_arguments_fail_in_one_line_before_any_work(tmp_path: Path, args: li
     assert result.stdout == "" and not any(tmp_path.iterdir()), "work started before the arguments were checked"
 
 
+@pytest.mark.parametrize("command", [["sweep", "--out", "out", "--seeds", "1", "--hops", "1"], ["compare"]])
+def test_a_ray_address_that_accepts_tcp_but_is_no_ray_head_fails_in_one_line_in_bounded_time(
+    tmp_path: Path, command: list[str]
+) -> None:
+    """A listening socket that never answers (127.0.0.1, this test's own): ray.init would retry it for
+    minutes; the probe's 5 s budget refuses it, before the sweep's folder is made."""
+    import socket
+
+    with socket.socket() as listening:
+        listening.bind(("127.0.0.1", 0))
+        listening.listen(4)  # the kernel completes the connections; nothing reads or answers them
+        address = f"127.0.0.1:{listening.getsockname()[1]}"
+        started = time.monotonic()
+        result = hopper_sim(*command, "--executor", "ray", "--address", address, cwd=tmp_path)
+        took = time.monotonic() - started
+    assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr
+    assert result.stderr == (
+        f"hopper-sim: error: cannot reach the Ray cluster at {address}: it accepts TCP but gave no gRPC handshake "
+        "within 5 s: not a Ray head\n"
+    )
+    assert took < 60.0 and result.stdout == "" and not any(tmp_path.iterdir())
+
+
+def test_a_small_job_says_why_it_runs_in_process_instead_of_on_the_workers_asked(tmp_path: Path) -> None:
+    """5 one-hop episodes are ~0.2 s of work: choose keeps them in this process (a pool starts in ~1 s)
+    and says so, and that --workers 2 is not used, in one line."""
+    why = "s of work, too little for a pool of processes to repay its start-up (~1 s); --workers 2 not used\n"
+    sweep = hopper_sim("sweep", "--out", str(tmp_path / "s"), "--seeds", "5", "--hops", "1", "--workers", "2")
+    assert sweep.returncode == 0, sweep.stderr
+    line = next(x for x in sweep.stderr.splitlines(keepends=True) if x.startswith("running 5 episodes"))
+    assert line.startswith("running 5 episodes on in-process (1 worker): about 0.") and line.endswith(why), line
+    compare = hopper_sim("compare", "--seeds", "1", "--hops", "1", "--workers", "2")
+    assert compare.returncode in (0, 1), compare.stderr
+    assert compare.stderr.startswith("running 2 runs in this process: about 0.") and why in compare.stderr
+
+
 def test_help_documents_the_exit_statuses() -> None:
     for command in ([], ["run"], ["compare"], ["stress"]):
         result = hopper_sim(*command, "--help")

@@ -88,6 +88,27 @@ def test_a_bad_chirp_is_refused_in_one_line(flags: list[str], said: str):
     assert done.stdout == ""
 
 
+@pytest.mark.parametrize("flights", ["0", "1001", "100000000"])
+def test_flights_beyond_their_bound_are_refused_before_any_flight(flights: str):
+    done = hopper_sim("stand", "--measure", "--flight", "--flights", flights)
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr == f"hopper-sim: error: --flights must be in [1, 1000], got {flights}\n"
+
+
+@pytest.mark.parametrize(
+    ("flags", "said"),
+    [
+        (["--kp", "300", "--controller", "lqr"], "--kp is the PID's gain, which --controller lqr does not fly"),
+        (["--kd", "20", "--controller", "mpc"], "--kd is the PID's gain, which --controller mpc does not fly"),
+        (["--ki", "10", "--controller-param", "ki=20"], "--ki and --controller-param ki=... both set ki: give one"),
+    ],
+)
+def test_a_gain_that_would_be_ignored_is_refused_as_run_refuses_it(flags: list[str], said: str):
+    done = hopper_sim("stand", "--kick", "0.5", *flags)
+    assert done.returncode == 2 and done.stdout == ""  # before the kick
+    assert done.stderr.startswith("hopper-sim: error: ") and said in done.stderr and done.stderr.count("\n") == 1
+
+
 def test_a_bode_figure_without_a_measurement_is_refused(tmp_path: Path):
     done = hopper_sim("stand", "--step", "2", "--bode", str(tmp_path / "bode.png"))
     assert done.returncode == 2 and done.stdout == ""

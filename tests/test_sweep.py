@@ -246,13 +246,31 @@ def test_a_sweep_on_a_local_ray_interrupted_half_way_resumes_without_redoing_epi
     assert SweepStore(out, spec).done_ids() == set(ids)
 
 
-def test_unreachable_tells_a_closed_loopback_port_from_a_listening_one() -> None:
+def test_unreachable_tells_a_closed_loopback_port_from_a_silent_one_and_from_a_grpc_server() -> None:
     import socket
+    import threading
 
     with socket.socket() as listening:
         listening.bind(("127.0.0.1", 0))
-        listening.listen(1)
-        assert unreachable(f"127.0.0.1:{listening.getsockname()[1]}", timeout_s=2.0) is None
+        listening.listen(2)
+        address = f"127.0.0.1:{listening.getsockname()[1]}"
+        silent = "it accepts TCP but gave no gRPC handshake within 0.5 s: not a Ray head"
+        assert unreachable(address, timeout_s=0.5) == silent
+        listening.accept()[0].close()  # that one, then a gRPC server's first frame: SETTINGS (RFC 9113)
+
+        def answer() -> None:
+            peer = listening.accept()[0]
+            with peer:
+                peer.settimeout(5.0)
+                peer.sendall(bytes([0, 0, 0, 0x4, 0, 0, 0, 0, 0]))
+                while peer.recv(64):  # the probe's preface, until it closes (no reset of unread bytes)
+                    pass
+
+        server = threading.Thread(target=answer)
+        server.start()
+        assert unreachable(address, timeout_s=5.0) is None
+        server.join(timeout=5.0)
+        assert not server.is_alive()
     assert unreachable(f"127.0.0.1:{free_port()}", timeout_s=2.0) == "connection refused"
     assert unreachable(f"ray://127.0.0.1:{free_port()}", timeout_s=2.0) == "connection refused"
     assert unreachable("auto") is None  # Ray finds the cluster `ray start` runs here itself

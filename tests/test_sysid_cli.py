@@ -124,6 +124,33 @@ def test_replay_refuses_an_out_it_cannot_write_or_flags_it_would_ignore_before_a
     assert message.replace("FILE", str(file)) in err
 
 
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["MISSING"], "missing.csv: no such file"),
+        (["LOG", "--from", "999"], "--from 999 s is outside the log"),
+        (["LOG", "--hops", "9"], "--hops 9: the log has 2 hop"),
+    ],
+)
+def test_replay_refused_after_reading_the_log_leaves_no_folder_it_made(
+    argv: list[str], message: str, logged: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """--out is made before the log is read; a check on the log that refuses removes what it made
+    (and only that: a folder that was there, empty or not, stays)."""
+    names = {"LOG": str(logged), "MISSING": str(tmp_path / "missing.csv")}
+    kept = tmp_path / "kept"
+    kept.mkdir()
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "notes.txt").write_text("mine")
+    for out in (tmp_path / "new" / "sub", kept, tmp_path / "full"):
+        with pytest.raises(SystemExit) as stop:
+            main(["replay", *(names.get(a, a) for a in argv), "--out", str(out)])
+        err = capsys.readouterr().err
+        assert stop.value.code == 2 and message in err and len(err.splitlines()) == 1, err
+    assert not (tmp_path / "new").exists()
+    assert kept.is_dir() and not any(kept.iterdir()) and (tmp_path / "full" / "notes.txt").read_text() == "mine"
+
+
 def test_capture_refuses_a_suffix_it_cannot_write_before_capturing(
     tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
 ) -> None:

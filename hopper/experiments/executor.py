@@ -36,6 +36,9 @@ STEP_CPU_S = 15e-6  # s of one core per 1 kHz control tick (closed loop, ideal s
 # run or less. Conservative: under load bench_sweep.py --line measured the pool at 11.5 s against
 # Ray's 13 s (a line at 17 s of work per core), 24 s against 28 s at the heaviest (44 s).
 RAY_MIN_WORK_PER_CORE_S = 120.0
+# Below this much work (s of one core) a job runs in this process: a pool's spawned processes, each
+# importing MuJoCo, took 1.2 s to start here, about what two workers would save on 2.4 s of work.
+POOL_MIN_WORK_S = 2.0
 CHUNK_CPU_S = 1.0  # s of work per chunk: Ray's per-call cost (~1 ms) is noise, and Ctrl-C loses little
 IN_FLIGHT_PER_WORKER = 2  # chunks queued per Ray actor, so it never waits for the driver
 
@@ -73,12 +76,14 @@ class ExecutorError(HopperError, RuntimeError):
 
 
 class InProcess:
-    """One worker in this process: no start-up at all, one core."""
+    """One worker in this process: no start-up at all, one core. `why` says why not more, for the
+    user ("" when no more were to be had)."""
 
     name, workers = "in-process", 1
 
-    def __init__(self) -> None:
+    def __init__(self, why: str = "") -> None:
         self.worker = Worker()
+        self.why = why
 
     def map(self, chunks: Iterable[Chunk]) -> Iterator[list[EpisodeResult]]:
         for chunk in chunks:
@@ -122,22 +127,66 @@ class LocalPool:
         self.pool.join()
 
 
-PROBE_S = 5.0  # s, the TCP connect to a named Ray cluster before ray.init: a head answers in well under that
+# s, the probe of a named Ray cluster before ray.init, TCP connect and handshake together: a head
+# answers both in about a millisecond (its GCS's SETTINGS came back in 0.7 ms here).
+PROBE_S = 5.0
+# HTTP/2's client preface and an empty SETTINGS frame (RFC 9113, 3.4): a Ray head's GCS and its Ray
+# Client server are gRPC servers, which must answer with a SETTINGS frame of their own.
+HTTP2_PREFACE = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n" + bytes([0, 0, 0, 0x4, 0, 0, 0, 0, 0])
+SETTINGS = 0x4  # the frame type in byte 3 of a frame's 9-byte header
 
 
 def unreachable(address: str, timeout_s: float = PROBE_S) -> str | None:
-    """Why nothing accepts a TCP connection at a Ray address HOST:PORT (or ray://HOST:PORT) within
-    `timeout_s`; None if something does, or for an address Ray resolves itself (auto, local)."""
+    """Why HOST:PORT (or ray://HOST:PORT) is no Ray head to join, where ray.init would retry for
+    minutes: nothing accepts a TCP connection, or what does gives no gRPC (HTTP/2) handshake, within
+    `timeout_s` in all. None if it answers as gRPC does, or for an address Ray resolves itself (auto,
+    local). With RAY_USE_TLS the handshake would be TLS's, which this does not speak: TCP only then."""
     host, sep, port = address.removeprefix("ray://").rpartition(":")
     if not sep or not port.isdigit() or not host:
         return None
+    deadline = time.monotonic() + timeout_s
     try:
-        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s):
-            return None
+        connection = socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s)
     except TimeoutError:
         return f"no answer within {timeout_s:g} s"
     except OSError as exc:  # refused, unreachable, an unknown host
         return (exc.strerror or str(exc)).lower()
+    with connection:
+        if os.environ.get("RAY_USE_TLS", "0").lower() in ("1", "true"):
+            return None
+        try:
+            why = no_grpc(connection, deadline - time.monotonic())
+        except TimeoutError:
+            why = f"gave no gRPC handshake within {timeout_s:g} s"
+    return f"it accepts TCP but {why}: not a Ray head" if why else None
+
+
+def no_grpc(connection: socket.socket, timeout_s: float) -> str | None:
+    """What a connected peer did instead of answering HTTP/2's client preface with a SETTINGS frame,
+    as every gRPC server must (a Ray head's GCS and Ray Client server are); None if it answered.
+    TimeoutError if it said nothing within `timeout_s`."""
+    connection.settimeout(max(timeout_s, 1e-3))
+    head = b""
+    try:
+        connection.sendall(HTTP2_PREFACE)
+        while len(head) < 9 and (chunk := connection.recv(9 - len(head))):
+            head += chunk
+    except TimeoutError:
+        raise  # an OSError too: the caller says how long it waited
+    except OSError as exc:  # reset
+        return f"broke the gRPC handshake off ({(exc.strerror or str(exc)).lower()})"
+    if len(head) < 9:
+        return "closed the connection without a gRPC handshake"
+    return None if head[3] == SETTINGS else "answered without a gRPC handshake"
+
+
+def check_address(address: str | None) -> None:
+    """ExecutorError, in one line, if `address` (else RAY_ADDRESS) names a Ray head that is not there
+    (unreachable); nothing without either."""
+    connect = address or os.environ.get("RAY_ADDRESS")
+    why = unreachable(connect) if connect else None
+    if why:  # ray.init retries a closed port for minutes, warning as it goes
+        raise ExecutorError(f"cannot reach the Ray cluster at {connect}: {why}")
 
 
 class RayExecutor:
@@ -151,9 +200,7 @@ class RayExecutor:
     def __init__(self, address: str | None = None, workers: int | None = None) -> None:
         start = time.perf_counter()
         connect = address or os.environ.get("RAY_ADDRESS")
-        why = unreachable(connect) if connect else None
-        if why:  # ray.init retries a closed port for minutes, warning as it goes
-            raise ExecutorError(f"cannot reach the Ray cluster at {connect}: {why}")
+        check_address(connect)
         import ray
 
         # ray.init replaces the SIGTERM handler with one that exits 1 (or 15); keep the caller's
@@ -210,6 +257,18 @@ def choose(kind: Kind, episodes: list[Episode], workers: int | None = None, addr
         work = sum(map(estimated_cpu_s, episodes))
         if kind == "auto" and work / cores >= RAY_MIN_WORK_PER_CORE_S:
             return RayExecutor(address, workers)
-        cores = min(cores, len(episodes))
-        return InProcess() if cores <= 1 or work < 2.0 else LocalPool(cores)
+        if min(cores, len(episodes)) > 1 and work >= POOL_MIN_WORK_S:
+            return LocalPool(min(cores, len(episodes)))
+        return InProcess(in_process_why(len(episodes), work, cores, workers))
     return RayExecutor(address, workers)
+
+
+def in_process_why(episodes: int, work_s: float, cores: int, asked: int | None) -> str:
+    """Why a job that `cores` workers could share runs in this process, in words; "" for one core
+    (--workers 1 or a one-core machine), where there is nothing to explain."""
+    if cores <= 1:
+        return ""
+    why = f"about {work_s:.1f} s of work, too little for a pool of processes to repay its start-up (~1 s)"
+    if episodes == 1:
+        why = "one episode"
+    return why + (f"; --workers {asked} not used" if asked else "")

@@ -52,7 +52,10 @@ def run_sweep(
     executor = make_executor(todo)
     ready = time.perf_counter()
     startup = getattr(executor, "startup_s", 0.0)
-    announce(f"running {len(todo)} episodes on {executor.name} ({workers(executor.workers)})")
+    why = getattr(executor, "why", "")  # InProcess's: why not the workers asked for
+    announce(
+        f"running {len(todo)} episodes on {executor.name} ({workers(executor.workers)})" + (f": {why}" if why else "")
+    )
     bar = tqdm(total=spec.size, initial=skipped, desc="episodes", unit="ep", file=sys.stderr, disable=not progress)
     ran = 0
     try:

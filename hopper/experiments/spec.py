@@ -60,6 +60,7 @@ from hopper.experiments.uncertainty import (
 )
 
 AXES = ("kp", "ki", "kd", "gravity", "seeds", "hops", "terrain", "wheel", "sensing")
+GAINS = ("kp", "ki", "kd")  # the PID's axes: no other controller flies them (SweepSpec.flown)
 GAIT_FIELDS = tuple(f.name for f in dataclasses.fields(GaitParams))
 PARAM_PREFIX = "param_"  # a controller param's column: its own names (kp, ...) may be a setting's
 MAX_EPISODES = 10_000_000  # a typo guard: 1e7 episodes is months of CPU
@@ -160,8 +161,22 @@ class SweepSpec:
 
     @property
     def size(self) -> int:
-        n = math.prod(len(getattr(self, a)) for a in (*AXES, "disturbance", "controller"))
-        return n * math.prod(len(values) for _, values in (*self.gait, *self.params)) * self.samples
+        n = math.prod(len(getattr(self, a)) for a in (*AXES, "disturbance") if a not in GAINS)
+        return n * len(self.flown()) * math.prod(len(values) for _, values in (*self.gait, *self.params)) * self.samples
+
+    def flown(self) -> list[tuple[str, float, float, float]]:
+        """(controller, kp, ki, kd) of every flight law: the PID once per point of the gain axes, any
+        other controller once, with the default gains (its fallback PID's, as `hopper-sim run` gives
+        it): the gain axes would only repeat its episodes."""
+        default = Gains()
+        return [
+            (controller, *gains)
+            for controller in self.controller
+            for gains in (
+                itertools.product(self.kp, self.ki, self.kd) if controller == "pid"
+                else [(default.kp, default.ki, default.kd)]
+            )
+        ]  # fmt: skip
 
     @property
     def samples(self) -> int:
@@ -180,10 +195,10 @@ class SweepSpec:
         param_names = [name for name, _ in self.params]
         param_values = list(itertools.product(*(values for _, values in self.params)))
         robots = self.robots()
-        for terrain, seed, (sample, model), gravity, hops, wheel, sensing, disturbance, controller, kp, ki, kd, gait, \
-                params in itertools.product(
+        for terrain, seed, (sample, model), gravity, hops, wheel, sensing, disturbance, (controller, kp, ki, kd), \
+                gait, params in itertools.product(
                     self.terrain, self.seeds, robots, self.gravity, self.hops, self.wheel, self.sensing,
-                    self.disturbance, self.controller, self.kp, self.ki, self.kd, gait_values, param_values,
+                    self.disturbance, self.flown(), gait_values, param_values,
                 ):  # fmt: skip
             yield Episode(
                 kp=kp, ki=ki, kd=kd, gravity=gravity, seed=seed, hops_target=hops, terrain=terrain, wheel=wheel,

@@ -7,6 +7,7 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.compute as pc
 
+from hopper.experiments.spec import GAINS
 from hopper.experiments.store import worst_landing
 
 UNITS = {"kp": "N m/rad", "ki": "N m/(rad s)", "kd": "N m s/rad", "gravity": "m/s^2"}
@@ -18,19 +19,29 @@ def axis_lines(episodes: pa.Table, axes: dict[str, tuple[Any, ...]]) -> list[str
     for name, values in axes.items():
         if len(values) < 2:
             continue
-        column = episodes.column(name)
+        pool = _flying(episodes, name)
+        column = pool.column(name)
         parts = []
         for value in values:
-            rows = episodes.filter(pc.equal(column, pa.scalar(value, type=column.type)))
+            rows = pool.filter(pc.equal(column, pa.scalar(value, type=column.type)))
             if rows.num_rows == 0:
                 continue
             falls = pc.sum(rows.column("fell")).as_py() or 0
             momentum = pc.max(rows.column("momentum_used_pct")).as_py()
             label = _label(value)
             parts.append(f"{label}: {falls}/{rows.num_rows} fell, land {_landing(rows)}, wheel {momentum:.0f} %")
-        unit = f" ({UNITS[name]})" if name in UNITS else ""
-        lines.append(f"{name}{unit}: " + "; ".join(parts))
+        unit = ", ".join(([UNITS[name]] if name in UNITS else []) + (["pid episodes"] if pool is not episodes else []))
+        lines.append(f"{name}{f' ({unit})' if unit else ''}: " + "; ".join(parts))
     return lines
+
+
+def _flying(episodes: pa.Table, name: str) -> pa.Table:
+    """The episodes whose flight law flies the setting `name`: a gain axis only the PID's (the other
+    controllers' episodes hold the default gains, hopper.experiments.spec.SweepSpec.flown)."""
+    if name not in GAINS or "controller" not in episodes.column_names:
+        return episodes
+    pid = pc.equal(episodes.column("controller"), "pid")
+    return episodes if pc.all(pid).as_py() else episodes.filter(pid)
 
 
 def overall_line(episodes: pa.Table) -> str:

@@ -16,6 +16,7 @@ from matplotlib.patches import Rectangle
 
 from hopper.config import GaitParams
 from hopper.disturbances import DISTURBANCE_LIMITS
+from hopper.experiments.spec import GAINS
 from hopper.experiments.store import worst_landing
 from hopper.report import page, style
 from hopper.report.build import Named, Report
@@ -25,7 +26,7 @@ REQUIRED = ("kp", "kd", "gravity", "wheel", "disturbance_size", "hops_target", "
             "worst_landing_deg")  # fmt: skip
 # Setting columns of the contract, summarised per value when a sweep varies them.
 SETTINGS = ("kp", "ki", "kd", "gravity", "seed", "hops_target", "terrain", "wheel", "sensing", "disturbance",
-            "disturbance_size")  # fmt: skip
+            "disturbance_size", "controller")  # fmt: skip
 RESULTS = ("hops_completed", "fell", "worst_landing_deg", "peak_pitch_deg", "rms_pitch_rate_deg_s",
            "momentum_used_pct", "saturation_s", "sim_time_s", "wall_s", "energy_j_per_hop")  # fmt: skip
 
@@ -52,6 +53,17 @@ class Sweep:
         done = self.column("hops_completed") >= self.column("hops_target")
         return done & ~self.column("fell").astype(bool) & (landing <= LANDING_LIMIT_DEG)
 
+    def flying(self, name: str) -> np.ndarray:
+        """Per episode, whether its flight law flies the setting `name`: a gain only the PID's (the other
+        controllers' episodes hold the default gains, hopper.experiments.spec.SweepSpec.flown)."""
+        if name not in GAINS or "controller" not in self.episodes.column_names:
+            return np.ones(self.episodes.num_rows, dtype=bool)
+        return self.column("controller") == "pid"
+
+    def values(self, name: str) -> list:
+        """The values the setting `name` takes in the episodes that fly it (flying)."""
+        return _unique(self.column(name)[self.flying(name)])
+
     def settings(self) -> list[str]:
         """The contract's setting columns present, and any swept gait parameter (named as in GaitParams)."""
         gait = [f.name for f in dataclasses.fields(GaitParams)]
@@ -59,7 +71,7 @@ class Sweep:
 
     def varied(self) -> list[str]:
         """The setting columns that take more than one value."""
-        return [c for c in self.settings() if len(_unique(self.column(c))) > 1]
+        return [c for c in self.settings() if len(self.values(c)) > 1]
 
 
 def _unique(values: np.ndarray) -> list:
@@ -100,8 +112,9 @@ def load(path: Path) -> Sweep:
 
 def gain_map(sweep: Sweep, wheel: bool = True) -> Figure:
     """Kp x Kd coloured by the worst landing error over every episode in the cell (other axes and
-    seeds pooled); falls marked with their count. Grey, "no landing": every episode in the cell fell before landing."""
-    mask = sweep.column("wheel").astype(bool) == wheel
+    seeds pooled); falls marked with their count. Grey, "no landing": every episode in the cell fell before landing.
+    Only the PID's episodes: no other controller flies the gains."""
+    mask = (sweep.column("wheel").astype(bool) == wheel) & sweep.flying("kp")
     kp_all, kd_all = sweep.column("kp")[mask], sweep.column("kd")[mask]
     landing = sweep.landing()[mask]
     fell = sweep.column("fell")[mask].astype(bool)
@@ -203,8 +216,8 @@ def axis_table(sweep: Sweep) -> page.Section:
     rows = []
     for name in sweep.varied():
         values = sweep.column(name)
-        for v in _unique(values):
-            sel = values == v
+        for v in sweep.values(name):
+            sel = sweep.flying(name) & (values == v)
             worst = np.nanmax(landing[sel]) if np.isfinite(landing[sel]).any() else "no landing"
             rows.append([name, v, int(sel.sum()), 100.0 * ok[sel].mean(), int(fell[sel].sum()), worst])
     header = ["setting", "value", "episodes", "success (%)", "falls", "worst landing (deg)"]
@@ -218,16 +231,19 @@ def sweep_report(sweep: Sweep, title: str) -> Report:
     them), the per-value table and the spec."""
     figures, skipped = [], []
     drawn = "sample" in sweep.episodes.column_names  # robots drawn from distributions (hopper.report.montecarlo)
-    one_cell = len(_unique(sweep.column("kp"))) == len(_unique(sweep.column("kd"))) == 1
+    one_cell = len(sweep.values("kp")) == len(sweep.values("kd")) == 1
+    pid = sweep.flying("kp")
     if drawn and one_cell:
         skipped.append("one Kp x Kd cell: no gain map (the Monte Carlo figures show that gain set)")
+    if not pid.any():
+        skipped.append("no episode flies the PID: no Kp x Kd map (no other controller flies the gains)")
     for wheel in (True, False):
-        if (sweep.column("wheel").astype(bool) == wheel).any() and not (drawn and one_cell):
+        if ((sweep.column("wheel").astype(bool) == wheel) & pid).any() and not (drawn and one_cell):
             state = "on" if wheel else "off"
             figures.append(Named(f"gain_map_wheel_{state}", f"Kp x Kd, wheel {state}",
-                                 "Worst landing pitch error over every episode in each cell (other settings pooled); "
-                                 "red crosses and counts: episodes that fell; grey, no landing: every episode in the "
-                                 "cell fell before its first landing. White line on the scale: 3.5 deg.",
+                                 "Worst landing pitch error over every PID episode in each cell (other settings "
+                                 "pooled); red crosses and counts: episodes that fell; grey, no landing: every "
+                                 "episode in the cell fell before its first landing. White line on the scale: 3.5 deg.",
                                  gain_map(sweep, wheel)))  # fmt: skip
     for column, label in (("gravity", "gravity (m/s²)"), ("disturbance_size", "disturbance size")):
         if len(_unique(sweep.column(column))) > 1:
@@ -254,7 +270,7 @@ def sweep_report(sweep: Sweep, title: str) -> Report:
         "source": str(sweep.source),
         "episodes": sweep.episodes.num_rows,
         "hop rows": sweep.hops.num_rows if sweep.hops is not None else "not found",
-        **{f"values.{c}": ", ".join(f"{v:g}" if isinstance(v, float) else str(v) for v in _unique(sweep.column(c)))
+        **{f"values.{c}": ", ".join(f"{v:g}" if isinstance(v, float) else str(v) for v in sweep.values(c))
            for c in sweep.settings()},
     }  # fmt: skip
     fell = int(pc.sum(sweep.episodes.column("fell").cast(pa.int64())).as_py())
