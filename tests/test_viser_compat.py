@@ -273,6 +273,101 @@ def test_an_update_for_one_client_reaches_that_client_only(
     assert slider.disabled is False  # the server's state is untouched
 
 
+# -- sets_disabled, with_disabled, rewrite_shared ---------------------------------------------------
+def shown(probe: ProbeClient, uuid: str) -> dict[str, Any]:
+    """An element's properties as the page shows them: as created, then as last updated."""
+    with probe._lock:
+        return {**probe.gui[uuid]["props"], **probe.gui_updates.get(uuid, {})}
+
+
+def every_input(gui: viser.GuiApi) -> list[Any]:
+    """One GUI input of each kind viser offers."""
+    return [
+        gui.add_slider("slider", 0.0, 1.0, 0.1, 0.5),
+        gui.add_multi_slider("multi", 0.0, 1.0, 0.1, (0.2, 0.8)),
+        gui.add_number("number", 1.0),
+        gui.add_text("text", "t"),
+        gui.add_checkbox("checkbox", False),
+        gui.add_button("button"),
+        gui.add_upload_button("upload"),
+        gui.add_button_group("group", ("A", "B")),
+        gui.add_dropdown("dropdown", ("a", "b")),
+        gui.add_vector2("vector2", (0.0, 0.0)),
+        gui.add_vector3("vector3", (0.0, 0.0, 0.0)),
+        gui.add_rgb("rgb", (1, 2, 3)),
+        gui.add_rgba("rgba", (1, 2, 3, 4)),
+    ]
+
+
+def test_a_rewrite_changes_what_one_client_is_sent_of_the_shared_gui_in_order_and_nothing_shared(
+    server: viser.ViserServer, clients: Clients, probes: list[ProbeClient]
+) -> None:
+    """The roles grey a viewer's controls as they are built: the creation itself arrives greyed
+    (a per-client update sent beside it could arrive first and be lost, update_for_client)."""
+    before = server.gui.add_slider("Before", 0.0, 1.0, 0.1, 0.5)  # replayed through the rewrite too
+    greyed_for: set[int] = set()
+    seen: list[tuple[str, bool]] = []
+
+    def grey(client_id: int, message: Any) -> Any:
+        found = compat.sets_disabled(message)
+        if found is None or client_id not in greyed_for:
+            return message
+        seen.append(found)
+        return compat.with_disabled(message, True)
+
+    compat.rewrite_shared(server, grey)
+    a, client_a = connect(server, clients, probes)
+    b, _ = connect(server, clients, probes)
+    greyed_for.add(client_a.client_id)
+    inputs = every_input(server.gui)
+    note = server.gui.add_markdown("no input")  # nothing to grey: sent as it is
+    ids = [compat.element_id(h) for h in inputs]
+    for probe in (a, b):
+        assert probe.wait_for(lambda p: all(uuid in p.gui for uuid in [*ids, compat.element_id(note)]))
+    assert [shown(a, uuid)["disabled"] for uuid in ids] == [True] * len(ids), "a creation reached a ungreyed"
+    assert [shown(b, uuid)["disabled"] for uuid in ids] == [False] * len(ids)
+    assert sorted(seen) == sorted((uuid, False) for uuid in ids)
+    assert not any(h.disabled for h in inputs), "the server's state changed"
+    assert shown(a, compat.element_id(before))["disabled"] is False  # a replayed it before it was greyed
+
+    # A broadcast `disabled` goes through it too (viser keeps the last of two updates of one property).
+    slider, box = inputs[0], inputs[3]
+    slider.disabled = True
+    slider.disabled = False
+    box.label = "box"  # broadcast after it
+    uid = compat.element_id(slider)
+    for probe in (a, b):
+        assert probe.wait_for(lambda p: shown(p, compat.element_id(box))["label"] == "box")
+    assert shown(a, uid)["disabled"] is True and shown(b, uid)["disabled"] is False
+    assert seen[-1] == (uid, False)
+
+    # A later client replays the shared messages as they were built: the rewrite changed none.
+    c, _ = connect(server, clients, probes)
+    assert c.wait_for(lambda p: all(uuid in p.gui for uuid in ids))
+    assert [shown(c, uuid)["disabled"] for uuid in ids] == [False] * len(ids)
+    # Leaving releases viser's own generator (its cursor), as without the rewrite.
+    a.close()
+    assert clients.wait_left(client_a.client_id)
+    assert wait_until(lambda: compat.broadcast_sent(server, client_a.client_id) == -1, TIMEOUT_S)
+
+
+def test_a_rewrite_that_raises_sends_the_message_unchanged(
+    server: viser.ViserServer, clients: Clients, probes: list[ProbeClient]
+) -> None:
+    def broken(client_id: int, message: Any) -> Any:
+        if compat.sets_disabled(message) is not None:
+            raise RuntimeError("broken rewrite")
+        return message
+
+    compat.rewrite_shared(server, broken)
+    a, _ = connect(server, clients, probes)
+    slider = server.gui.add_slider("Late", 0.0, 1.0, 0.1, 0.5)
+    slider.value = 0.7
+    uuid = compat.element_id(slider)
+    assert a.wait_for(lambda p: p.gui_updates.get(uuid, {}).get("value") == 0.7), "the connection stopped"
+    assert shown(a, uuid)["disabled"] is False and not a.closed
+
+
 # -- run_javascript --------------------------------------------------------------------------------
 # That a page runs the source, and that CHART_INSTANCE_JS finds a chart there, takes a browser:
 # tests/test_charts_e2e.py.

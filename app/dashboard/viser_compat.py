@@ -10,9 +10,11 @@ say, silently letting a viewer's input through the read-only gate.
 from __future__ import annotations
 
 import contextlib
+import copy
 import dataclasses
 import inspect
-from collections.abc import Awaitable, Callable, Iterator
+import logging
+from collections.abc import AsyncIterator, Awaitable, Callable, Iterator, Sequence
 from typing import Any
 
 import viser
@@ -20,6 +22,8 @@ import viser._messages as _messages
 from viser.infra import Message
 
 from hopper.versions import installed_version, require_series
+
+log = logging.getLogger(__name__)
 
 SERIES = "1.1"  # pyproject.toml pins viser>=1.1.1,<1.2; every touch below was read in viser 1.1.1
 
@@ -91,6 +95,33 @@ def update_for_client(client: viser.ClientHandle, uuid: str, updates: dict[str, 
     _send(client, GuiUpdateMessage(uuid, updates))
 
 
+def sets_disabled(message: Message) -> tuple[str, bool] | None:
+    """(element id, disabled) if `message` creates a GUI input or updates a GUI element's `disabled`; else None.
+
+    Private: the GUI's creation messages share a base, `_CreateGuiComponentMessage`, in viser's
+    `_messages`; of their `props`, the inputs' (`GuiBaseProps`) are the ones with `disabled`.
+    """
+    if isinstance(message, _messages._CreateGuiComponentMessage):
+        disabled = getattr(getattr(message, "props", None), "disabled", None)
+        return None if disabled is None else (message.uuid, bool(disabled))
+    if isinstance(message, GuiUpdateMessage) and "disabled" in message.updates:
+        return message.uuid, bool(message.updates["disabled"])
+    return None
+
+
+def with_disabled(message: Message, disabled: bool) -> Message:
+    """A copy of a message that `sets_disabled` names, setting `disabled` instead (the original is untouched:
+    the shared one is replayed to later clients, and a creation's props are its handle's own state).
+    """
+    new = copy.copy(message)
+    if hasattr(new, "updates"):
+        new.updates = {**new.updates, "disabled": disabled}  # type: ignore[attr-defined]
+    else:
+        new.props = copy.copy(new.props)  # type: ignore[attr-defined]
+        new.props.disabled = disabled  # type: ignore[attr-defined]
+    return new
+
+
 # -- code for one page ---------------------------------------------------------------------------
 # The page's uPlot instance of a chart, by the chart's element id (a JavaScript function expression).
 # Private: viser 1.1's client registers every inline chart it creates under
@@ -156,6 +187,53 @@ def gate_incoming(server: viser.ViserServer, allows: Gate) -> None:
             await dispatch(client_id, message)
 
     ws._handle_incoming_message = gated
+
+
+# -- the shared scene as each client gets it ------------------------------------------------------------
+Rewrite = Callable[[int, Message], Message]
+
+
+def rewrite_shared(server: viser.ViserServer, rewrite: Rewrite) -> None:
+    """Send each client `rewrite(client_id, message)` instead of each shared message, as it leaves for it.
+
+    For what one page must see differently of a shared element from the moment it exists (a viewer's
+    controls greyed), in order with everything else shared: a per-client update could overtake the
+    element's creation and be lost (see `broadcast_sent`). `rewrite` runs on viser's event loop, once
+    per message and client, so it must be quick and not wait for locks; it returns the message itself
+    or a new one (never change the shared one: later clients replay it). Should it raise, the client
+    gets the message unchanged. Only connections opened after this call are rewritten.
+
+    Private: viser sends every client the same shared messages and has no per-client hook; each
+    connection reads the broadcast buffer (`_websock_server._broadcast_buffer`) through its own
+    `window_generator(client_id, ...)`, which viser's message producer looks up on the buffer
+    instance as the connection opens; this wraps it.
+    """
+    buffer = server._websock_server._broadcast_buffer
+    make = buffer.window_generator
+    if not callable(make):
+        raise TypeError(f"viser's broadcast buffer has no window generator: {make!r}")
+
+    def window_generator(client_id: int, *args: Any, **kwargs: Any) -> AsyncIterator[Sequence[Message]]:
+        # Made now, not at the first window: viser captures the replay's end here.
+        return _rewritten(make(client_id, *args, **kwargs), client_id, rewrite)
+
+    buffer.window_generator = window_generator
+
+
+async def _rewritten(windows: Any, client_id: int, rewrite: Rewrite) -> AsyncIterator[Sequence[Message]]:
+    try:
+        async for window in windows:
+            yield [_rewrite_one(rewrite, client_id, message) for message in window]
+    finally:  # closed with the connection: viser's own generator releases its cursor then
+        await windows.aclose()
+
+
+def _rewrite_one(rewrite: Rewrite, client_id: int, message: Message) -> Message:
+    try:
+        return rewrite(client_id, message)
+    except Exception:
+        log.exception("rewriting a %s for client %s failed; sent unchanged", type(message).__name__, client_id)
+        return message
 
 
 # -- replay of the shared scene to a new client ----------------------------------------------------
