@@ -173,3 +173,48 @@ def test_an_idle_operator_passes_control_and_an_active_one_keeps_it(start: Start
     assert wait_until(lambda: operator_events(d)[-1].reason == "idle")
     assert operator_events(d)[-1].describe() == f"operator client {second} (127.0.0.1): client {first} was idle"
     assert a.wait_for(lambda p: any("after a time without input" in t for t in titles(p)))
+
+
+def shown(probe: ProbeClient, uuid: str) -> dict[str, object]:
+    """A GUI element's properties as the page shows them: as created, then as last updated for it."""
+    with probe._lock:
+        return {**probe.gui[uuid]["props"], **probe.gui_updates.get(uuid, {})}
+
+
+def test_controls_built_after_a_viewer_came_follow_each_clients_role(start: Start, probes) -> None:
+    """A controller's param sliders are built when the operator picks it: long after the viewer's
+    page was greyed. Each arrives greyed for a viewer and live for the operator, as it is created
+    (never live for a moment), and follows a hand-over like the controls built at start."""
+    d = start()
+    a = join(d, probes)
+    b = join(d, probes)
+    first, second = d.roles.seated
+    panel = d.layout.controller
+
+    def created(name: str) -> str:
+        assert wait_until(lambda: name in panel.sliders), f"the {name} slider was never built"
+        uuid = compat.element_id(panel.sliders[name])
+        assert a.wait_for(lambda p: uuid in p.gui) and b.wait_for(lambda p: uuid in p.gui), "a page missed it"
+        return uuid
+
+    a.set_gui_value("Controller", "lqr")
+    lqr = created("pitch_tol")
+    assert shown(b, lqr)["disabled"] is True, "the viewer got a live slider"
+    assert shown(a, lqr)["disabled"] is False, "the operator got a greyed slider"
+
+    # Handed over: the late slider follows the roles both ways.
+    a.set_gui_value("Hand over", True)
+    assert wait_until(lambda: d.roles.operator == second)
+    assert b.wait_for(lambda p: shown(p, lqr)["disabled"] is False), "the new operator's late slider stayed greyed"
+    assert a.wait_for(lambda p: shown(p, lqr)["disabled"] is True), "the new viewer's late slider stayed live"
+    b.set_gui_value("pitch_tol", 3.0)
+    assert wait_until(lambda: d.sim.law.values["pitch_tol"] == 3.0), "the new operator's param did not apply"
+
+    # The new operator switches: the new sliders come greyed for the first client, live for the second.
+    b.set_gui_value("Controller", "mpc")
+    mpc = created("horizon")
+    assert shown(a, mpc)["disabled"] is True and shown(b, mpc)["disabled"] is False
+    refused = d.roles.refused
+    a.set_gui_value("horizon", 2.0)
+    assert wait_until(lambda: d.roles.refused == refused + 1), "the viewer's param was not refused"
+    assert d.roles.operator == second and first in d.roles.seated

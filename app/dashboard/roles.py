@@ -2,10 +2,12 @@
 
 The authority is on the server: every message a browser sends passes `Roles.allows` before viser
 dispatches it, so a viewer's crafted GUI update is dropped however it was made; the greyed
-controls (viser's `disabled`, sent to that client alone) only say so. The first client to connect
-operates; a viewer may ask for control and the operator hands it over; an operator who leaves or
-sends no input for `idle_timeout_s` passes it to the first who asked, else to the longest
-connected viewer. Every change is an OperatorChanged event (log and recordings).
+controls (viser's `disabled`, for that client alone) only say so, on every control it gets: those
+on its page when its role changes are updated, and one built later for everyone (a controller's
+params) reaches a viewer greyed (`_as_seen_by`). The first client to connect operates; a viewer
+may ask for control and the operator hands it over; an operator who leaves or sends no input for
+`idle_timeout_s` passes it to the first who asked, else to the longest connected viewer. Every
+change is an OperatorChanged event (log and recordings).
 """
 
 from __future__ import annotations
@@ -68,6 +70,9 @@ class Seat:
     may_operate: bool  # False: a --public-view client without the token
     view: ControlView | None = None  # built once the client has the scene
     read_only: bool | None = None  # the greying last sent to this client (None: none yet)
+    # Inputs built live that this client was sent greyed (its greying undoes them by id: viser may
+    # send one before it lists the input among the shared ones)
+    greyed: set[str] = dataclasses.field(default_factory=set)
     last_notice: float = -math.inf  # when it was last told it is read-only (clock s)
 
 
@@ -94,7 +99,9 @@ class Roles:
         self._askers: list[int] = []
         self._last_input = clock()
         self._lock = threading.RLock()
+        self._greying = threading.Lock()  # a seat's read_only and greyed, between _grey and _as_seen_by
         compat.gate_incoming(server, self.allows)  # every message, before viser's server-scope handlers
+        compat.rewrite_shared(server, self._as_seen_by)  # every control built later, greyed as it is sent
         # Async: run on viser's event loop in the order they happen (thread-pool callbacks may not).
         server.on_client_connect(self._connected)
         server.on_client_disconnect(self._disconnected)
@@ -142,6 +149,23 @@ class Roles:
         if seat is not None:
             self._refused(seat, message)
         return False
+
+    # -- what each client is sent of the shared GUI (viser's event loop) ----------------------------
+    def _as_seen_by(self, client_id: int, message: Any) -> Any:
+        """A shared message as this client gets it: a viewer's copy of an input (or of its `disabled`) is
+        greyed, from its creation on; the operator's is as built. Each panel builds its controls once,
+        for everyone, whenever it likes (a controller's sliders as it flies): the role applies here."""
+        found = compat.sets_disabled(message)
+        if found is None or found[1] or found[0] in self.viewer_safe:
+            return message
+        seat = self._seats.get(client_id)  # no self._lock: the event loop must not wait on the roles
+        if seat is None:  # still replaying the scene: greyed as a whole once seated (_after_replay)
+            return message
+        with self._greying:
+            if not seat.read_only:
+                return message
+            seat.greyed.add(found[0])
+        return compat.with_disabled(message, True)
 
     def _targets_shared(self, message: Any) -> bool:
         """Whether viser's server-scope handlers would act on it. viser hands every message to both
@@ -343,12 +367,18 @@ class Roles:
         if seat.read_only == read_only or (seat.read_only is None and not read_only):
             seat.read_only = read_only
             return
-        seat.read_only = read_only
-        for uuid, handle in compat.shared_inputs(self.server).items():
+        with self._greying:  # what _as_seen_by greyed before is in `late`; what it sends after sees the change
+            seat.read_only = read_only
+            late, seat.greyed = seat.greyed, set()
+        inputs = compat.shared_inputs(self.server)
+        for uuid, handle in inputs.items():
             if uuid in self.viewer_safe:
                 continue
             disabled = read_only or bool(getattr(handle, "disabled", False))
             _send(seat.client, uuid, {"disabled": disabled})
+        if not read_only:  # greyed as sent, and not listed yet (or removed since: the page ignores those)
+            for uuid in late - inputs.keys():
+                _send(seat.client, uuid, {"disabled": False})
 
     def _build_view(self, seat: Seat) -> ControlView:
         gui, client_id = seat.client.gui, seat.client.client_id
