@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 from hopper.app import log_cli, report_cli, size_cli, stand_cli, sweep_cli, sysid_cli
 from hopper.app.cli_common import (
+    EXIT_CLOSED_STDOUT,
     EXIT_CONTROLLER,
     EXIT_FELL,
     EXIT_INTERRUPTED,
@@ -32,6 +33,7 @@ from hopper.app.cli_common import (
     fail,
     finite,
     gains_flags,
+    output_closed,
     part_limit,
     rrd_file,
     run_all,
@@ -585,40 +587,52 @@ def check_counts(args: argparse.Namespace) -> None:
             fail(f"--quick flies its own few seeds, so it ignores {given[0]}: drop one of them")
 
 
+def dispatch(argv: list[str] | None) -> int:
+    """Parse the arguments and run the command they name; its exit status."""
+    args = parser().parse_args(argv)
+    if args.command == "terrain":
+        return command_terrain(args)
+    if args.command in ("sweep", "tune"):
+        return sweep_cli.run(args)
+    if args.command in sysid_cli.COMMANDS:
+        return sysid_cli.run(args)
+    if args.command == "report":
+        return report_cli.command_report(args)
+    if args.command == "stand":
+        return stand_cli.command_stand(args)
+    if args.command == "log":
+        return log_cli.run(args)
+    if args.command == "size":
+        return size_cli.run(args)
+    check_counts(args)
+    if args.command == "league":
+        return command_league(args)
+    if args.command == "stress":
+        return command_stress(args)
+    if args.command == "envelope":
+        return command_envelope(args)
+    try:
+        make_config(args, 0, True)  # validate gains and gravity before any work
+        return command_run(args) if args.command == "run" else command_compare(args)
+    except (InvalidConfig, ValueError) as exc:
+        fail(str(exc))
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Exit status: 0 success, 1 the robot fell (run), 2 bad arguments, 130 interrupted."""
+    """Exit status (EXIT_STATUSES): 0 success, 1 the robot fell (run), 2 bad arguments, 3 stopped
+    short, 4 the controller failed, 130 interrupted, 141 the reader of stdout went away."""
     stop_like_ctrl_c()  # SIGTERM unwinds like Ctrl-C, so recordings are closed
     try:
-        args = parser().parse_args(argv)
-        if args.command == "terrain":
-            return command_terrain(args)
-        if args.command in ("sweep", "tune"):
-            return sweep_cli.run(args)
-        if args.command in sysid_cli.COMMANDS:
-            return sysid_cli.run(args)
-        if args.command == "report":
-            return report_cli.command_report(args)
-        if args.command == "stand":
-            return stand_cli.command_stand(args)
-        if args.command == "log":
-            return log_cli.run(args)
-        if args.command == "size":
-            return size_cli.run(args)
-        check_counts(args)
-        if args.command == "league":
-            return command_league(args)
-        if args.command == "stress":
-            return command_stress(args)
-        if args.command == "envelope":
-            return command_envelope(args)
-        try:
-            make_config(args, 0, True)  # validate gains and gravity before any work
-            return command_run(args) if args.command == "run" else command_compare(args)
-        except (InvalidConfig, ValueError) as exc:
-            fail(str(exc))
+        status = dispatch(argv)
+        sys.stdout.flush()  # a closed stdout fails here, not in the interpreter's own flush at exit
+        return status
     except KeyboardInterrupt:
         print("hopper-sim: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except BrokenPipeError:  # `hopper-sim run | head -1`: the reader has what it wanted
+        if not output_closed():
+            raise
+        return EXIT_CLOSED_STDOUT
 
 
 if __name__ == "__main__":

@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from hopper.app.cli_common import (
+    CLOSED_STDOUT_STATUS,
     EXIT_OK,
     add_model_flag,
     check_executor,
@@ -21,7 +22,7 @@ from hopper.app.cli_common import (
 
 SWEEP_EPILOG = (
     "exit status: 0 finished (falls are results), 2 bad spec or arguments, 130 interrupted "
-    "(Ctrl-C or SIGTERM): run the same command again and it skips the finished episodes."
+    f"(Ctrl-C or SIGTERM): run the same command again and it skips the finished episodes; {CLOSED_STDOUT_STATUS}."
 )
 AXIS_FLAGS = {
     "kp": "N m/rad: 450, 300,450,600, or START:STOP:NUM (linspace)",

@@ -195,6 +195,46 @@ def test_help_documents_the_exit_statuses() -> None:
             "it says why), 4 the controller failed mid-run and the PID flew on (run; it says why), 130"
         )
         assert expected in text, text
+        assert "141 the reader of its output went away (e.g. | head): it stops quietly" in text, text
+
+
+def small_pipe() -> tuple[int, int]:
+    """A pipe (read, write) that holds 4 KB (Linux's F_SETPIPE_SZ; skip elsewhere): a command's output
+    of more than that is still being written when the reader closes after its first line."""
+    fcntl = pytest.importorskip("fcntl")
+    if not hasattr(fcntl, "F_SETPIPE_SZ"):
+        pytest.skip("no F_SETPIPE_SZ: the pipe would hold the whole output")
+    read, write = os.pipe()
+    fcntl.fcntl(write, fcntl.F_SETPIPE_SZ, 4096)
+    return read, write
+
+
+@pytest.mark.parametrize("unbuffered", ["", "1"], ids=["buffered", "PYTHONUNBUFFERED"])
+def test_a_reader_that_closes_early_ends_the_command_quietly_with_141(unbuffered: str) -> None:
+    """`hopper-sim run --hops 40 | head -1`: no BrokenPipeError traceback, nor 1 ("the robot fell"),
+    but 141 (128 + SIGPIPE) and nothing on stderr, as a Unix tool a closed pipe ends. Its output
+    (~9 KB) outgrows the pipe, so the run is writing when the reader goes: in the interpreter's last
+    flush when stdout is buffered, in a print when it is not."""
+    read, write = small_pipe()
+    env = {**os.environ, "PYTHONUNBUFFERED": unbuffered}
+    process = subprocess.Popen(
+        [sys.executable, "-m", "hopper.app.sim_cli", "run", "--hops", "40", "--terrain", "flat"],
+        stdout=write,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
+    os.close(write)
+    try:
+        with open(read, "rb", buffering=0) as out:  # unbuffered: readline takes exactly the first line
+            first = out.readline()
+        _, err = process.communicate(timeout=300)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert first.startswith(b"hop    dist m"), first
+    assert process.returncode == 141, (process.returncode, err)
+    assert err == "", err
 
 
 def test_terrain_export_writes_the_png_the_paper_loads(tmp_path) -> None:
