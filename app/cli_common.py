@@ -34,7 +34,12 @@ EXIT_STATUSES = (
 
 
 class Parser(argparse.ArgumentParser):
-    """argparse with errors on one line (no usage dump) and one prefix, subcommands included."""
+    """argparse with errors on one line (no usage dump) and one prefix, subcommands included, and no
+    abbreviated flags: `compare --seed 1` would silently mean `--seeds 1`. Every subcommand is built
+    with this class (add_subparsers' parser_class), so allow_abbrev=False reaches each of them."""
+
+    def __init__(self, *args: object, allow_abbrev: bool = False, **kwargs: object) -> None:
+        super().__init__(*args, allow_abbrev=allow_abbrev, **kwargs)  # type: ignore[arg-type]
 
     def error(self, message: str) -> NoReturn:
         fail(message)

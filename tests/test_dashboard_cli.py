@@ -84,6 +84,7 @@ def dashboard_process(*args: str, cwd: Path = REPO) -> subprocess.Popen[str]:
         (["--rerun-viewer", "sometimes"], "invalid choice"),
         (["--lighting", "dim"], "invalid choice 'dim' (choose from full, no-shadows, simple)"),
         (["--bogus"], "unrecognized arguments: --bogus"),
+        (["--sess", "runs"], "unrecognized arguments: --sess runs"),  # no abbreviation of --sessions-dir
         (["--sessions-dir", "/proc/foo"], "cannot use sessions folder '/proc/foo'"),
         (["--sessions-dir", "README.md/sessions"], "cannot use sessions folder 'README.md/sessions'"),
     ],

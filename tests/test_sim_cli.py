@@ -137,6 +137,11 @@ def test_compare_reports_the_median_reduction(tmp_path) -> None:
         (["stress", "--quick", "--seeds", "5"], "--quick flies its own few seeds, so it ignores --seeds"),
         (["compare", "--executor", "local", "--address", "1.2.3.4:1"], "--address names a Ray cluster, which"),
         (["sweep", "--out", "o", "--executor", "local", "--address", "1.2.3.4:1"], "--executor local does not use"),
+        # No abbreviations: each of these was taken for a longer flag (--seeds, --gravity-seeds).
+        (["compare", "--seed", "1"], "unrecognized arguments: --seed 1"),
+        (["stress", "--gravity", "3"], "unrecognized arguments: --gravity 3"),
+        (["sweep", "--out", "o", "--seed", "1"], "unrecognized arguments: --seed"),
+        (["run", "--sched", "pitch_kick:0.3"], "unrecognized arguments: --sched pitch_kick:0.3"),
     ],
 )
 def test_bad_arguments_fail_in_one_line_before_any_work(tmp_path: Path, args: list[str], message: str) -> None:
@@ -146,6 +151,21 @@ def test_bad_arguments_fail_in_one_line_before_any_work(tmp_path: Path, args: li
     assert result.stderr.startswith("hopper-sim: error: "), result.stderr  # one prefix, subcommands included
     assert "Traceback" not in result.stderr
     assert result.stdout == "" and not any(tmp_path.iterdir()), "work started before the arguments were checked"
+
+
+def test_no_parser_of_hopper_sim_takes_an_abbreviated_flag() -> None:
+    """allow_abbrev=False on the top parser and every subcommand's (add_parser does not inherit it)."""
+    import argparse
+
+    from hopper.app.sim_cli import parser
+
+    def walk(p: argparse.ArgumentParser) -> list[argparse.ArgumentParser]:
+        subs = [a for a in p._actions if isinstance(a, argparse._SubParsersAction)]  # noqa: SLF001
+        return [p] + [q for a in subs for child in a.choices.values() for q in walk(child)]
+
+    parsers = walk(parser())
+    assert len(parsers) > 15 and {p.prog for p in parsers} >= {"hopper-sim compare", "hopper-sim log check"}
+    assert [p.prog for p in parsers if p.allow_abbrev] == []
 
 
 @pytest.mark.parametrize("command", [["sweep", "--out", "out", "--seeds", "1", "--hops", "1"], ["compare"]])

@@ -38,7 +38,11 @@ EXIT_STATUSES = (
 
 
 class Parser(argparse.ArgumentParser):
-    """argparse with errors on one line (no usage dump): `hopper-dashboard: error: ...`."""
+    """argparse with errors on one line (no usage dump): `hopper-dashboard: error: ...`; and no
+    abbreviated flags (`--sess DIR` is refused, not taken for --sessions-dir)."""
+
+    def __init__(self, *args: object, allow_abbrev: bool = False, **kwargs: object) -> None:
+        super().__init__(*args, allow_abbrev=allow_abbrev, **kwargs)  # type: ignore[arg-type]
 
     def error(self, message: str) -> NoReturn:
         fail(message)
