@@ -381,7 +381,7 @@ def command_compare(args: argparse.Namespace) -> int:
     episodes = [
         Episode(kp=g.kp, ki=g.ki, kd=g.kd, gravity=args.gravity, seed=seed, hops_target=args.hops,
                 terrain=args.terrain, wheel=wheel, sensing=args.sensing, gait=changed,
-                controller=flown.controller, params=params, mjcf=flown.model)
+                controller=flown.controller, params=params, mjcf=flown.model, trace=True)
         for seed in range(args.seeds)
         for wheel in (True, False)
     ]  # fmt: skip
@@ -393,6 +393,7 @@ def command_compare(args: argparse.Namespace) -> int:
             "settings": settings(episode.config(), episode.hops_target), "seed": episode.seed,
             "wheel": episode.wheel, "fell": r.fell, "sim_time_s": r.sim_time_s, "wall_time_s": r.wall_s,
             "hops": [hop.as_dict() for hop in r.hops],
+            **({"trace": r.trace} if r.trace is not None else {}),  # as run's: what report draws
         })  # fmt: skip
     rows, reductions = [], []
     print(
