@@ -70,7 +70,13 @@ def add_parser(commands: argparse._SubParsersAction, epilog: str) -> None:
     p.add_argument("--f-min", type=finite, default=None, metavar="HZ", help="default 1 Hz (flight: 5 Hz)")
     p.add_argument("--f-max", type=finite, default=None, metavar="HZ", help="default 400 Hz (flight: 200 Hz)")
     p.add_argument(
-        "--amplitude", type=finite, default=None, help="N m at the input (default 2; flight 3), rad at the reference"
+        "--amplitude",
+        type=finite,
+        default=None,
+        metavar="A",
+        # hopper.analysis.bench's defaults (not imported here: scipy would slow every --help; a test
+        # holds these numbers to them)
+        help="N m at the input (default 2; flight 3), rad at the reference (default 0.0349, 2 deg)",
     )
     p.add_argument(
         "--length",
@@ -118,7 +124,7 @@ def _config(args: argparse.Namespace) -> SimConfig:
 
 
 def _spec(args: argparse.Namespace, config: SimConfig):  # noqa: ANN202 (hopper.analysis.frequency.ChirpSpec)
-    from hopper.analysis.bench import FLIGHT_AMPLITUDE, STAND_AMPLITUDE, flight_window
+    from hopper.analysis.bench import flight_window
     from hopper.analysis.frequency import ChirpSpec, InvalidChirp, NotMeasured
 
     flight = args.flight
@@ -138,7 +144,7 @@ def _spec(args: argparse.Namespace, config: SimConfig):  # noqa: ANN202 (hopper.
             if flight
             else 1.0,
             f_max=args.f_max if args.f_max is not None else 200.0 if flight else 400.0,
-            amplitude=args.amplitude if args.amplitude is not None else FLIGHT_AMPLITUDE if flight else STAND_AMPLITUDE,
+            amplitude=args.amplitude if args.amplitude is not None else default_amplitude(args.at, flight),
             length=length,
             kind=args.chirp or ("linear" if flight else "log"),
             at=args.at,
@@ -146,6 +152,16 @@ def _spec(args: argparse.Namespace, config: SimConfig):  # noqa: ANN202 (hopper.
         )
     except InvalidChirp as exc:
         fail(str(exc))
+
+
+def default_amplitude(at: str, flight: bool) -> float:
+    """The chirp's amplitude without --amplitude: N m at the input (the stand's or the flight's), rad
+    at the reference (hopper.analysis.bench's defaults)."""
+    from hopper.analysis.bench import FLIGHT_AMPLITUDE, REFERENCE_AMPLITUDE, STAND_AMPLITUDE
+
+    if at == "reference":
+        return REFERENCE_AMPLITUDE
+    return FLIGHT_AMPLITUDE if flight else STAND_AMPLITUDE
 
 
 def command_stand(args: argparse.Namespace) -> int:
