@@ -35,6 +35,7 @@ KICK_WATCH_S = 1.0  # s of the response to a kick that is shown
 # About 0.1 s of one core a flight here (400 in 45 s, memory flat): ~2 min, ~3000 s simulated on the
 # Moon. The default 30 already give a coherence of 0.985 at the crossover.
 MAX_FLIGHTS = 1000
+FLIGHTS = 30  # --flights' default
 FIGURE_FORMATS = (".png", ".pdf")  # --bode's
 
 
@@ -52,8 +53,8 @@ def add_parser(commands: argparse._SubParsersAction, epilog: str) -> None:
     p.add_argument(
         "--flights",
         type=int,
-        default=30,
-        help=f"flights a --flight measurement averages (default 30; 1 to {MAX_FLIGHTS})",
+        default=None,  # None: not given (refused without --flight, which alone flies them)
+        help=f"flights a --flight measurement averages (default {FLIGHTS}; 1 to {MAX_FLIGHTS})",
     )
     p.add_argument("--gravity", type=gravity, default=GRAVITY_PRESETS["moon"], help="m/s^2 or a preset (default moon)")
     defaults = Gains()  # the flags' defaults are None, to tell a gain given from one left (gains_flags)
@@ -171,7 +172,10 @@ def command_stand(args: argparse.Namespace) -> int:
         fail("--flight measures the loop in flight: add --measure (kicks and steps are on the stand)")
     if args.bode is not None and not args.measure:
         fail("--bode draws the loop that --measure measures: add --measure")
-    if not 1 <= args.flights <= MAX_FLIGHTS:
+    if args.flights is not None and not args.flight:
+        fail(f"--flights {args.flights} is how many flights --flight averages: add --flight (on the stand one "
+             "chirp is measured)")  # fmt: skip
+    if args.flights is not None and not 1 <= args.flights <= MAX_FLIGHTS:
         fail(f"--flights must be in [1, {MAX_FLIGHTS}], got {args.flights}")
     if not 0.0 <= args.settle <= 60.0:
         fail(f"--settle must be in [0, 60] s, got {args.settle:g}")
@@ -211,7 +215,8 @@ def command_stand(args: argparse.Namespace) -> int:
             document["step"] = result.to_json()
         if spec is not None:
             if args.flight:
-                measurement = bench.measure_flight(config, spec, args.flights, attach)
+                flights = FLIGHTS if args.flights is None else args.flights
+                measurement = bench.measure_flight(config, spec, flights, attach)
             else:
                 measurement = bench.measure_stand(sim, spec)
             print("\n".join(measurement.lines()))

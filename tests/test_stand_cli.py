@@ -127,6 +127,16 @@ def test_flights_beyond_their_bound_are_refused_before_any_flight(flights: str):
     assert done.stderr == f"hopper-sim: error: --flights must be in [1, 1000], got {flights}\n"
 
 
+@pytest.mark.parametrize("action", [["--measure"], ["--kick", "0.5"]])
+def test_flights_without_flight_are_refused_not_ignored(action: list[str]):
+    done = hopper_sim("stand", *action, "--flights", "5")
+    assert done.returncode == 2 and done.stdout == ""  # before the stand is built
+    assert done.stderr == (
+        "hopper-sim: error: --flights 5 is how many flights --flight averages: add --flight (on the stand one "
+        "chirp is measured)\n"
+    )
+
+
 @pytest.mark.parametrize(
     ("flags", "said"),
     [
