@@ -170,6 +170,12 @@ def command_stand(args: argparse.Namespace) -> int:
         fail("stand: say what to do: --measure, --step DEG and/or --kick NMS")
     if args.flight and not args.measure:
         fail("--flight measures the loop in flight: add --measure (kicks and steps are on the stand)")
+    if args.flight and (args.kick is not None or args.step is not None):  # there is no stand to act on
+        fail(f"{'--kick' if args.kick is not None else '--step'} acts on the stand, --flight measures in flight: "
+             "run them one at a time")  # fmt: skip
+    if args.flight and args.at == "reference":
+        fail("--flight measures the loop at the plant input: drop --at reference (a reference chirp is measured "
+             "on the stand)")  # fmt: skip
     if args.bode is not None and not args.measure:
         fail("--bode draws the loop that --measure measures: add --measure")
     if args.flights is not None and not args.flight:

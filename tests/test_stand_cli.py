@@ -127,6 +127,22 @@ def test_flights_beyond_their_bound_are_refused_before_any_flight(flights: str):
     assert done.stderr == f"hopper-sim: error: --flights must be in [1, 1000], got {flights}\n"
 
 
+@pytest.mark.parametrize(
+    ("flags", "said"),
+    [
+        (["--kick", "0.5"], "--kick acts on the stand, --flight measures in flight: run them one at a time"),
+        (["--step", "2"], "--step acts on the stand, --flight measures in flight: run them one at a time"),
+        (["--at", "reference"], "--flight measures the loop at the plant input: drop --at reference"),
+    ],
+)
+def test_what_flight_cannot_do_is_refused_before_any_flight(flags: list[str], said: str):
+    """--kick in flight was an AttributeError traceback after the measurement; --at reference exited 1
+    ("not measured") after the flights' set-up."""
+    done = hopper_sim("stand", "--measure", "--flight", "--flights", "1", *flags)
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr.startswith(f"hopper-sim: error: {said}") and done.stderr.count("\n") == 1, done.stderr
+
+
 @pytest.mark.parametrize("action", [["--measure"], ["--kick", "0.5"]])
 def test_flights_without_flight_are_refused_not_ignored(action: list[str]):
     done = hopper_sim("stand", *action, "--flights", "5")
