@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from hopper.app.cli_common import EXIT_OK, fail, make_writable_folder
+from hopper.app.cli_common import EXIT_OK, fail, made_out
 from hopper.app.episode import sim_config, simulate
 
 from hopper.controllers import ControllerError
@@ -55,15 +55,6 @@ def kind(path: Path) -> str:
     if suffix in (".json", ".rrd", ".parquet"):
         return {".json": "json", ".rrd": "rrd", ".parquet": "sweep"}[suffix]
     raise ValueError(f"{path}: expected a .json, .rrd, .parquet or a sweep directory")
-
-
-def out_folder(path: Path) -> Path:
-    """The output folder, created; ValueError if it cannot be."""
-    try:
-        make_writable_folder(path)
-    except OSError as exc:
-        raise ValueError(f"cannot write to {path}: {exc.strerror or exc}") from None
-    return path
 
 
 def _simulated(settings: dict[str, Any], wheel: bool) -> dict[str, Any]:
@@ -174,20 +165,22 @@ def _sweep_report(path: Path):  # noqa: ANN202
 def command_report(args: argparse.Namespace) -> int:
     try:
         what = kind(args.input)
-        out = out_folder(args.out)
     except ValueError as exc:
         fail(str(exc))
-    from hopper.report.build import write
+    # --out is made and written to now, before the input is read; unmade (if it was made here and is
+    # still empty) when the input is refused: a bad input leaves no empty folder behind.
+    with made_out(args.out):
+        from hopper.report.build import write
 
-    try:
-        if what == "json":
-            report = _json_report(args.input, args)
-        elif what == "rrd":
-            report = _rrd_report(args.input)
-        else:
-            report = _sweep_report(args.input)
-    except (ValueError, KeyError, ControllerError) as exc:
-        fail(str(exc.args[0]) if isinstance(exc, KeyError) and exc.args else str(exc))  # a KeyError's str quotes
-    paths = write(report, out)
-    print(f"{len(paths)} files in {out}: {', '.join(p.name for p in paths)}")
+        try:
+            if what == "json":
+                report = _json_report(args.input, args)
+            elif what == "rrd":
+                report = _rrd_report(args.input)
+            else:
+                report = _sweep_report(args.input)
+        except (ValueError, KeyError, ControllerError) as exc:
+            fail(str(exc.args[0]) if isinstance(exc, KeyError) and exc.args else str(exc))  # a KeyError's str quotes
+        paths = write(report, args.out)
+    print(f"{len(paths)} files in {args.out}: {', '.join(p.name for p in paths)}")
     return EXIT_OK

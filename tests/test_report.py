@@ -335,10 +335,11 @@ def test_a_seed_not_in_the_file_is_refused_before_any_simulation(run_json: Path,
 )
 def test_bad_inputs_fail_in_one_line(tmp_path: Path, capsys, make, message: str) -> None:  # noqa: ANN001
     path = make(tmp_path)
-    code, out, err = cli(capsys, "report", str(path), "--out", str(tmp_path / "out"))
+    code, out, err = cli(capsys, "report", str(path), "--out", str(tmp_path / "out" / "figures"))
     assert code == 2, (out, err)
     assert err.startswith("hopper-sim: error: ") and err.count("\n") == 1, err
     assert message in err and out == ""
+    assert not (tmp_path / "out").exists(), "a refused input left the --out folders it made"
 
 
 def test_bad_input_in_a_real_process_is_one_line_too(tmp_path: Path) -> None:
@@ -363,7 +364,9 @@ def test_a_hops_dataset_or_an_unwritable_out_is_refused(sweep_dir: Path, tmp_pat
     assert code == 2 and "holds a sweep's hops" in err, err
     blocker = _write(tmp_path / "file", "")
     code, _, err = cli(capsys, "report", str(sweep_dir), "--out", str(blocker / "sub"))
-    assert code == 2 and "cannot write to" in err, err
+    assert code == 2 and err == f"hopper-sim: error: --out: {blocker} is not a folder\n", err
+    code, _, err = cli(capsys, "report", str(sweep_dir), "--out", "/proc/report")
+    assert code == 2 and err.startswith("hopper-sim: error: --out: cannot write to /proc/report: "), err
 
 
 def test_the_page_escapes_and_flattens_settings() -> None:
