@@ -25,11 +25,11 @@ EXIT_CLOSED_STDOUT = 141  # 128 + SIGPIPE: what a shell reports for a tool a clo
 # Every command's exit-status text says it in these words (hopper-dashboard's too).
 CLOSED_STDOUT_STATUS = "141 the reader of its output went away (e.g. | head): it stops quietly, as Unix tools do"
 EXIT_STATUSES = (
-    "exit status: 0 success, 1 the robot fell (run) or a case failed (stress), 2 bad arguments (a controller "
-    "that cannot fly included), 3 the run stopped short of the hops asked without a fall (run; it says why), "
-    "4 the controller failed mid-run and the PID flew on (run; it says why), 130 interrupted "
-    f"(Ctrl-C or SIGTERM), {CLOSED_STDOUT_STATUS}. compare exits 0 once it has finished: with the wheel off "
-    "the robot is expected to fall."
+    "exit status: 0 success, 1 the robot fell (run), a case failed (stress) or a kick under the physical limit "
+    "fell (envelope), 2 bad arguments (a controller that cannot fly included), 3 the run stopped short of the "
+    "hops asked without a fall (run; it says why), 4 the controller failed mid-run and the PID flew on (run; it "
+    f"says why), 130 interrupted (Ctrl-C or SIGTERM), {CLOSED_STDOUT_STATUS}. compare exits 0 once it has "
+    "finished: with the wheel off the robot is expected to fall."
 )
 
 
@@ -355,7 +355,12 @@ def add_run_flags(p: argparse.ArgumentParser) -> None:
     """The flags of one simulated robot (terrain, gravity, gains, sensing, gait), as run and compare take them."""
     defaults = Gains()  # the flags' defaults are None, to tell a gain given from one left (gains_flags)
     p.add_argument("--hops", type=int, default=7, help="hops to complete (default 7)")
-    p.add_argument("--terrain", choices=("crater", "flat"), default="crater")
+    p.add_argument(
+        "--terrain",
+        choices=("crater", "flat"),
+        default="crater",
+        help="the crater field or flat ground (default crater)",
+    )
     p.add_argument(
         "--gravity",
         type=gravity,

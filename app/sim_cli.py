@@ -114,7 +114,9 @@ def parser() -> Parser:
     add_run_flags(compare)
     compare.add_argument("--seeds", type=int, default=10, help="number of seeds (default 10)")
     compare.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
-    compare.add_argument("--executor", choices=("auto", "local", "ray"), default="auto", help="as for sweep")
+    compare.add_argument(
+        "--executor", choices=("auto", "local", "ray"), default="auto", help="as for sweep (default auto)"
+    )
     compare.add_argument("--address", help="a Ray cluster's address (as for sweep)")
 
     stress = commands.add_parser(
@@ -124,7 +126,9 @@ def parser() -> Parser:
     )
     stress.add_argument("--seeds", type=int, help="Moon terrain seeds, 20 hops each (default 100)")
     stress.add_argument("--gravity-seeds", type=int, help="seeds per gravity, 10 hops each (default 5)")
-    stress.add_argument("--groups", type=groups, default=STRESS_GROUPS, help="any of terrain,gravity,ground,flight")
+    stress.add_argument(
+        "--groups", type=groups, default=STRESS_GROUPS, help="any of terrain,gravity,ground,flight (default all four)"
+    )
     stress.add_argument("--quick", action="store_true", help="a few cases of each group (what the tests run)")
     stress.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
     stress.add_argument("--json", type=writable_file, metavar="PATH", help="write every case's outcome as JSON")
@@ -144,7 +148,9 @@ def parser() -> Parser:
     )
     league.add_argument("--quick", action="store_true", help="a few episodes of each group (what the tests run)")
     league.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
-    league.add_argument("--executor", choices=("auto", "local", "ray"), default="auto", help="as for sweep")
+    league.add_argument(
+        "--executor", choices=("auto", "local", "ray"), default="auto", help="as for sweep (default auto)"
+    )
     league.add_argument("--address", help="a Ray cluster's address (as for sweep)")
     league.add_argument("--json", type=writable_file, metavar="PATH", help="write the table and every episode as JSON")
     add_model_flag(league)

@@ -87,7 +87,12 @@ def add_parser(commands: argparse._SubParsersAction, epilog: str) -> None:
         help="s (default 20; flight: what fits after the apex, ~0.4 s on the Moon)",
     )
     p.add_argument("--steps", type=int, default=24, help="stepped sines: how many frequencies (default 24)")
-    p.add_argument("--at", choices=("input", "reference"), default="input", help="where the chirp is injected")
+    p.add_argument(
+        "--at",
+        choices=("input", "reference"),
+        default="input",
+        help="where the chirp is injected: the wheel torque or the pitch reference (default input)",
+    )
     p.add_argument(
         "--settle", type=finite, default=0.5, metavar="S", help="s on the stand before anything (default 0.5)"
     )

@@ -153,6 +153,35 @@ def test_bad_arguments_fail_in_one_line_before_any_work(tmp_path: Path, args: li
     assert result.stdout == "" and not any(tmp_path.iterdir()), "work started before the arguments were checked"
 
 
+def test_every_flag_with_a_default_says_it_and_every_command_its_exit_statuses() -> None:
+    """`run --terrain` showed no default (crater); capture, replay and identify had no exit statuses."""
+    import argparse
+
+    from hopper.app.sim_cli import parser
+
+    def walk(p: argparse.ArgumentParser) -> list[argparse.ArgumentParser]:
+        subs = [a for a in p._actions if isinstance(a, argparse._SubParsersAction)]  # noqa: SLF001
+        return [p] + [q for a in subs for child in a.choices.values() for q in walk(child)]
+
+    silent = [
+        f"{p.prog} {a.option_strings[0]}"
+        for p in walk(parser())
+        for a in p._actions  # noqa: SLF001
+        if a.option_strings and a.default not in (None, False, [], argparse.SUPPRESS) and "default" not in a.help
+    ]
+    assert silent == []
+    commands = [p for p in walk(parser()) if not any(isinstance(a, argparse._SubParsersAction) for a in p._actions)]  # noqa: SLF001
+    assert [p.prog for p in commands if not (p.epilog or "").startswith("exit status: ")] == []
+
+
+def test_tune_promises_no_resume_it_never_does() -> None:
+    """tune keeps no folder (sweep's exit-status text, copied, said the same command skips the finished)."""
+    tune, sweep = (" ".join(hopper_sim(c, "--help").stdout.split()) for c in ("tune", "sweep"))
+    assert "skips the finished episodes" not in tune and "skips the finished episodes" in sweep
+    promise = "130 interrupted (Ctrl-C or SIGTERM): nothing is kept and no --json written, the same command starts"
+    assert f"{promise} the search over" in tune, tune
+
+
 def test_no_parser_of_hopper_sim_takes_an_abbreviated_flag() -> None:
     """allow_abbrev=False on the top parser and every subcommand's (add_parser does not inherit it)."""
     import argparse
@@ -205,14 +234,15 @@ def test_a_small_job_says_why_it_runs_in_process_instead_of_on_the_workers_asked
 
 
 def test_help_documents_the_exit_statuses() -> None:
-    for command in ([], ["run"], ["compare"], ["stress"]):
+    for command in ([], ["run"], ["compare"], ["stress"], ["envelope"]):
         result = hopper_sim(*command, "--help")
         assert result.returncode == 0, result.stderr
         text = " ".join(result.stdout.split())
         expected = (
-            "exit status: 0 success, 1 the robot fell (run) or a case failed (stress), 2 bad arguments (a "
-            "controller that cannot fly included), 3 the run stopped short of the hops asked without a fall (run; "
-            "it says why), 4 the controller failed mid-run and the PID flew on (run; it says why), 130"
+            "exit status: 0 success, 1 the robot fell (run), a case failed (stress) or a kick under the physical "
+            "limit fell (envelope), 2 bad arguments (a controller that cannot fly included), 3 the run stopped "
+            "short of the hops asked without a fall (run; it says why), 4 the controller failed mid-run and the "
+            "PID flew on (run; it says why), 130"
         )
         assert expected in text, text
         assert "141 the reader of its output went away (e.g. | head): it stops quietly" in text, text
