@@ -9,6 +9,8 @@ from __future__ import annotations
 import argparse
 import contextlib
 import math
+import os
+import select
 import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -19,17 +21,25 @@ from hopper.scenarios import SCENARIOS
 from hopper.schedule import KickSchedule, parse
 
 EXIT_OK, EXIT_FELL, EXIT_USAGE, EXIT_SHORT, EXIT_CONTROLLER, EXIT_INTERRUPTED = 0, 1, 2, 3, 4, 130
+EXIT_CLOSED_STDOUT = 141  # 128 + SIGPIPE: what a shell reports for a tool a closed pipe ended
+# Every command's exit-status text says it in these words (hopper-dashboard's too).
+CLOSED_STDOUT_STATUS = "141 the reader of its output went away (e.g. | head): it stops quietly, as Unix tools do"
 EXIT_STATUSES = (
-    "exit status: 0 success, 1 the robot fell (run) or a case failed (stress), 2 bad arguments (a controller "
-    "that cannot fly included), 3 the run stopped short of the hops asked without a fall (run; it says why), "
-    "4 the controller failed mid-run and the PID flew on (run; it says why), 130 interrupted "
-    "(Ctrl-C or SIGTERM). compare exits 0 once it has finished: with the wheel off the "
-    "robot is expected to fall."
+    "exit status: 0 success, 1 the robot fell (run), a case failed (stress) or a kick under the physical limit "
+    "fell (envelope), 2 bad arguments (a controller that cannot fly included), 3 the run stopped short of the "
+    "hops asked without a fall (run; it says why), 4 the controller failed mid-run and the PID flew on (run; it "
+    f"says why), 130 interrupted (Ctrl-C or SIGTERM), {CLOSED_STDOUT_STATUS}. compare exits 0 once it has "
+    "finished: with the wheel off the robot is expected to fall."
 )
 
 
 class Parser(argparse.ArgumentParser):
-    """argparse with errors on one line (no usage dump) and one prefix, subcommands included."""
+    """argparse with errors on one line (no usage dump) and one prefix, subcommands included, and no
+    abbreviated flags: `compare --seed 1` would silently mean `--seeds 1`. Every subcommand is built
+    with this class (add_subparsers' parser_class), so allow_abbrev=False reaches each of them."""
+
+    def __init__(self, *args: object, allow_abbrev: bool = False, **kwargs: object) -> None:
+        super().__init__(*args, allow_abbrev=allow_abbrev, **kwargs)  # type: ignore[arg-type]
 
     def error(self, message: str) -> NoReturn:
         fail(message)
@@ -38,6 +48,43 @@ class Parser(argparse.ArgumentParser):
 def fail(message: str) -> NoReturn:
     print(f"hopper-sim: error: {message}", file=sys.stderr)
     raise SystemExit(EXIT_USAGE)
+
+
+def output_closed() -> bool:
+    """Called on a BrokenPipeError: True if the reader of stdout (or stderr) went away, as in
+    `hopper-sim run | head -1` (or `2>&1 | head -1`).
+
+    The streams it went from then point at /dev/null, so that the interpreter's final flush of what
+    is still buffered raises no second time (Python's signal docs, "Note on SIGPIPE"); the caller
+    exits EXIT_CLOSED_STDOUT without a traceback. False for any other pipe or socket (a tcp://
+    controller's, a worker's): that error is a fault to show, not a reader gone.
+    """
+    gone = [stream for stream in (sys.stdout, sys.stderr) if _reader_gone(stream)]
+    if not gone:
+        return False
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    for stream in gone:
+        os.dup2(devnull, stream.fileno())
+    os.close(devnull)
+    return True
+
+
+def _reader_gone(stream: object) -> bool:
+    """The pipe or socket `stream` writes to has no reader left: its buffered bytes cannot be
+    flushed (EPIPE), or, with nothing buffered, the kernel reports an error on it (poll's POLLERR,
+    which Linux and the BSDs set on a pipe without readers)."""
+    try:
+        stream.flush()  # type: ignore[attr-defined]
+    except BrokenPipeError:
+        return True
+    except (OSError, ValueError, AttributeError):  # closed, or no stream at all
+        return False
+    try:
+        poller = select.poll()
+        poller.register(stream.fileno(), select.POLLOUT)  # type: ignore[attr-defined]
+        return any(event & select.POLLERR for _, event in poller.poll(0))
+    except (OSError, ValueError, AttributeError):  # no file descriptor (a test's captured stream), no poll
+        return False
 
 
 def writable_file(text: str) -> Path:
@@ -308,7 +355,12 @@ def add_run_flags(p: argparse.ArgumentParser) -> None:
     """The flags of one simulated robot (terrain, gravity, gains, sensing, gait), as run and compare take them."""
     defaults = Gains()  # the flags' defaults are None, to tell a gain given from one left (gains_flags)
     p.add_argument("--hops", type=int, default=7, help="hops to complete (default 7)")
-    p.add_argument("--terrain", choices=("crater", "flat"), default="crater")
+    p.add_argument(
+        "--terrain",
+        choices=("crater", "flat"),
+        default="crater",
+        help="the crater field or flat ground (default crater)",
+    )
     p.add_argument(
         "--gravity",
         type=gravity,

@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from hopper.app.cli_common import EXIT_OK, fail, make_writable_folder
+from hopper.app.cli_common import EXIT_OK, fail, made_out
 from hopper.app.episode import sim_config, simulate
 
 from hopper.controllers import ControllerError
@@ -39,7 +39,7 @@ def add_parser(commands: argparse._SubParsersAction, epilog: str) -> None:
     report.add_argument(
         "--no-simulate",
         action="store_true",
-        help="run JSON: do not simulate the wheel-off twin (nor re-simulate a JSON without a trace)",
+        help="simulate nothing: not a run JSON's wheel-off twin, nor the runs of an older JSON without a trace",
     )
 
 
@@ -57,15 +57,6 @@ def kind(path: Path) -> str:
     raise ValueError(f"{path}: expected a .json, .rrd, .parquet or a sweep directory")
 
 
-def out_folder(path: Path) -> Path:
-    """The output folder, created; ValueError if it cannot be."""
-    try:
-        make_writable_folder(path)
-    except OSError as exc:
-        raise ValueError(f"cannot write to {path}: {exc.strerror or exc}") from None
-    return path
-
-
 def _simulated(settings: dict[str, Any], wheel: bool) -> dict[str, Any]:
     """The run `settings` describe, with the wheel on or off, simulated again (deterministic)."""
     config = dataclasses.replace(sim_config(settings), wheel=wheel)
@@ -81,6 +72,17 @@ def _flown_by(settings: dict[str, Any], spec: str) -> dict[str, Any]:
     config = with_controller(sim_config(settings), spec)
     Simulation(config)  # the pre-run check, before any figure
     return {"controller": config.controller, "controller_params": list(config.controller_params)}
+
+
+def _check_seed(seed: int, results: list[dict[str, Any]], twin: bool, path: Path) -> None:
+    """--seed names a wheel-on run of the file (`twin`: a run JSON's wheel-off twin, simulated with the
+    wheel on, counts too); ValueError, one line with the seeds there are, otherwise."""
+    on = {r["settings"].get("seed") for r in results if bool(r.get("wheel", r["settings"].get("wheel", True)))}
+    if twin:
+        on |= {r["settings"].get("seed") for r in results}
+    if seed not in on:
+        there = ", ".join(str(s) for s in sorted(on, key=str)) or "none"
+        raise ValueError(f"--seed {seed}: no wheel-on run of that seed in {path} (its wheel-on seeds: {there})")
 
 
 def _json_report(path: Path, args: argparse.Namespace):  # noqa: ANN202 (hopper.report.build.Report)
@@ -101,8 +103,6 @@ def _json_report(path: Path, args: argparse.Namespace):  # noqa: ANN202 (hopper.
     except (OSError, ValueError) as exc:
         raise ValueError(f"{path}: {exc}") from None
     results = document["runs"] if what == "compare" else [document]
-    source = f"{what} JSON"
-    runs = []
     for result in results:
         try:  # a hand-edited result: one line naming what is wrong, before any simulation
             if not isinstance(result, dict) or not isinstance(result.get("settings"), dict):
@@ -110,14 +110,23 @@ def _json_report(path: Path, args: argparse.Namespace):  # noqa: ANN202 (hopper.
             hop_dicts(result.get("hops"))
         except ValueError as exc:
             raise ValueError(f"{path}: {exc}") from None
+    if args.seed is not None:  # checked against the file, before any run is simulated
+        _check_seed(args.seed, results, twin=what == "run" and not args.no_simulate, path=path)
+    source = f"{what} JSON"
+    runs = []
+    for number, result in enumerate(results, 1):
         # The same flights by another controller (getattr: a Namespace may be built without the flag).
         if getattr(args, "controller", None):
             settings = {**result["settings"], **_flown_by(result["settings"], args.controller)}
             result = _simulated(settings, bool(settings["wheel"]))
             source = f"{what} JSON, re-flown by {args.controller}"
-        elif "trace" not in result:  # written before runs carried a trace: the run is deterministic
+        elif result.get("trace") is None:  # written before runs (or compare's runs) carried a trace
             if args.no_simulate:
-                raise ValueError(f"{path}: no trace in the result (written by an older hopper-sim); drop --no-simulate")
+                which = f"run {number} of {len(results)} in {path}" if what == "compare" else f"{path}"
+                raise ValueError(
+                    f"{which} holds no trace (an older hopper-sim's {what} JSON has none): drop --no-simulate "
+                    "to simulate it again for one"
+                )
             result = _simulated(result["settings"], bool(result["settings"]["wheel"]))
             source = f"{what} JSON, re-simulated for its trace"
         runs.append(run_from_result(result, source))
@@ -126,11 +135,8 @@ def _json_report(path: Path, args: argparse.Namespace):  # noqa: ANN202 (hopper.
     if what == "run" and not args.no_simulate:  # the paper's comparison needs the other wheel state
         twin = run_from_result(_simulated(runs[0].settings, not runs[0].wheel), "re-simulated")
         (off if runs[0].wheel else on).append(twin)
-    if args.seed is not None:
-        chosen = [r for r in on if r.seed == args.seed]
-        if not chosen:
-            raise ValueError(f"--seed {args.seed}: no wheel-on run of that seed in {path}")
-        on = chosen + [r for r in on if r.seed != args.seed]
+    if args.seed is not None:  # its run first (_check_seed made sure there is one)
+        on = [r for r in on if r.seed == args.seed] + [r for r in on if r.seed != args.seed]
     title = f"Hopper run report: {path.name}"
     seeds = sorted({r.seed for r in runs})
     subtitle = f"{source}: {len(on)} run(s) with the wheel on, {len(off)} with it off; seeds {seeds}"
@@ -159,20 +165,22 @@ def _sweep_report(path: Path):  # noqa: ANN202
 def command_report(args: argparse.Namespace) -> int:
     try:
         what = kind(args.input)
-        out = out_folder(args.out)
     except ValueError as exc:
         fail(str(exc))
-    from hopper.report.build import write
+    # --out is made and written to now, before the input is read; unmade (if it was made here and is
+    # still empty) when the input is refused: a bad input leaves no empty folder behind.
+    with made_out(args.out):
+        from hopper.report.build import write
 
-    try:
-        if what == "json":
-            report = _json_report(args.input, args)
-        elif what == "rrd":
-            report = _rrd_report(args.input)
-        else:
-            report = _sweep_report(args.input)
-    except (ValueError, KeyError, ControllerError) as exc:
-        fail(str(exc.args[0]) if isinstance(exc, KeyError) and exc.args else str(exc))  # a KeyError's str quotes
-    paths = write(report, out)
-    print(f"{len(paths)} files in {out}: {', '.join(p.name for p in paths)}")
+        try:
+            if what == "json":
+                report = _json_report(args.input, args)
+            elif what == "rrd":
+                report = _rrd_report(args.input)
+            else:
+                report = _sweep_report(args.input)
+        except (ValueError, KeyError, ControllerError) as exc:
+            fail(str(exc.args[0]) if isinstance(exc, KeyError) and exc.args else str(exc))  # a KeyError's str quotes
+        paths = write(report, args.out)
+    print(f"{len(paths)} files in {args.out}: {', '.join(p.name for p in paths)}")
     return EXIT_OK

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 from hopper.app import log_cli, report_cli, size_cli, stand_cli, sweep_cli, sysid_cli
 from hopper.app.cli_common import (
+    EXIT_CLOSED_STDOUT,
     EXIT_CONTROLLER,
     EXIT_FELL,
     EXIT_INTERRUPTED,
@@ -32,6 +33,7 @@ from hopper.app.cli_common import (
     fail,
     finite,
     gains_flags,
+    output_closed,
     part_limit,
     rrd_file,
     run_all,
@@ -112,7 +114,9 @@ def parser() -> Parser:
     add_run_flags(compare)
     compare.add_argument("--seeds", type=int, default=10, help="number of seeds (default 10)")
     compare.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
-    compare.add_argument("--executor", choices=("auto", "local", "ray"), default="auto", help="as for sweep")
+    compare.add_argument(
+        "--executor", choices=("auto", "local", "ray"), default="auto", help="as for sweep (default auto)"
+    )
     compare.add_argument("--address", help="a Ray cluster's address (as for sweep)")
 
     stress = commands.add_parser(
@@ -122,7 +126,9 @@ def parser() -> Parser:
     )
     stress.add_argument("--seeds", type=int, help="Moon terrain seeds, 20 hops each (default 100)")
     stress.add_argument("--gravity-seeds", type=int, help="seeds per gravity, 10 hops each (default 5)")
-    stress.add_argument("--groups", type=groups, default=STRESS_GROUPS, help="any of terrain,gravity,ground,flight")
+    stress.add_argument(
+        "--groups", type=groups, default=STRESS_GROUPS, help="any of terrain,gravity,ground,flight (default all four)"
+    )
     stress.add_argument("--quick", action="store_true", help="a few cases of each group (what the tests run)")
     stress.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
     stress.add_argument("--json", type=writable_file, metavar="PATH", help="write every case's outcome as JSON")
@@ -142,7 +148,9 @@ def parser() -> Parser:
     )
     league.add_argument("--quick", action="store_true", help="a few episodes of each group (what the tests run)")
     league.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
-    league.add_argument("--executor", choices=("auto", "local", "ray"), default="auto", help="as for sweep")
+    league.add_argument(
+        "--executor", choices=("auto", "local", "ray"), default="auto", help="as for sweep (default auto)"
+    )
     league.add_argument("--address", help="a Ray cluster's address (as for sweep)")
     league.add_argument("--json", type=writable_file, metavar="PATH", help="write the table and every episode as JSON")
     add_model_flag(league)
@@ -379,7 +387,7 @@ def command_compare(args: argparse.Namespace) -> int:
     episodes = [
         Episode(kp=g.kp, ki=g.ki, kd=g.kd, gravity=args.gravity, seed=seed, hops_target=args.hops,
                 terrain=args.terrain, wheel=wheel, sensing=args.sensing, gait=changed,
-                controller=flown.controller, params=params, mjcf=flown.model)
+                controller=flown.controller, params=params, mjcf=flown.model, trace=True)
         for seed in range(args.seeds)
         for wheel in (True, False)
     ]  # fmt: skip
@@ -391,6 +399,7 @@ def command_compare(args: argparse.Namespace) -> int:
             "settings": settings(episode.config(), episode.hops_target), "seed": episode.seed,
             "wheel": episode.wheel, "fell": r.fell, "sim_time_s": r.sim_time_s, "wall_time_s": r.wall_s,
             "hops": [hop.as_dict() for hop in r.hops],
+            **({"trace": r.trace} if r.trace is not None else {}),  # as run's: what report draws
         })  # fmt: skip
     rows, reductions = [], []
     print(
@@ -585,40 +594,52 @@ def check_counts(args: argparse.Namespace) -> None:
             fail(f"--quick flies its own few seeds, so it ignores {given[0]}: drop one of them")
 
 
+def dispatch(argv: list[str] | None) -> int:
+    """Parse the arguments and run the command they name; its exit status."""
+    args = parser().parse_args(argv)
+    if args.command == "terrain":
+        return command_terrain(args)
+    if args.command in ("sweep", "tune"):
+        return sweep_cli.run(args)
+    if args.command in sysid_cli.COMMANDS:
+        return sysid_cli.run(args)
+    if args.command == "report":
+        return report_cli.command_report(args)
+    if args.command == "stand":
+        return stand_cli.command_stand(args)
+    if args.command == "log":
+        return log_cli.run(args)
+    if args.command == "size":
+        return size_cli.run(args)
+    check_counts(args)
+    if args.command == "league":
+        return command_league(args)
+    if args.command == "stress":
+        return command_stress(args)
+    if args.command == "envelope":
+        return command_envelope(args)
+    try:
+        make_config(args, 0, True)  # validate gains and gravity before any work
+        return command_run(args) if args.command == "run" else command_compare(args)
+    except (InvalidConfig, ValueError) as exc:
+        fail(str(exc))
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Exit status: 0 success, 1 the robot fell (run), 2 bad arguments, 130 interrupted."""
+    """Exit status (EXIT_STATUSES): 0 success, 1 the robot fell (run), 2 bad arguments, 3 stopped
+    short, 4 the controller failed, 130 interrupted, 141 the reader of stdout went away."""
     stop_like_ctrl_c()  # SIGTERM unwinds like Ctrl-C, so recordings are closed
     try:
-        args = parser().parse_args(argv)
-        if args.command == "terrain":
-            return command_terrain(args)
-        if args.command in ("sweep", "tune"):
-            return sweep_cli.run(args)
-        if args.command in sysid_cli.COMMANDS:
-            return sysid_cli.run(args)
-        if args.command == "report":
-            return report_cli.command_report(args)
-        if args.command == "stand":
-            return stand_cli.command_stand(args)
-        if args.command == "log":
-            return log_cli.run(args)
-        if args.command == "size":
-            return size_cli.run(args)
-        check_counts(args)
-        if args.command == "league":
-            return command_league(args)
-        if args.command == "stress":
-            return command_stress(args)
-        if args.command == "envelope":
-            return command_envelope(args)
-        try:
-            make_config(args, 0, True)  # validate gains and gravity before any work
-            return command_run(args) if args.command == "run" else command_compare(args)
-        except (InvalidConfig, ValueError) as exc:
-            fail(str(exc))
+        status = dispatch(argv)
+        sys.stdout.flush()  # a closed stdout fails here, not in the interpreter's own flush at exit
+        return status
     except KeyboardInterrupt:
         print("hopper-sim: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except BrokenPipeError:  # `hopper-sim run | head -1`: the reader has what it wanted
+        if not output_closed():
+            raise
+        return EXIT_CLOSED_STDOUT
 
 
 if __name__ == "__main__":

@@ -35,6 +35,7 @@ KICK_WATCH_S = 1.0  # s of the response to a kick that is shown
 # About 0.1 s of one core a flight here (400 in 45 s, memory flat): ~2 min, ~3000 s simulated on the
 # Moon. The default 30 already give a coherence of 0.985 at the crossover.
 MAX_FLIGHTS = 1000
+FLIGHTS = 30  # --flights' default
 FIGURE_FORMATS = (".png", ".pdf")  # --bode's
 
 
@@ -52,8 +53,8 @@ def add_parser(commands: argparse._SubParsersAction, epilog: str) -> None:
     p.add_argument(
         "--flights",
         type=int,
-        default=30,
-        help=f"flights a --flight measurement averages (default 30; 1 to {MAX_FLIGHTS})",
+        default=None,  # None: not given (refused without --flight, which alone flies them)
+        help=f"flights a --flight measurement averages (default {FLIGHTS}; 1 to {MAX_FLIGHTS})",
     )
     p.add_argument("--gravity", type=gravity, default=GRAVITY_PRESETS["moon"], help="m/s^2 or a preset (default moon)")
     defaults = Gains()  # the flags' defaults are None, to tell a gain given from one left (gains_flags)
@@ -70,7 +71,13 @@ def add_parser(commands: argparse._SubParsersAction, epilog: str) -> None:
     p.add_argument("--f-min", type=finite, default=None, metavar="HZ", help="default 1 Hz (flight: 5 Hz)")
     p.add_argument("--f-max", type=finite, default=None, metavar="HZ", help="default 400 Hz (flight: 200 Hz)")
     p.add_argument(
-        "--amplitude", type=finite, default=None, help="N m at the input (default 2; flight 3), rad at the reference"
+        "--amplitude",
+        type=finite,
+        default=None,
+        metavar="A",
+        # hopper.analysis.bench's defaults (not imported here: scipy would slow every --help; a test
+        # holds these numbers to them)
+        help="N m at the input (default 2; flight 3), rad at the reference (default 0.0349, 2 deg)",
     )
     p.add_argument(
         "--length",
@@ -80,7 +87,12 @@ def add_parser(commands: argparse._SubParsersAction, epilog: str) -> None:
         help="s (default 20; flight: what fits after the apex, ~0.4 s on the Moon)",
     )
     p.add_argument("--steps", type=int, default=24, help="stepped sines: how many frequencies (default 24)")
-    p.add_argument("--at", choices=("input", "reference"), default="input", help="where the chirp is injected")
+    p.add_argument(
+        "--at",
+        choices=("input", "reference"),
+        default="input",
+        help="where the chirp is injected: the wheel torque or the pitch reference (default input)",
+    )
     p.add_argument(
         "--settle", type=finite, default=0.5, metavar="S", help="s on the stand before anything (default 0.5)"
     )
@@ -118,7 +130,7 @@ def _config(args: argparse.Namespace) -> SimConfig:
 
 
 def _spec(args: argparse.Namespace, config: SimConfig):  # noqa: ANN202 (hopper.analysis.frequency.ChirpSpec)
-    from hopper.analysis.bench import FLIGHT_AMPLITUDE, STAND_AMPLITUDE, flight_window
+    from hopper.analysis.bench import flight_window
     from hopper.analysis.frequency import ChirpSpec, InvalidChirp, NotMeasured
 
     flight = args.flight
@@ -138,7 +150,7 @@ def _spec(args: argparse.Namespace, config: SimConfig):  # noqa: ANN202 (hopper.
             if flight
             else 1.0,
             f_max=args.f_max if args.f_max is not None else 200.0 if flight else 400.0,
-            amplitude=args.amplitude if args.amplitude is not None else FLIGHT_AMPLITUDE if flight else STAND_AMPLITUDE,
+            amplitude=args.amplitude if args.amplitude is not None else default_amplitude(args.at, flight),
             length=length,
             kind=args.chirp or ("linear" if flight else "log"),
             at=args.at,
@@ -148,14 +160,33 @@ def _spec(args: argparse.Namespace, config: SimConfig):  # noqa: ANN202 (hopper.
         fail(str(exc))
 
 
+def default_amplitude(at: str, flight: bool) -> float:
+    """The chirp's amplitude without --amplitude: N m at the input (the stand's or the flight's), rad
+    at the reference (hopper.analysis.bench's defaults)."""
+    from hopper.analysis.bench import FLIGHT_AMPLITUDE, REFERENCE_AMPLITUDE, STAND_AMPLITUDE
+
+    if at == "reference":
+        return REFERENCE_AMPLITUDE
+    return FLIGHT_AMPLITUDE if flight else STAND_AMPLITUDE
+
+
 def command_stand(args: argparse.Namespace) -> int:
     if not (args.measure or args.step is not None or args.kick is not None):
         fail("stand: say what to do: --measure, --step DEG and/or --kick NMS")
     if args.flight and not args.measure:
         fail("--flight measures the loop in flight: add --measure (kicks and steps are on the stand)")
+    if args.flight and (args.kick is not None or args.step is not None):  # there is no stand to act on
+        fail(f"{'--kick' if args.kick is not None else '--step'} acts on the stand, --flight measures in flight: "
+             "run them one at a time")  # fmt: skip
+    if args.flight and args.at == "reference":
+        fail("--flight measures the loop at the plant input: drop --at reference (a reference chirp is measured "
+             "on the stand)")  # fmt: skip
     if args.bode is not None and not args.measure:
         fail("--bode draws the loop that --measure measures: add --measure")
-    if not 1 <= args.flights <= MAX_FLIGHTS:
+    if args.flights is not None and not args.flight:
+        fail(f"--flights {args.flights} is how many flights --flight averages: add --flight (on the stand one "
+             "chirp is measured)")  # fmt: skip
+    if args.flights is not None and not 1 <= args.flights <= MAX_FLIGHTS:
         fail(f"--flights must be in [1, {MAX_FLIGHTS}], got {args.flights}")
     if not 0.0 <= args.settle <= 60.0:
         fail(f"--settle must be in [0, 60] s, got {args.settle:g}")
@@ -195,7 +226,8 @@ def command_stand(args: argparse.Namespace) -> int:
             document["step"] = result.to_json()
         if spec is not None:
             if args.flight:
-                measurement = bench.measure_flight(config, spec, args.flights, attach)
+                flights = FLIGHTS if args.flights is None else args.flights
+                measurement = bench.measure_flight(config, spec, flights, attach)
             else:
                 measurement = bench.measure_stand(sim, spec)
             print("\n".join(measurement.lines()))

@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from hopper.app.cli_common import (
+    CLOSED_STDOUT_STATUS,
     EXIT_OK,
     add_model_flag,
     check_executor,
@@ -21,7 +22,14 @@ from hopper.app.cli_common import (
 
 SWEEP_EPILOG = (
     "exit status: 0 finished (falls are results), 2 bad spec or arguments, 130 interrupted "
-    "(Ctrl-C or SIGTERM): run the same command again and it skips the finished episodes."
+    f"(Ctrl-C or SIGTERM): run the same command again and it skips the finished episodes; {CLOSED_STDOUT_STATUS}."
+)
+# tune keeps no folder: an interrupted search is not resumed (and writes no --json).
+TUNE_EPILOG = (
+    "exit status: 0 finished (falls are results: they count in the score), 2 bad arguments (a --robust spec or "
+    "a controller that cannot fly included), 130 interrupted "
+    "(Ctrl-C or SIGTERM): nothing is kept and no --json written, the same command starts the search over; "
+    f"{CLOSED_STDOUT_STATUS}."
 )
 AXIS_FLAGS = {
     "kp": "N m/rad: 450, 300,450,600, or START:STOP:NUM (linspace)",
@@ -66,7 +74,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     executor_options(sweep)
 
     tune = commands.add_parser(
-        "tune", help="search Kp/Ki/Kd (and gait) for the best worst case over seeds and gravities", epilog=SWEEP_EPILOG
+        "tune", help="search Kp/Ki/Kd (and gait) for the best worst case over seeds and gravities", epilog=TUNE_EPILOG
     )
     tune.add_argument("--trials", type=int, default=40, help="candidates evaluated, the defaults first (default 40)")
     tune.add_argument("--seed", type=int, default=0, help="the optimiser's seed: same seed, same result (default 0)")
@@ -74,8 +82,8 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     tune.add_argument("--heldout", default="100:108", metavar="SEEDS", help="held-out seeds (default 100:108)")
     tune.add_argument("--gravity", default="moon,mars", metavar="VALUES", help="gravities (default moon,mars)")
     tune.add_argument("--hops", type=int, default=4, help="hops per episode (default 4)")
-    tune.add_argument("--terrain", choices=("crater", "flat"), default="crater")
-    tune.add_argument("--sensing", choices=("ideal", "realistic"), default="ideal")
+    tune.add_argument("--terrain", choices=("crater", "flat"), default="crater", help="(default crater)")
+    tune.add_argument("--sensing", choices=("ideal", "realistic"), default="ideal", help="(default ideal)")
     for name, (low, high, log) in default_ranges().items():
         tune.add_argument(f"--{name}-range", default=f"{low:g}:{high:g}", metavar="LOW:HIGH",
                           help=f"search range ({'log' if log else 'linear'}; default {low:g}:{high:g})")  # fmt: skip
@@ -84,7 +92,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         "--controller",
         default="pid",
         metavar="SPEC",
-        help="tune this controller's declared params over their ranges instead of the PID's gains",
+        help="tune this controller's declared params over their ranges instead of the PID's gains (default pid)",
     )
     tune.add_argument(
         "--param-range",

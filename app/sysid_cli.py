@@ -16,6 +16,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 from hopper.app.cli_common import (
+    CLOSED_STDOUT_STATUS,
     EXIT_FELL,
     EXIT_OK,
     add_model_flag,
@@ -32,12 +33,25 @@ from hopper.errors import HopperError
 from hopper.logs.io import READERS, WRITERS, read_log, write_log, writer
 from hopper.logs.replay import HELD, REANCHOR_S, Errors, hops, replay_hops, simulate, world_model
 from hopper.logs.schema import Log
-from hopper.logs.sysid import PROFILE_SIGMAS, STAGES
+from hopper.logs.sysid import DEFAULT_FIT, PARAMS, PROFILE_SIGMAS, STAGES
 from hopper.logs.world import DEFAULT_DELAY_TICKS, World, resolve
 from hopper.mismatch import Nominal
 from hopper.model import MODEL_XML
 
 COMMANDS = ("capture", "replay", "identify")
+INTERRUPTED = "130 interrupted (Ctrl-C or SIGTERM)"
+CAPTURE_EPILOG = (
+    "exit status: 0 the log written, 1 the robot fell or the run reached its time limit before the hops asked "
+    f"(the log holds the hops it did; it says which), 2 bad arguments, {INTERRUPTED}, {CLOSED_STDOUT_STATUS}."
+)
+REPLAY_EPILOG = (
+    "exit status: 0 replayed (the errors printed, the figure written with --out), 2 bad arguments or a log it "
+    f"cannot read or replay as asked (one line, before any replay), {INTERRUPTED}, {CLOSED_STDOUT_STATUS}."
+)
+IDENTIFY_EPILOG = (
+    "exit status: 0 fitted and the MJCF written, 2 bad arguments or a log it cannot read (one line, before the "
+    f"fit), {INTERRUPTED}: no MJCF is written, {CLOSED_STDOUT_STATUS}."
+)
 LOG_KINDS = ", ".join(s if s != ".rrd" else "our own .rrd" for s in READERS)  # as `log check` says
 
 
@@ -70,7 +84,9 @@ def add_world_flags(p: argparse.ArgumentParser, help_suffix: str, from_log: bool
 
 
 def add_commands(commands: argparse._SubParsersAction) -> None:  # noqa: SLF001 (argparse's own type)
-    cap = commands.add_parser("capture", help="log a simulated robot of known truth, for replay and identify")
+    cap = commands.add_parser(
+        "capture", help="log a simulated robot of known truth, for replay and identify", epilog=CAPTURE_EPILOG
+    )
     cap.add_argument("out", type=writable_file, metavar="OUT", help=f"the log to write: {', '.join(WRITERS)}")
     cap.add_argument("--hops", type=int, default=14, help="hops to log (default 14)")
     cap.add_argument(
@@ -83,7 +99,9 @@ def add_commands(commands: argparse._SubParsersAction) -> None:  # noqa: SLF001 
     add_world_flags(cap, "the ground it hops on")
     add_model_flag(cap)
 
-    rep = commands.add_parser("replay", help="fly a log's commands open loop from its state: errors and a figure")
+    rep = commands.add_parser(
+        "replay", help="fly a log's commands open loop from its state: errors and a figure", epilog=REPLAY_EPILOG
+    )
     rep.add_argument("log", type=Path, help=f"the log: {LOG_KINDS}")
     add_model_flags(rep)
     rep.add_argument("--from", dest="start", type=finite, metavar="T", help="one replay from the log's state at T s")
@@ -101,12 +119,20 @@ def add_commands(commands: argparse._SubParsersAction) -> None:  # noqa: SLF001 
     )  # fmt: skip
     rep.add_argument("--out", type=Path, metavar="DIR", help="write replay.png and .pdf (errors over time) here")
 
-    ide = commands.add_parser("identify", help="fit the model to a log; print estimates, write the MJCF")
+    ide = commands.add_parser(
+        "identify", help="fit the model to a log; print estimates, write the MJCF", epilog=IDENTIFY_EPILOG
+    )
     ide.add_argument("log", type=Path, help=f"the log: {LOG_KINDS}")
     add_model_flags(ide)
     ide.add_argument("--out", type=writable_file, required=True, metavar="PATH.xml", help="the identified MJCF")
     ide.add_argument("--hops", type=int, default=7, help="fit on hops 1..N (default 7)")
-    ide.add_argument("--params", metavar="A,B,...", help="the parameters to fit (default: all of them)")
+    left_out = [name for name in PARAMS if name not in DEFAULT_FIT]
+    ide.add_argument(
+        "--params", metavar="A,B,...",
+        help=f"the parameters to fit (default these {len(DEFAULT_FIT)}: {', '.join(DEFAULT_FIT)}; not "
+        f"{' or '.join(left_out)}, which the wheel's response cannot tell apart from motor_torque: name them to "
+        "fit them too)",
+    )  # fmt: skip
     ide.add_argument(
         "--windows", type=windows, default=STAGES, metavar="S,S,...",
         help=f"the fit's stages: replay windows, s (default {','.join(f'{w:g}' for w in STAGES)})",

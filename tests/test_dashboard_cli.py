@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import os
 import signal
 import socket
 import subprocess
@@ -83,6 +84,7 @@ def dashboard_process(*args: str, cwd: Path = REPO) -> subprocess.Popen[str]:
         (["--rerun-viewer", "sometimes"], "invalid choice"),
         (["--lighting", "dim"], "invalid choice 'dim' (choose from full, no-shadows, simple)"),
         (["--bogus"], "unrecognized arguments: --bogus"),
+        (["--sess", "runs"], "unrecognized arguments: --sess runs"),  # no abbreviation of --sessions-dir
         (["--sessions-dir", "/proc/foo"], "cannot use sessions folder '/proc/foo'"),
         (["--sessions-dir", "README.md/sessions"], "cannot use sessions folder 'README.md/sessions'"),
     ],
@@ -208,3 +210,37 @@ def test_sigterm_while_starting_up_stops_cleanly_and_finalizes_the_recording(tmp
     assert process.returncode == 0, (process.returncode, err)
     assert "Traceback" not in err and "stopped" in out
     verify_recording(rrd)
+
+
+@pytest.mark.parametrize("closed", ["before it starts", "after its first line"])
+def test_a_reader_that_goes_away_stops_it_quietly_with_141(tmp_path: Path, closed: str) -> None:
+    """`hopper-dashboard | head -1`: the server stops as on Ctrl-C (recording closed, port freed) and
+    exits 141 (128 + SIGPIPE) without a traceback. viser's banner comes first, printed by rich (which
+    exits 1 on a closed pipe), then our serving line once the scene is built: closed before the start,
+    the banner finds it; after the first line, our own lines do."""
+    pytest.importorskip("hopper.telemetry")
+    port, rrd = free_port(), tmp_path / "run.rrd"
+    read, write = os.pipe()
+    if closed == "before it starts":
+        os.close(read)
+    process = subprocess.Popen(
+        [sys.executable, "-m", "hopper.app.dashboard.cli", "--port", str(port), "--rrd", str(rrd)]
+        + ["--sessions-dir", str(tmp_path)],
+        stdout=write,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=REPO,
+    )
+    os.close(write)
+    try:
+        if closed == "after its first line":
+            with open(read, "rb", buffering=0) as out:  # unbuffered: readline takes exactly one line
+                assert out.readline(), f"no output: {_ended(process)}"
+        _, err = process.communicate(timeout=120)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 141, (process.returncode, err[-2000:])
+    assert "Traceback" not in err and "BrokenPipeError" not in err, err[-2000:]
+    verify_recording(rrd)
+    assert port_is_free(port)

@@ -278,6 +278,37 @@ def test_a_gain_cell_whose_robots_never_landed_says_so_instead_of_a_perfect_zero
     assert rows[("wheel", True)][5] == pytest.approx(max(on))
 
 
+def test_a_compare_json_carries_each_runs_trace_so_report_simulates_nothing(tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    """compare --json keeps each run's 100 Hz trace as run --json does (the same samples), so report
+    draws the file as it is: --no-simulate works, and nothing is simulated without it either."""
+    path = tmp_path / "cmp.json"
+    code, _, err = cli(capsys, "compare", "--seeds", "2", "--hops", "2", "--workers", "1", "--json", str(path))
+    assert code == 0, err
+    runs = json.loads(path.read_text())["runs"]
+    assert [(r["seed"], r["wheel"]) for r in runs] == [(0, True), (0, False), (1, True), (1, False)]
+    for run in (runs[1], runs[2]):  # the second and third episodes of one worker's reused simulation
+        alone = simulate(SimConfig(seed=run["seed"], wheel=run["wheel"]), 2)  # as `hopper-sim run` flies it
+        assert run["trace"] == json.loads(json.dumps(alone["trace"]))
+    for flags in ([], ["--no-simulate"]):
+        code, out, err = cli(capsys, "report", str(path), "--out", str(tmp_path / "r"), *flags)
+        assert code == 0 and "simulating" not in err, (out, err)
+        assert out.startswith("11 files in "), out
+
+
+def test_a_seed_not_in_the_file_is_refused_before_any_simulation(run_json: Path, tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    old = json.loads(run_json.read_text())
+    del old["trace"]  # an older compare's run: report would simulate it again for its trace
+    path = _write(tmp_path / "old.json", json.dumps({"median_peak_reduction_pct": 0.0, "seeds": [], "runs": [old]}))
+    code, out, err = cli(capsys, "report", str(path), "--out", str(tmp_path / "r"), "--seed", "5")
+    assert code == 2 and out == "", out
+    assert err == f"hopper-sim: error: --seed 5: no wheel-on run of that seed in {path} (its wheel-on seeds: 0)\n"
+    code, _, err = cli(capsys, "report", str(path), "--out", str(tmp_path / "r"), "--no-simulate")
+    assert code == 2 and err == (
+        f"hopper-sim: error: run 1 of 1 in {path} holds no trace (an older hopper-sim's compare JSON has none): "
+        "drop --no-simulate to simulate it again for one\n"
+    )
+
+
 @pytest.mark.parametrize(
     "make, message",
     [
@@ -304,10 +335,11 @@ def test_a_gain_cell_whose_robots_never_landed_says_so_instead_of_a_perfect_zero
 )
 def test_bad_inputs_fail_in_one_line(tmp_path: Path, capsys, make, message: str) -> None:  # noqa: ANN001
     path = make(tmp_path)
-    code, out, err = cli(capsys, "report", str(path), "--out", str(tmp_path / "out"))
+    code, out, err = cli(capsys, "report", str(path), "--out", str(tmp_path / "out" / "figures"))
     assert code == 2, (out, err)
     assert err.startswith("hopper-sim: error: ") and err.count("\n") == 1, err
     assert message in err and out == ""
+    assert not (tmp_path / "out").exists(), "a refused input left the --out folders it made"
 
 
 def test_bad_input_in_a_real_process_is_one_line_too(tmp_path: Path) -> None:
@@ -332,7 +364,9 @@ def test_a_hops_dataset_or_an_unwritable_out_is_refused(sweep_dir: Path, tmp_pat
     assert code == 2 and "holds a sweep's hops" in err, err
     blocker = _write(tmp_path / "file", "")
     code, _, err = cli(capsys, "report", str(sweep_dir), "--out", str(blocker / "sub"))
-    assert code == 2 and "cannot write to" in err, err
+    assert code == 2 and err == f"hopper-sim: error: --out: {blocker} is not a folder\n", err
+    code, _, err = cli(capsys, "report", str(sweep_dir), "--out", "/proc/report")
+    assert code == 2 and err.startswith("hopper-sim: error: --out: cannot write to /proc/report: "), err
 
 
 def test_the_page_escapes_and_flattens_settings() -> None:

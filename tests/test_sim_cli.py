@@ -137,6 +137,11 @@ def test_compare_reports_the_median_reduction(tmp_path) -> None:
         (["stress", "--quick", "--seeds", "5"], "--quick flies its own few seeds, so it ignores --seeds"),
         (["compare", "--executor", "local", "--address", "1.2.3.4:1"], "--address names a Ray cluster, which"),
         (["sweep", "--out", "o", "--executor", "local", "--address", "1.2.3.4:1"], "--executor local does not use"),
+        # No abbreviations: each of these was taken for a longer flag (--seeds, --gravity-seeds).
+        (["compare", "--seed", "1"], "unrecognized arguments: --seed 1"),
+        (["stress", "--gravity", "3"], "unrecognized arguments: --gravity 3"),
+        (["sweep", "--out", "o", "--seed", "1"], "unrecognized arguments: --seed"),
+        (["run", "--sched", "pitch_kick:0.3"], "unrecognized arguments: --sched pitch_kick:0.3"),
     ],
 )
 def test_bad_arguments_fail_in_one_line_before_any_work(tmp_path: Path, args: list[str], message: str) -> None:
@@ -146,6 +151,50 @@ def test_bad_arguments_fail_in_one_line_before_any_work(tmp_path: Path, args: li
     assert result.stderr.startswith("hopper-sim: error: "), result.stderr  # one prefix, subcommands included
     assert "Traceback" not in result.stderr
     assert result.stdout == "" and not any(tmp_path.iterdir()), "work started before the arguments were checked"
+
+
+def test_every_flag_with_a_default_says_it_and_every_command_its_exit_statuses() -> None:
+    """`run --terrain` showed no default (crater); capture, replay and identify had no exit statuses."""
+    import argparse
+
+    from hopper.app.sim_cli import parser
+
+    def walk(p: argparse.ArgumentParser) -> list[argparse.ArgumentParser]:
+        subs = [a for a in p._actions if isinstance(a, argparse._SubParsersAction)]  # noqa: SLF001
+        return [p] + [q for a in subs for child in a.choices.values() for q in walk(child)]
+
+    silent = [
+        f"{p.prog} {a.option_strings[0]}"
+        for p in walk(parser())
+        for a in p._actions  # noqa: SLF001
+        if a.option_strings and a.default not in (None, False, [], argparse.SUPPRESS) and "default" not in a.help
+    ]
+    assert silent == []
+    commands = [p for p in walk(parser()) if not any(isinstance(a, argparse._SubParsersAction) for a in p._actions)]  # noqa: SLF001
+    assert [p.prog for p in commands if not (p.epilog or "").startswith("exit status: ")] == []
+
+
+def test_tune_promises_no_resume_it_never_does() -> None:
+    """tune keeps no folder (sweep's exit-status text, copied, said the same command skips the finished)."""
+    tune, sweep = (" ".join(hopper_sim(c, "--help").stdout.split()) for c in ("tune", "sweep"))
+    assert "skips the finished episodes" not in tune and "skips the finished episodes" in sweep
+    promise = "130 interrupted (Ctrl-C or SIGTERM): nothing is kept and no --json written, the same command starts"
+    assert f"{promise} the search over" in tune, tune
+
+
+def test_no_parser_of_hopper_sim_takes_an_abbreviated_flag() -> None:
+    """allow_abbrev=False on the top parser and every subcommand's (add_parser does not inherit it)."""
+    import argparse
+
+    from hopper.app.sim_cli import parser
+
+    def walk(p: argparse.ArgumentParser) -> list[argparse.ArgumentParser]:
+        subs = [a for a in p._actions if isinstance(a, argparse._SubParsersAction)]  # noqa: SLF001
+        return [p] + [q for a in subs for child in a.choices.values() for q in walk(child)]
+
+    parsers = walk(parser())
+    assert len(parsers) > 15 and {p.prog for p in parsers} >= {"hopper-sim compare", "hopper-sim log check"}
+    assert [p.prog for p in parsers if p.allow_abbrev] == []
 
 
 @pytest.mark.parametrize("command", [["sweep", "--out", "out", "--seeds", "1", "--hops", "1"], ["compare"]])
@@ -185,16 +234,57 @@ def test_a_small_job_says_why_it_runs_in_process_instead_of_on_the_workers_asked
 
 
 def test_help_documents_the_exit_statuses() -> None:
-    for command in ([], ["run"], ["compare"], ["stress"]):
+    for command in ([], ["run"], ["compare"], ["stress"], ["envelope"]):
         result = hopper_sim(*command, "--help")
         assert result.returncode == 0, result.stderr
         text = " ".join(result.stdout.split())
         expected = (
-            "exit status: 0 success, 1 the robot fell (run) or a case failed (stress), 2 bad arguments (a "
-            "controller that cannot fly included), 3 the run stopped short of the hops asked without a fall (run; "
-            "it says why), 4 the controller failed mid-run and the PID flew on (run; it says why), 130"
+            "exit status: 0 success, 1 the robot fell (run), a case failed (stress) or a kick under the physical "
+            "limit fell (envelope), 2 bad arguments (a controller that cannot fly included), 3 the run stopped "
+            "short of the hops asked without a fall (run; it says why), 4 the controller failed mid-run and the "
+            "PID flew on (run; it says why), 130"
         )
         assert expected in text, text
+        assert "141 the reader of its output went away (e.g. | head): it stops quietly" in text, text
+
+
+def small_pipe() -> tuple[int, int]:
+    """A pipe (read, write) that holds 4 KB (Linux's F_SETPIPE_SZ; skip elsewhere): a command's output
+    of more than that is still being written when the reader closes after its first line."""
+    fcntl = pytest.importorskip("fcntl")
+    if not hasattr(fcntl, "F_SETPIPE_SZ"):
+        pytest.skip("no F_SETPIPE_SZ: the pipe would hold the whole output")
+    read, write = os.pipe()
+    fcntl.fcntl(write, fcntl.F_SETPIPE_SZ, 4096)
+    return read, write
+
+
+@pytest.mark.parametrize("unbuffered", ["", "1"], ids=["buffered", "PYTHONUNBUFFERED"])
+def test_a_reader_that_closes_early_ends_the_command_quietly_with_141(unbuffered: str) -> None:
+    """`hopper-sim run --hops 40 | head -1`: no BrokenPipeError traceback, nor 1 ("the robot fell"),
+    but 141 (128 + SIGPIPE) and nothing on stderr, as a Unix tool a closed pipe ends. Its output
+    (~9 KB) outgrows the pipe, so the run is writing when the reader goes: in the interpreter's last
+    flush when stdout is buffered, in a print when it is not."""
+    read, write = small_pipe()
+    env = {**os.environ, "PYTHONUNBUFFERED": unbuffered}
+    process = subprocess.Popen(
+        [sys.executable, "-m", "hopper.app.sim_cli", "run", "--hops", "40", "--terrain", "flat"],
+        stdout=write,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
+    os.close(write)
+    try:
+        with open(read, "rb", buffering=0) as out:  # unbuffered: readline takes exactly the first line
+            first = out.readline()
+        _, err = process.communicate(timeout=300)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert first.startswith(b"hop    dist m"), first
+    assert process.returncode == 141, (process.returncode, err)
+    assert err == "", err
 
 
 def test_terrain_export_writes_the_png_the_paper_loads(tmp_path) -> None:

@@ -72,6 +72,38 @@ def test_a_short_chirp_measures_its_whole_band_and_does_not_report_one_segments_
     assert "a chirp of 4.096 s or more gives two" in done.stdout
 
 
+def test_a_chirp_at_the_reference_has_its_own_default_amplitude(tmp_path: Path):
+    """--at reference without --amplitude: 2 deg in rad, as the dashboard's Inject panel offers, not the
+    input's 2 N m (refused as "chirp amplitude must be in (0, 0.262] (rad), got 2")."""
+    from hopper.analysis.bench import REFERENCE_AMPLITUDE
+
+    out = tmp_path / "reference.json"
+    done = hopper_sim("stand", "--measure", "--at", "reference", "--length", "3", "--f-max", "200", "--json", str(out))
+    assert done.returncode == 0, done.stderr
+    assert f"{REFERENCE_AMPLITUDE:g} rad at the reference" in done.stdout
+    (m,) = json.loads(out.read_text())["measurements"]
+    assert m["at"] == "reference" and m["spec"]["amplitude"] == REFERENCE_AMPLITUDE == pytest.approx(0.0349066)
+
+
+def test_the_help_gives_the_amplitude_defaults_the_command_and_the_dashboard_use(monkeypatch, capsys):  # noqa: ANN001
+    import math
+
+    from hopper.app.dashboard.panels.inject import AMPLITUDE
+    from hopper.app.sim_cli import main
+
+    from hopper.analysis.bench import FLIGHT_AMPLITUDE, REFERENCE_AMPLITUDE, STAND_AMPLITUDE
+
+    monkeypatch.setenv("COLUMNS", "200")  # argparse wraps at the terminal's width
+    with pytest.raises(SystemExit):
+        main(["stand", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert (
+        f"N m at the input (default {STAND_AMPLITUDE:g}; flight {FLIGHT_AMPLITUDE:g}), rad at the reference "
+        f"(default {REFERENCE_AMPLITUDE:.4f}, {math.degrees(REFERENCE_AMPLITUDE):g} deg)"
+    ) in text, text
+    assert AMPLITUDE["reference"] == (pytest.approx(math.degrees(REFERENCE_AMPLITUDE)), "deg")
+
+
 @pytest.mark.parametrize(
     ("flags", "said"),
     [
@@ -93,6 +125,32 @@ def test_flights_beyond_their_bound_are_refused_before_any_flight(flights: str):
     done = hopper_sim("stand", "--measure", "--flight", "--flights", flights)
     assert done.returncode == 2 and done.stdout == ""
     assert done.stderr == f"hopper-sim: error: --flights must be in [1, 1000], got {flights}\n"
+
+
+@pytest.mark.parametrize(
+    ("flags", "said"),
+    [
+        (["--kick", "0.5"], "--kick acts on the stand, --flight measures in flight: run them one at a time"),
+        (["--step", "2"], "--step acts on the stand, --flight measures in flight: run them one at a time"),
+        (["--at", "reference"], "--flight measures the loop at the plant input: drop --at reference"),
+    ],
+)
+def test_what_flight_cannot_do_is_refused_before_any_flight(flags: list[str], said: str):
+    """--kick in flight was an AttributeError traceback after the measurement; --at reference exited 1
+    ("not measured") after the flights' set-up."""
+    done = hopper_sim("stand", "--measure", "--flight", "--flights", "1", *flags)
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr.startswith(f"hopper-sim: error: {said}") and done.stderr.count("\n") == 1, done.stderr
+
+
+@pytest.mark.parametrize("action", [["--measure"], ["--kick", "0.5"]])
+def test_flights_without_flight_are_refused_not_ignored(action: list[str]):
+    done = hopper_sim("stand", *action, "--flights", "5")
+    assert done.returncode == 2 and done.stdout == ""  # before the stand is built
+    assert done.stderr == (
+        "hopper-sim: error: --flights 5 is how many flights --flight averages: add --flight (on the stand one "
+        "chirp is measured)\n"
+    )
 
 
 @pytest.mark.parametrize(

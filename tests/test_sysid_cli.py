@@ -178,3 +178,21 @@ def test_help_names_every_format_the_command_reads_or_writes(
     with pytest.raises(SystemExit) as stop:
         main([command, "--help"])
     assert stop.value.code == 0 and says in capsys.readouterr().out
+
+
+def test_help_says_what_identify_fits_and_each_commands_exit_statuses(
+    capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """identify --params said "default: all of them" and fits 8 of 10; the three had no exit statuses."""
+    from hopper.logs.sysid import DEFAULT_FIT, PARAMS
+
+    monkeypatch.setenv("COLUMNS", "200")  # argparse wraps at the terminal's width
+    texts = {}
+    for command in ("capture", "replay", "identify"):
+        with pytest.raises(SystemExit):
+            main([command, "--help"])
+        texts[command] = " ".join(capsys.readouterr().out.split())
+        assert "exit status: 0 " in texts[command] and "130 interrupted" in texts[command], texts[command]
+    assert len(DEFAULT_FIT) == 8 and set(PARAMS) - set(DEFAULT_FIT) == {"wheel_armature", "motor_damping"}
+    assert f"(default these 8: {', '.join(DEFAULT_FIT)}; not wheel_armature or motor_damping," in texts["identify"]
+    assert "1 the robot fell or the run reached its time limit before the hops asked" in texts["capture"]

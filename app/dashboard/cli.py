@@ -5,12 +5,19 @@ from __future__ import annotations
 import argparse
 import contextlib
 import logging
+import os
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
 
-from hopper.app.cli_common import add_controller_flags, add_model_flag
+from hopper.app.cli_common import (
+    CLOSED_STDOUT_STATUS,
+    EXIT_CLOSED_STDOUT,
+    add_controller_flags,
+    add_model_flag,
+    output_closed,
+)
 from hopper.app.dashboard.config import LIGHTING, DashboardConfig, check_sessions_dir
 from hopper.app.dashboard.pacing import MAX
 
@@ -25,12 +32,17 @@ PROG = "hopper-dashboard"
 DEFAULTS = DashboardConfig()
 EXIT_STATUSES = (
     "exit status: 0 stopped by Ctrl-C or SIGTERM (any recording closed, the port freed), 2 bad arguments, "
-    "a port in use or an --rrd or --sessions-dir that cannot be written."
+    f"a port in use or an --rrd or --sessions-dir that cannot be written, {CLOSED_STDOUT_STATUS} (the server "
+    "stopped as on Ctrl-C)."
 )
 
 
 class Parser(argparse.ArgumentParser):
-    """argparse with errors on one line (no usage dump): `hopper-dashboard: error: ...`."""
+    """argparse with errors on one line (no usage dump): `hopper-dashboard: error: ...`; and no
+    abbreviated flags (`--sess DIR` is refused, not taken for --sessions-dir)."""
+
+    def __init__(self, *args: object, allow_abbrev: bool = False, **kwargs: object) -> None:
+        super().__init__(*args, allow_abbrev=allow_abbrev, **kwargs)  # type: ignore[arg-type]
 
     def error(self, message: str) -> NoReturn:
         fail(message)
@@ -199,8 +211,10 @@ def open_dashboard(config: DashboardConfig) -> Dashboard:
         fail(f"{type(exc).__name__}: {exc}")
 
 
-def serve(dashboard: Dashboard) -> None:
-    """Run until Ctrl-C or SIGTERM (both raise KeyboardInterrupt), then stop: recording closed, port freed."""
+def serve(dashboard: Dashboard) -> int:
+    """Run until Ctrl-C or SIGTERM (both raise KeyboardInterrupt), then stop: recording closed, port freed.
+
+    0, or EXIT_CLOSED_STDOUT if the reader of stdout went away (`| head -1`): the server stops then too."""
     try:
         raise_if_stop_requested()  # a signal during start-up may have been swallowed (hopper/interrupts.py)
         dashboard.start()
@@ -211,20 +225,52 @@ def serve(dashboard: Dashboard) -> None:
         if dashboard.recorder.viewer_url:
             print(f"{PROG}: rerun viewer at {dashboard.recorder.viewer_url}", flush=True)
         dashboard.wait()
+    except BrokenPipeError:
+        # Decided before stop(): viser then prints "Server stopped" (with rich) to /dev/null, where
+        # it would otherwise meet the closed pipe itself and point stdout there first.
+        if not output_closed():
+            raise
+        return EXIT_CLOSED_STDOUT
     finally:
         dashboard.stop()
+    return 0
 
 
-def main(args: Sequence[str] | None = None) -> None:
-    """Exit 0 when stopped by Ctrl-C or SIGTERM, the usual way to stop a server; 2 for bad arguments."""
+def main(args: Sequence[str] | None = None) -> int:
+    """Exit 0 when stopped by Ctrl-C or SIGTERM, the usual way to stop a server; 2 for bad arguments;
+    141 once the reader of stdout has gone (the server stopped first, as on Ctrl-C)."""
     stop_like_ctrl_c()
     config = parse(args)
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     logging.getLogger("websockets").setLevel(logging.WARNING)  # one line per connection is noise
-    with contextlib.suppress(KeyboardInterrupt):  # a signal during start-up unwinds Dashboard's own clean-up
-        serve(open_dashboard(config))
-    print(f"{PROG}: stopped", flush=True)
+    status = 0
+    try:
+        with contextlib.suppress(KeyboardInterrupt):  # a signal during start-up unwinds Dashboard's own clean-up
+            status = serve(open_dashboard(config))
+        print(f"{PROG}: stopped", flush=True)  # to /dev/null if serve found stdout closed
+    except BrokenPipeError:  # this last line's reader went away
+        if not output_closed():
+            raise
+        return EXIT_CLOSED_STDOUT
+    except SystemExit as exc:
+        if not banner_found_output_closed(exc):
+            raise
+        return EXIT_CLOSED_STDOUT
+    return status
+
+
+def banner_found_output_closed(exc: SystemExit) -> bool:
+    """viser prints its banner with rich, whose Console.on_broken_pipe (documented, Python's recipe)
+    points stdout at /dev/null and raises SystemExit(1) once stdout's reader has gone: True for that
+    exit. The Dashboard being built has closed its recording on the way out; the process ends, its
+    port with it. (No other SystemExit(1) comes out of serve: this module's own refusals exit 2.)"""
+    if exc.code != 1:
+        return False
+    try:
+        return os.path.samestat(os.fstat(sys.stdout.fileno()), os.stat(os.devnull))
+    except (OSError, ValueError):
+        return False
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -41,6 +41,10 @@ SETTLE_S = 0.5  # s on the stand after a reset before a measurement: the legs an
 # (coherence 0.88 at 1 N m, 0.985 at 3). The loop is linear there: the same figures at 0.5 N m ideal.
 STAND_AMPLITUDE = 2.0
 FLIGHT_AMPLITUDE = 3.0
+# Default chirp amplitude at the pitch reference, rad (2 deg), on the stand or in flight: a swing the
+# loop follows linearly, far inside hopper.analysis.frequency.REFERENCE_LIMIT (15 deg); the dashboard's
+# Inject panel offers the same (in deg).
+REFERENCE_AMPLITUDE = math.radians(2.0)
 FLIGHT_SETTLE_S = 0.1  # s after the apex: the legs hold their landing pose (hopper.analysis.linearize)
 FLIGHT_LIMIT_S = 30.0  # s of simulation a flight may take to come (a fall or a stall ends the run)
 

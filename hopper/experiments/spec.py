@@ -92,6 +92,9 @@ class Episode:
     sample: int = -1  # which robot of the [model] table's draws (hopper.experiments.uncertainty); -1: none
     model: Sample = ()  # that robot's sampled values, each in its parameter's unit
     mjcf: str | None = None  # a user's MJCF of the robot (SimConfig.model); None: the packaged one
+    # Also keep its 100 Hz time series (hopper.trace) in the result, as `hopper-sim run` does (compare's
+    # runs, for `report`). What is kept, not a setting: in neither settings() nor the id.
+    trace: bool = False
 
     def settings(self) -> dict[str, Any]:
         """The setting columns of its Parquet rows (hopper.experiments.store)."""

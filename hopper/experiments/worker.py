@@ -17,6 +17,7 @@ from hopper.experiments.spec import Episode
 from hopper.experiments.stress import run_episode
 from hopper.metrics import HopMetrics
 from hopper.sim import Simulation
+from hopper.trace import TraceRecorder
 
 
 @dataclasses.dataclass(frozen=True)
@@ -33,6 +34,7 @@ class EpisodeResult:
     applied: bool  # the disturbance happened (its phase came); True without one
     controller_fault: str = ""  # why the controller could not fly or was replaced by the PID; "" if neither
     compute_us: float = 0.0  # us, the controller's mean call (0 for the compiled PID)
+    trace: dict[str, Any] | None = None  # the 100 Hz time series (TraceRecorder.as_dict) if the episode asked
 
     def row(self) -> dict[str, Any]:
         """The episodes-table row (hopper.experiments.store.EPISODE_COLUMNS)."""
@@ -94,7 +96,15 @@ class Worker:
         except ControllerError as exc:  # the episode fails with its cause; the batch goes on
             return EpisodeResult(episode, (), False, 0.0, time.perf_counter() - start, 0.0, 0.0, False, str(exc))
         hops, schedule = episode.hops_target, episode.disturbance
-        applied = run_episode(sim, hops, schedule)
+        # A listener every tick costs ~10 % of the episode's wall time (no compiled bursts): only if asked.
+        recorder = TraceRecorder(sim.config.timestep) if episode.trace else None
+        if recorder is not None:
+            sim.listeners.append(recorder)
+        try:
+            applied = run_episode(sim, hops, schedule)
+        finally:
+            if recorder is not None:
+                sim.listeners.remove(recorder)  # the next episode on this simulation records nothing of it
         mem = sim.controller.mem
         peak_wheel = max((h.peak_wheel_rpm * 2 * math.pi / 60 for h in sim.hops), default=0.0)
         peak_wheel = max(peak_wheel, float(mem["acc_peak_wheel"][0]))  # the unfinished hop's
@@ -110,6 +120,7 @@ class Worker:
             applied=applied,
             controller_fault=sim.controller_fault or "",
             compute_us=_compute_us(sim),
+            trace=recorder.as_dict() if recorder is not None else None,
         )
 
     def _prepare(self, config: SimConfig) -> Simulation:

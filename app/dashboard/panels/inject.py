@@ -22,7 +22,7 @@ from hopper.app.dashboard.feedback import guarded, notify
 from hopper.app.dashboard.panels import PanelContext, measured
 from hopper.app.dashboard.panels.entry import NumberEntry
 
-from hopper.analysis.bench import STAND_AMPLITUDE
+from hopper.analysis.bench import REFERENCE_AMPLITUDE, STAND_AMPLITUDE
 from hopper.analysis.frequency import ChirpSpec, InvalidChirp, excitation
 from hopper.commands import Inject
 from hopper.stand import Injection
@@ -32,7 +32,8 @@ log = logging.getLogger(__name__)
 # What the dropdowns show -> ChirpSpec's words.
 AT = {"wheel torque (N m)": "input", "pitch reference (deg)": "reference"}
 KINDS = {"logarithmic": "log", "linear": "linear", "stepped sines": "stepped"}
-AMPLITUDE = {"input": (STAND_AMPLITUDE, "N m"), "reference": (2.0, "deg")}  # defaults that stay linear, and units
+# Defaults that stay linear, and units (the reference's shown in deg, rad in ChirpSpec and the CLI).
+AMPLITUDE = {"input": (STAND_AMPLITUDE, "N m"), "reference": (math.degrees(REFERENCE_AMPLITUDE), "deg")}
 
 
 @dataclasses.dataclass
