@@ -19,6 +19,7 @@ from hopper.app.cli_common import EXIT_OK, fail, made_out
 from hopper.app.episode import sim_config, simulate
 
 from hopper.controllers import ControllerError
+from hopper.trace import TRACE_COLUMNS
 
 KINDS = ("run JSON", "compare JSON", "league JSON", "stand JSON", ".rrd recording", "sweep directory or Parquet")
 
@@ -74,6 +75,15 @@ def _flown_by(settings: dict[str, Any], spec: str) -> dict[str, Any]:
     return {"controller": config.controller, "controller_params": list(config.controller_params)}
 
 
+def _drawn_seed(results: list[dict[str, Any]], seed: int | None) -> Any:
+    """The seed whose time series the report draws: `seed` if given, else the first wheel-on run's (the
+    first run's if none has the wheel on). Only its runs need a trace."""
+    if seed is not None:
+        return seed
+    on = [r for r in results if bool(r.get("wheel", r["settings"].get("wheel", True)))]
+    return (on or results)[0]["settings"].get("seed")
+
+
 def _check_seed(seed: int, results: list[dict[str, Any]], twin: bool, path: Path) -> None:
     """--seed names a wheel-on run of the file (`twin`: a run JSON's wheel-off twin, simulated with the
     wheel on, counts too); ValueError, one line with the seeds there are, otherwise."""
@@ -113,6 +123,7 @@ def _json_report(path: Path, args: argparse.Namespace):  # noqa: ANN202 (hopper.
     if args.seed is not None:  # checked against the file, before any run is simulated
         _check_seed(args.seed, results, twin=what == "run" and not args.no_simulate, path=path)
     source = f"{what} JSON"
+    drawn = _drawn_seed(results, args.seed)
     runs = []
     for number, result in enumerate(results, 1):
         # The same flights by another controller (getattr: a Namespace may be built without the flag).
@@ -120,13 +131,13 @@ def _json_report(path: Path, args: argparse.Namespace):  # noqa: ANN202 (hopper.
             settings = {**result["settings"], **_flown_by(result["settings"], args.controller)}
             result = _simulated(settings, bool(settings["wheel"]))
             source = f"{what} JSON, re-flown by {args.controller}"
-        elif result.get("trace") is None:  # written before runs (or compare's runs) carried a trace
+        elif result.get("trace") is None and what == "compare" and result["settings"].get("seed") != drawn:
+            result = {**result, "trace": {column: [] for column in TRACE_COLUMNS}}  # not drawn: hops suffice
+        elif result.get("trace") is None:  # an older JSON, or a compare seed other than the first
             if args.no_simulate:
                 which = f"run {number} of {len(results)} in {path}" if what == "compare" else f"{path}"
-                raise ValueError(
-                    f"{which} holds no trace (an older hopper-sim's {what} JSON has none): drop --no-simulate "
-                    "to simulate it again for one"
-                )
+                why = "compare keeps its first seed's only" if what == "compare" else "an older run JSON"
+                raise ValueError(f"{which} holds no trace ({why}): drop --no-simulate to simulate it again for one")
             result = _simulated(result["settings"], bool(result["settings"]["wheel"]))
             source = f"{what} JSON, re-simulated for its trace"
         runs.append(run_from_result(result, source))

@@ -387,7 +387,7 @@ def command_compare(args: argparse.Namespace) -> int:
     episodes = [
         Episode(kp=g.kp, ki=g.ki, kd=g.kd, gravity=args.gravity, seed=seed, hops_target=args.hops,
                 terrain=args.terrain, wheel=wheel, sensing=args.sensing, gait=changed,
-                controller=flown.controller, params=params, mjcf=flown.model, trace=True)
+                controller=flown.controller, params=params, mjcf=flown.model, trace=seed == 0)
         for seed in range(args.seeds)
         for wheel in (True, False)
     ]  # fmt: skip

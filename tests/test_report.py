@@ -278,21 +278,30 @@ def test_a_gain_cell_whose_robots_never_landed_says_so_instead_of_a_perfect_zero
     assert rows[("wheel", True)][5] == pytest.approx(max(on))
 
 
-def test_a_compare_json_carries_each_runs_trace_so_report_simulates_nothing(tmp_path: Path, capsys) -> None:  # noqa: ANN001
-    """compare --json keeps each run's 100 Hz trace as run --json does (the same samples), so report
-    draws the file as it is: --no-simulate works, and nothing is simulated without it either."""
+def test_a_compare_json_carries_the_drawn_seeds_trace_so_report_simulates_nothing(tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    """compare --json keeps the first seed's 100 Hz traces (the time series report draws by default) as
+    run --json does (the same samples), and no other seed's: a 100-seed file stays small. report draws
+    the file as it is (--no-simulate works); another seed drawn is simulated, its two runs alone."""
     path = tmp_path / "cmp.json"
-    code, _, err = cli(capsys, "compare", "--seeds", "2", "--hops", "2", "--workers", "1", "--json", str(path))
+    code, _, err = cli(capsys, "compare", "--seeds", "3", "--hops", "2", "--workers", "1", "--json", str(path))
     assert code == 0, err
     runs = json.loads(path.read_text())["runs"]
-    assert [(r["seed"], r["wheel"]) for r in runs] == [(0, True), (0, False), (1, True), (1, False)]
-    for run in (runs[1], runs[2]):  # the second and third episodes of one worker's reused simulation
-        alone = simulate(SimConfig(seed=run["seed"], wheel=run["wheel"]), 2)  # as `hopper-sim run` flies it
-        assert run["trace"] == json.loads(json.dumps(alone["trace"]))
+    assert [(r["seed"], r["wheel"]) for r in runs] == [(s, w) for s in range(3) for w in (True, False)]
+    assert ["trace" in r for r in runs] == [True, True, False, False, False, False]
+    alone = simulate(SimConfig(seed=0, wheel=False), 2)  # as `hopper-sim run` flies it
+    assert runs[1]["trace"] == json.loads(json.dumps(alone["trace"]))  # a reused simulation's second episode
     for flags in ([], ["--no-simulate"]):
         code, out, err = cli(capsys, "report", str(path), "--out", str(tmp_path / "r"), *flags)
         assert code == 0 and "simulating" not in err, (out, err)
         assert out.startswith("11 files in "), out
+    code, out, err = cli(capsys, "report", str(path), "--out", str(tmp_path / "r2"), "--seed", "2")
+    assert code == 0, err
+    assert err.splitlines() == ["simulating seed 2, wheel on, 2 hops", "simulating seed 2, wheel off, 2 hops"], err
+    code, out, err = cli(capsys, "report", str(path), "--out", str(tmp_path / "r3"), "--seed", "1", "--no-simulate")
+    assert code == 2 and err == (
+        f"hopper-sim: error: run 3 of 6 in {path} holds no trace (compare keeps its first seed's only): "
+        "drop --no-simulate to simulate it again for one\n"
+    )
 
 
 def test_a_seed_not_in_the_file_is_refused_before_any_simulation(run_json: Path, tmp_path: Path, capsys) -> None:  # noqa: ANN001
@@ -304,7 +313,7 @@ def test_a_seed_not_in_the_file_is_refused_before_any_simulation(run_json: Path,
     assert err == f"hopper-sim: error: --seed 5: no wheel-on run of that seed in {path} (its wheel-on seeds: 0)\n"
     code, _, err = cli(capsys, "report", str(path), "--out", str(tmp_path / "r"), "--no-simulate")
     assert code == 2 and err == (
-        f"hopper-sim: error: run 1 of 1 in {path} holds no trace (an older hopper-sim's compare JSON has none): "
+        f"hopper-sim: error: run 1 of 1 in {path} holds no trace (compare keeps its first seed's only): "
         "drop --no-simulate to simulate it again for one\n"
     )
 
