@@ -81,6 +81,7 @@ def test_a_chirp_at_the_reference_has_its_own_default_amplitude(tmp_path: Path):
     done = hopper_sim("stand", "--measure", "--at", "reference", "--length", "3", "--f-max", "200", "--json", str(out))
     assert done.returncode == 0, done.stderr
     assert f"{REFERENCE_AMPLITUDE:g} rad at the reference" in done.stdout
+    assert "at the reference the closed loop T is measured" in done.stdout  # why no measured margin is shown
     (m,) = json.loads(out.read_text())["measurements"]
     assert m["at"] == "reference" and m["spec"]["amplitude"] == REFERENCE_AMPLITUDE == pytest.approx(0.0349066)
 

@@ -148,6 +148,9 @@ def _compare(
             measured = measured_margins(response_)
         except NotMeasured as exc:
             note = "; ".join(filter(None, (note, str(exc))))
+    else:  # the reference gives the closed loop T alone: with the derivative on the rate, L is not T / (1 - T)
+        why = "at the reference the closed loop T is measured (its Bode plot: --bode); margins need L: --at input"
+        note = "; ".join(filter(None, (note, why)))
     saturated = int(sum(int(np.count_nonzero(r["saturated"])) for r in records))
     return Measurement(where, sim.law.name, spec, response_, measured, predicted, len(records), saturated, note)
 
