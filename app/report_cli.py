@@ -84,6 +84,19 @@ def _drawn_seed(results: list[dict[str, Any]], seed: int | None) -> Any:
     return (on or results)[0]["settings"].get("seed")
 
 
+def refuse_run_flags(args: argparse.Namespace, what: str) -> None:
+    """ValueError, one line, for a flag that only a run or compare JSON's report uses: with `what` (the
+    input, in words) it would be ignored."""
+    given = [
+        flag
+        for flag, value in (("--seed", args.seed), ("--controller", getattr(args, "controller", None)),
+                            ("--no-simulate", args.no_simulate))
+        if value is not None and value is not False
+    ]  # fmt: skip
+    if given:
+        raise ValueError(f"{given[0]} is for a run or compare JSON; {what} has no runs to draw or simulate: drop it")
+
+
 def _check_seed(seed: int, results: list[dict[str, Any]], twin: bool, path: Path) -> None:
     """--seed names a wheel-on run of the file (`twin`: a run JSON's wheel-off twin, simulated with the
     wheel on, counts too); ValueError, one line with the seeds there are, otherwise."""
@@ -101,17 +114,21 @@ def _json_report(path: Path, args: argparse.Namespace):  # noqa: ANN202 (hopper.
 
     try:
         document = json.loads(path.read_text())
-        if isinstance(document, dict) and document.get("kind") == "league":
-            from hopper.report.league import league_report
-
-            return league_report(document, f"Hopper league report: {path.name}")
-        if isinstance(document, dict) and document.get("kind") == "frequency":  # hopper-sim stand --json
-            from hopper.report.frequency import frequency_report
-
-            return frequency_report(document, f"Hopper loop measurement: {path.name}")
-        what = kind_of(document)
+        named = document.get("kind") if isinstance(document, dict) else None
+        what = None if named in ("league", "frequency") else kind_of(document)
     except (OSError, ValueError) as exc:
         raise ValueError(f"{path}: {exc}") from None
+    if named in ("league", "frequency"):  # hopper-sim league --json, stand --json
+        from hopper.report.frequency import frequency_report
+        from hopper.report.league import league_report
+
+        refuse_run_flags(args, f"a {'league' if named == 'league' else 'stand'} JSON")
+        try:
+            if named == "league":
+                return league_report(document, f"Hopper league report: {path.name}")
+            return frequency_report(document, f"Hopper loop measurement: {path.name}")
+        except ValueError as exc:
+            raise ValueError(f"{path}: {exc}") from None
     results = document["runs"] if what == "compare" else [document]
     for result in results:
         try:  # a hand-edited result: one line naming what is wrong, before any simulation
@@ -187,8 +204,10 @@ def command_report(args: argparse.Namespace) -> int:
             if what == "json":
                 report = _json_report(args.input, args)
             elif what == "rrd":
+                refuse_run_flags(args, "a recording")
                 report = _rrd_report(args.input)
             else:
+                refuse_run_flags(args, "a sweep")
                 report = _sweep_report(args.input)
         except (ValueError, KeyError, ControllerError) as exc:
             fail(str(exc.args[0]) if isinstance(exc, KeyError) and exc.args else str(exc))  # a KeyError's str quotes

@@ -36,6 +36,7 @@ KICK_WATCH_S = 1.0  # s of the response to a kick that is shown
 # Moon. The default 30 already give a coherence of 0.985 at the crossover.
 MAX_FLIGHTS = 1000
 FLIGHTS = 30  # --flights' default
+SETTLE_S = 0.5  # s, --settle's default
 FIGURE_FORMATS = (".png", ".pdf")  # --bode's
 
 
@@ -48,7 +49,9 @@ def add_parser(commands: argparse._SubParsersAction, epilog: str) -> None:
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("--legs", choices=("locked", "free"), default="locked", help="locked in the landing pose (default)")
+    p.add_argument(
+        "--legs", choices=("locked", "free"), default=None, help="on the stand: locked in the landing pose (default)"
+    )
     p.add_argument("--flight", action="store_true", help="measure in flight (short chirps over many flights)")
     p.add_argument(
         "--flights",
@@ -94,7 +97,11 @@ def add_parser(commands: argparse._SubParsersAction, epilog: str) -> None:
         help="where the chirp is injected: the wheel torque or the pitch reference (default input)",
     )
     p.add_argument(
-        "--settle", type=finite, default=0.5, metavar="S", help="s on the stand before anything (default 0.5)"
+        "--settle",
+        type=finite,
+        default=None,
+        metavar="S",
+        help=f"s on the stand before anything (default {SETTLE_S:g})",
     )
     p.add_argument("--bode", type=figure_file, metavar="PATH", help="write the Bode figure: PATH.png or PATH.pdf")
     p.add_argument(
@@ -188,6 +195,11 @@ def command_stand(args: argparse.Namespace) -> int:
              "chirp is measured)")  # fmt: skip
     if args.flights is not None and not 1 <= args.flights <= MAX_FLIGHTS:
         fail(f"--flights must be in [1, {MAX_FLIGHTS}], got {args.flights}")
+    for flag, value in (("--legs", args.legs), ("--settle", args.settle)):
+        if args.flight and value is not None:  # in flight there is no stand: it would be ignored
+            fail(f"{flag} sets the stand, and --flight measures in flight: drop it")
+    args.legs = args.legs or "locked"
+    args.settle = SETTLE_S if args.settle is None else args.settle
     if not 0.0 <= args.settle <= 60.0:
         fail(f"--settle must be in [0, 60] s, got {args.settle:g}")
     config = _config(args)

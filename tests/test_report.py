@@ -387,3 +387,21 @@ def test_the_page_escapes_and_flattens_settings() -> None:
 def _write(path: Path, text: str) -> Path:
     path.write_text(text)
     return path
+
+
+@pytest.mark.parametrize(
+    ("make", "flags", "what"),
+    [
+        (lambda d: _write(d / "run.rrd", "not read: refused first"), ["--seed", "1"], "a recording"),
+        (lambda d: (d / "sweep" / "episodes").mkdir(parents=True) or d / "sweep", ["--no-simulate"], "a sweep"),
+        (lambda d: _write(d / "l.json", '{"kind": "league"}'), ["--controller", "lqr"], "a league JSON"),
+        (lambda d: _write(d / "f.json", '{"kind": "frequency"}'), ["--seed", "0"], "a stand JSON"),
+    ],
+)
+def test_a_flag_only_runs_use_is_refused_where_it_would_be_ignored(make, flags, what, tmp_path, capsys) -> None:  # noqa: ANN001
+    """--seed, --controller and --no-simulate were silently ignored for these inputs."""
+    path = make(tmp_path)
+    code, out, err = cli(capsys, "report", str(path), "--out", str(tmp_path / "r"), *flags)
+    assert code == 2 and out == "" and not (tmp_path / "r").exists()
+    said = f"{flags[0]} is for a run or compare JSON; {what} has no runs to draw or simulate: drop it"
+    assert err == f"hopper-sim: error: {said}\n", err

@@ -134,6 +134,8 @@ def test_flights_beyond_their_bound_are_refused_before_any_flight(flights: str):
         (["--kick", "0.5"], "--kick acts on the stand, --flight measures in flight: run them one at a time"),
         (["--step", "2"], "--step acts on the stand, --flight measures in flight: run them one at a time"),
         (["--at", "reference"], "--flight measures the loop at the plant input: drop --at reference"),
+        (["--legs", "free"], "--legs sets the stand, and --flight measures in flight: drop it"),  # it was ignored
+        (["--settle", "2"], "--settle sets the stand, and --flight measures in flight: drop it"),
     ],
 )
 def test_what_flight_cannot_do_is_refused_before_any_flight(flags: list[str], said: str):
