@@ -332,6 +332,16 @@ def test_lqr_flies_at_every_gravity_and_designs_for_it(gravity: float) -> None:
     assert radius < 1.0
 
 
+def test_an_lqr_whose_gain_was_read_before_its_first_flight_flies_it() -> None:
+    """The dashboard reads K for its loop analysis before any flight. The LQR then flew zero torque (its
+    per-tick copy of K was set only by its own first call) and fell at the end of every first hop."""
+    sim = Simulation(with_controller(SimConfig(terrain="flat"), "lqr"))
+    sim.law.controller.state_feedback()  # as the dashboard's analysis panel does at start
+    sim.run(3)
+    assert not sim.fallen and len(sim.hops) == 3
+    assert max(h.peak_wheel_torque_nm for h in sim.hops) > 1.0  # the wheel flew: not the zero gain
+
+
 def test_the_readme_example_is_valid_python_with_its_imports() -> None:
     source = readme_example()
     compile(source, "my_controller.py", "exec")

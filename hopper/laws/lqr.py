@@ -61,10 +61,13 @@ class LQR:
         key = (self.pitch_tol, self.rate_tol, self.wheel_tol, self.torque_scale)
         if key != self._designed:
             self.gain, self._designed = self.design(), key
+            # The flight's copy, set with the gain: a design asked first by the loop analysis (the
+            # dashboard shows K before any flight) left it at zero, and the LQR flew no torque.
+            self._k = tuple(float(v) for v in self.gain)  # Python floats: a numpy scalar a tick costs
         return self.gain
 
     def __call__(self, obs: Observation) -> float:
         if (self.pitch_tol, self.rate_tol, self.wheel_tol, self.torque_scale) != self._designed:
-            self._k = tuple(float(v) for v in self.state_feedback())  # Python floats: a numpy scalar a tick costs
+            self.state_feedback()
         kp, kd, kw = self._k
         return kp * obs.pitch + kd * obs.rate + kw * obs.wheel_speed
