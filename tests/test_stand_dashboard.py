@@ -70,6 +70,11 @@ def test_the_stand_takes_kicks_and_reference_steps_and_gives_the_robot_back(
     client.set_gui_value("Reference °", "99")
     assert client.wait_for(lambda p: "Value clamped" in titles(p)), titles(client)
     assert wait_until(lambda: sim.reference == pytest.approx(math.radians(30.0)))
+    client.set_gui_value("Reference °", "-30")  # the limit itself: taken, no notice ("outside [-30, 30]" before)
+    assert wait_until(lambda: sim.reference == pytest.approx(math.radians(-30.0)))
+    client.set_gui_value("Reference °", "-99")  # its notice comes after any the -30 gave (one client's order)
+    assert client.wait_for(lambda p: any("-99" in n.get("body", "") for n in p.notifications)), titles(client)
+    assert titles(client).count("Value clamped") == 2, [n.get("body") for n in client.notifications]
     t = sim.time
     assert wait_until(lambda: sim.time > t + 0.3)  # the loop runs on
 

@@ -43,7 +43,7 @@ class StandPanel:
 
 
 def build_stand_panel(gui: viser.GuiApi, ctx: PanelContext) -> StandPanel:
-    limit = math.degrees(REFERENCE_LIMIT)
+    limit = round(math.degrees(REFERENCE_LIMIT), 9)  # deg: degrees(radians(30)) is 29.999999999999996
     mode = gui.add_dropdown(
         "Mode", tuple(MODES), initial_value="Hopping", hint="Hop over the terrain, or hold the robot on the test stand"
     )
