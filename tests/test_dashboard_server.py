@@ -20,7 +20,7 @@ from hopper.app.dashboard.config import DashboardConfig
 from hopper.app.dashboard.feedback import notify_all
 from hopper.app.dashboard.pacing import MAX, MAX_LAG_S, MAX_ROUND_STEPS, Pacer, chart_scale
 from hopper.app.dashboard.panels.events import describe
-from hopper.app.dashboard.panels.hops import hop_mean_html, hop_row_html
+from hopper.app.dashboard.panels.hops import hop_mean_html, hop_row_html, transport
 from hopper.app.dashboard.probe import ProbeClient
 from hopper.app.dashboard.server import FALL_RESET_S, FRAME_S, STATUS_S, Dashboard, PortInUse
 from net import free_port, port_is_free, wait_until
@@ -425,6 +425,15 @@ def test_hop_table_and_event_log_text() -> None:
     assert "<td>26</td><td>34</td><td>5.7</td>" in row  # the energies (J) and the cost of transport
     assert "<td>–</td></tr>" in hop_row_html(dataclasses.replace(hop, cost_of_transport=math.nan))
     assert "no hops yet" in hop_mean_html([])
+    # The mean row's CoT is the hops' together (energy over m g distance), a hop in place included: it
+    # read "–" for the rest of the run once one hop's was NaN, and a mean of ratios beside the rows.
+    weight = (26.4 + 34.2) / (5.67 * 0.8)  # N, this hop's m g
+    short = dataclasses.replace(hop, distance_m=0.2, cost_of_transport=60.6 / (weight * 0.2))
+    still = dataclasses.replace(hop, distance_m=0.0, cost_of_transport=math.nan)
+    together = 3 * 60.6 / (weight * 1.0)
+    assert transport([hop, short, still]) == pytest.approx(together)
+    assert f"<td>{together:.1f}</td></tr>" in hop_mean_html([hop, short, still])
+    assert math.isnan(transport([still]))
     assert describe(Event(1.0, 2, Disturbance("push_forward", 4.0, "N s"))) == "push ▶ +4 N s"
     assert describe(Event(1.0, 2, Liftoff(0.1))) is None
 

@@ -91,13 +91,25 @@ def hop_row_html(hop: HopMetrics, stale: bool = False) -> str:
     return _table(f"<tr{_mark(hop)}><td>{hop.index}</td>{cells}</tr>", stale=stale)
 
 
+def transport(hops: list[HopMetrics]) -> float:
+    """The hops' cost of transport together, as `hopper-sim run` prints it: all their energy over m g
+    times all their distance, not a mean of ratios (a short hop's is large, and a hop in place has
+    none: NaN). Each hop's m g |d| is its energy over its own figure (the gravity may change between
+    hops); a hop in place adds its energy and no distance. NaN if none moved."""
+    moved = [h for h in hops if math.isfinite(h.cost_of_transport) and h.cost_of_transport > 0]
+    weight_distance = sum((h.wheel_energy_j + h.leg_energy_j) / h.cost_of_transport for h in moved)
+    energy = sum(h.wheel_energy_j + h.leg_energy_j for h in hops)
+    return energy / weight_distance if weight_distance > 0 else math.nan
+
+
 def hop_mean_html(hops: list[HopMetrics], stale: bool = False) -> str:
-    """The mean of the completed hops (or "no hops yet"); under it, when stale, that they are the last run's."""
+    """The mean of the completed hops (the cost of transport: theirs together), or "no hops yet"; under
+    it, when stale, that they are the last run's."""
     done = [h for h in hops if h.completed]
     if done:
-        means = "".join(
-            f"<td>{_cell(sum(getattr(h, f) for h in done) / len(done), fmt)}</td>" for f, _, _, fmt in COLUMNS
-        )
+        mean = {f: sum(getattr(h, f) for h in done) / len(done) for f, _, _, _ in COLUMNS}
+        mean["cost_of_transport"] = transport(done)
+        means = "".join(f"<td>{_cell(mean[f], fmt)}</td>" for f, _, _, fmt in COLUMNS)
         row = f"<tr class='hd-mean'><td>x̄</td>{means}</tr>"
     else:
         row = f"<tr><td colspan={len(COLUMNS) + 1} class='hd-empty'>{'no hops yet' if not hops else ''}</td></tr>"
