@@ -11,6 +11,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
 
+from hopper.app import cli_common
 from hopper.app.cli_common import (
     CLOSED_STDOUT_STATUS,
     EXIT_CLOSED_STDOUT,
@@ -37,12 +38,9 @@ EXIT_STATUSES = (
 )
 
 
-class Parser(argparse.ArgumentParser):
-    """argparse with errors on one line (no usage dump): `hopper-dashboard: error: ...`; and no
-    abbreviated flags (`--sess DIR` is refused, not taken for --sessions-dir)."""
-
-    def __init__(self, *args: object, allow_abbrev: bool = False, **kwargs: object) -> None:
-        super().__init__(*args, allow_abbrev=allow_abbrev, **kwargs)  # type: ignore[arg-type]
+class Parser(cli_common.Parser):
+    """hopper-sim's parser (no abbreviated flags: `--sess DIR` is refused, not taken for
+    --sessions-dir) with this program's prefix: `hopper-dashboard: error: ...`."""
 
     def error(self, message: str) -> NoReturn:
         fail(message)
