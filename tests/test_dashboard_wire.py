@@ -6,7 +6,9 @@ deterministic; how fast they come is the benchmark's business (benchmarks/bench_
 
 from __future__ import annotations
 
+import json
 import math
+import struct
 
 import mujoco
 import numpy as np
@@ -14,7 +16,7 @@ import pytest
 import viser
 from hopper.app.dashboard.plots import PLOT_PUBLISH_S, LivePlots
 from hopper.app.dashboard.probe import CATEGORIES, ProbeClient
-from hopper.app.dashboard.scene import ROBOT, WORLD, RobotView, kinematic_parents, local_poses
+from hopper.app.dashboard.scene import ROBOT, WORLD, RobotView, kinematic_parents, local_poses, matte
 from hopper.app.dashboard.server import Dashboard
 from net import free_port, wait_until
 
@@ -71,6 +73,40 @@ def test_local_poses_compose_back_to_the_world_poses() -> None:
     sim.step()
     later_p, _ = local_poses(*body_poses(sim.model, sim.data, meshes), parents)
     assert np.allclose(later_p, local_p, atol=1e-12)
+
+
+def test_multi_colour_bodies_go_as_matte_glb_in_the_colours_of_the_plain_ones() -> None:
+    """The wheel and the shanks (vertex colours) are sent as GLB: with a non-metal material, not the
+    glTF loader's default metalness 1 (the wheel's face rendered black without the environment map),
+    and their colours linear, as glTF reads them: a shank (rgba 0.3 0.3 0.35, as the thighs') matches
+    the thighs, sent as sRGB colours."""
+    sim = Simulation(SimConfig())
+    server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
+    sent: dict[str, bytes] = {}
+    add_glb = server.scene.add_glb
+
+    def record(name: str, glb_data: bytes, **kwargs: object) -> viser.GlbHandle:
+        sent[name.rpartition("/")[2]] = glb_data
+        return add_glb(name, glb_data, **kwargs)  # type: ignore[arg-type]
+
+    server.scene.add_glb = record  # type: ignore[method-assign]
+    try:
+        RobotView(server.scene, sim.model)
+    finally:
+        server.stop()
+    assert {"wheel", "shank_L", "shank_R"} <= set(sent), sorted(sent)
+    for name, glb in sent.items():
+        length = struct.unpack("<I", glb[12:16])[0]
+        tree = json.loads(glb[20 : 20 + length])
+        primitive = tree["meshes"][0]["primitives"][0]
+        material = tree["materials"][primitive["material"]]["pbrMetallicRoughness"]
+        assert material["metallicFactor"] == 0.0 and material["roughnessFactor"] == 1.0, (name, material)
+        assert "COLOR_0" in primitive["attributes"], name
+    shank = next(b for b in body_meshes(sim.model) if b.name == "shank_L")
+    capsule = shank.colors[0, :3] / 255.0  # the shank's first geom: the capsule, 0.3 0.3 0.35
+    assert np.allclose(capsule, [0.3, 0.3, 0.35], atol=0.003)
+    linear = ((capsule + 0.055) / 1.055) ** 2.4  # the sRGB transfer function (above its linear toe)
+    assert np.allclose(matte(shank.mesh).visual.vertex_attributes["color"][0, :3] / 255.0, linear, atol=0.003)
 
 
 def test_the_phase_label_switches_labels_and_never_re_sends_a_text() -> None:

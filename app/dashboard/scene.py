@@ -89,7 +89,29 @@ def _add_body(scene: viser.SceneApi, name: str, body: BodyMesh) -> viser.SceneNo
             side="double" if a < 255 else "front",
             cast_shadow=a == 255,
         )
-    return scene.add_mesh_trimesh(name, body.mesh)
+    return scene.add_mesh_trimesh(name, matte(body.mesh))
+
+
+def matte(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
+    """`mesh` with its vertex colours under a matte, non-metal material (the plain meshes' look).
+
+    A glTF primitive without a material gets the loader's default, metalness 1: lit by the
+    environment map alone, so under the simple lighting (no map) the wheel's face rendered black.
+    glTF vertex colours are linear and the model's rgba, as the plain meshes' colours, sRGB: so
+    they are converted, or the shanks would show lighter than the thighs of the same rgba.
+    """
+    colors = mesh.visual.vertex_colors.copy()
+    srgb = colors[:, :3] / 255.0
+    linear = np.where(srgb <= 0.04045, srgb / 12.92, ((srgb + 0.055) / 1.055) ** 2.4)
+    colors[:, :3] = np.round(linear * 255.0).astype(np.uint8)
+    out = mesh.copy()
+    out.visual = trimesh.visual.TextureVisuals(
+        material=trimesh.visual.material.PBRMaterial(
+            baseColorFactor=[255, 255, 255, 255], metallicFactor=0.0, roughnessFactor=1.0
+        )
+    )
+    out.visual.vertex_attributes["color"] = colors
+    return out
 
 
 def kinematic_parents(model: mujoco.MjModel, meshes: list[BodyMesh]) -> list[int]:
