@@ -36,6 +36,7 @@ from hopper.controllers import (
     with_controller,
 )
 from hopper.disturbances import DISTURBANCE_LIMITS, DisturbanceKind
+from hopper.errors import HopperError
 from hopper.events import (
     Apex,
     CommandFailed,
@@ -500,6 +501,9 @@ class Simulation:
             command = self._commands.popleft()
             try:
                 command.apply(self)
+            except HopperError as exc:  # refused (a bad value, the wrong mode): its one line says why
+                log.warning("command %r refused: %s", command, exc)
+                self._emit(CommandFailed(type(command).__name__, str(exc)))
             except Exception as exc:  # a bad command must never stop the loop
                 log.exception("command %r failed", command)
                 self._emit(CommandFailed(type(command).__name__, f"{type(exc).__name__}: {exc}"))

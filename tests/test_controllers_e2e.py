@@ -5,15 +5,21 @@ Skips without /usr/bin/chromium, except under CI=true. Screenshots go to tmp_pat
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
+import pytest
+from hopper.app.dashboard.feedback import format_number
 from hopper.app.dashboard.server import Dashboard
 from net import wait_until
 from pages import wait_for_ab_table
 from test_controllers import readme_example
 from test_dashboard_e2e import PAGE_LOAD_MS
+from test_dashboard_inputs_e2e import box, notice, open_page, type_into
+from test_dashboard_inputs_e2e import start as start_paused
 from test_replay_e2e import NOTES_JS, WORK_VIEWPORT, _shot
 
+from hopper.commands import SetControllerParam
 from hopper.events import EventKind
 
 LOG_JS = "() => [...document.querySelectorAll('table.hd-log')].map(t => t.textContent).join(' | ')"
@@ -109,3 +115,62 @@ def test_a_controller_failing_in_flight_is_a_notice_and_the_pid_flies_on(browser
         _shot(page, tmp_path, "controller-failed.png")
     finally:
         page.close()
+
+
+def _param_changes(dashboard: Dashboard) -> list[dict[str, float]]:
+    """The MPC's param values at each ControllerChanged since it began to fly."""
+    flown = [e.payload for e in list(dashboard.sim.events) if e.kind == EventKind.CONTROLLER]
+    return [dict(c.params) for c in flown if c.spec == "mpc"][1:]
+
+
+def test_a_controllers_param_typed_applies_once_clamped_with_its_range_and_follows_its_slider(
+    browser,  # noqa: F811
+    tmp_path: Path,
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """The MPC's params had viser's slider boxes: 1.25 typed applied 1, 1.2 and 1.25, each rebuilding
+    the controller, and 99 gave two raw 'SetControllerParam failed: ControllerError' notices with
+    tracebacks. Now a typed box per param, as for the gains; slider and box show the value in use."""
+    dashboard = start_paused(tmp_path)
+    page = open_page(browser, dashboard, scene=False)
+    try:
+        _pick(page, dashboard, "mpc")
+        assert wait_until(lambda: "horizon" in dashboard.layout.controller.entries, timeout=60), "no MPC boxes"
+        panel = dashboard.layout.controller
+        growth, horizon = (box(page, panel.entries[name].handle) for name in ("step_growth", "horizon"))
+        assert box(page, panel.sliders["horizon"]).is_hidden(), "the slider's own number box must not be offered"
+        assert (growth.input_value(), horizon.input_value()) == ("1.03", "1.25")
+
+        type_into(page, growth, "1.25")  # once: not 1, then 1.2, then 1.25
+        assert wait_until(lambda: dashboard.sim.law.values["step_growth"] == 1.25), dashboard.sim.law.values
+        assert [c["step_growth"] for c in _param_changes(dashboard)] == [1.25]
+        assert panel.sliders["step_growth"].value == 1.25 and growth.input_value() == "1.25"
+
+        type_into(page, horizon, "99")
+        notice(page, "horizon 99 x nominal flight is outside [0.1, 3] x nominal flight; clamped to 3 x nominal flight")
+        assert wait_until(lambda: dashboard.sim.law.values["horizon"] == 3.0), dashboard.sim.law.values
+        assert wait_until(lambda: horizon.input_value() == "3"), horizon.input_value()
+        type_into(page, horizon, "abc")
+        notice(page, "horizon: 'abc' is not a number; kept 3 x nominal flight")
+        assert wait_until(lambda: horizon.input_value() == "3"), horizon.input_value()
+        assert [c["horizon"] for c in _param_changes(dashboard)] == [1.25, 3.0], "one change a typed value"
+        assert page.locator(".mantine-Notification-root", has_text="Command failed").count() == 0
+        assert not [r for r in caplog.records if r.exc_info or r.levelno >= logging.ERROR], caplog.text
+
+        # The slider still drags, and the box follows it.
+        track = page.locator(f'[id="{panel.sliders["horizon"]._impl.uuid}"]')
+        area = track.bounding_box()
+        page.mouse.click(area["x"] + 0.25 * area["width"], area["y"] + area["height"] / 2)
+        assert wait_until(lambda: dashboard.sim.law.values["horizon"] < 1.5), dashboard.sim.law.values
+        dragged = dashboard.sim.law.values["horizon"]
+        assert wait_until(lambda: horizon.input_value() == format_number(dragged)), (horizon.input_value(), dragged)
+
+        # A change the simulation makes (not from this page) reaches both.
+        dashboard.sim.submit(SetControllerParam("horizon", 2.0))
+        assert wait_until(lambda: horizon.input_value() == "2"), horizon.input_value()
+        thumb = page.locator(f'[id="{panel.sliders["horizon"]._impl.uuid}"] [role="slider"]')
+        assert wait_until(lambda: thumb.get_attribute("aria-valuenow") == "2"), thumb.get_attribute("aria-valuenow")
+        _shot(page, tmp_path, "controller-params.png")
+    finally:
+        page.close()
+        dashboard.stop()

@@ -6,6 +6,7 @@ Browser input is stood in for by `ProbeClient`, which speaks viser's real websoc
 from __future__ import annotations
 
 import contextlib
+import logging
 import math
 import time
 from pathlib import Path
@@ -16,6 +17,7 @@ import pytest
 import viser
 from calls import Call
 from hopper.app.dashboard import feedback
+from hopper.app.dashboard import viser_compat as compat
 from hopper.app.dashboard.config import DashboardConfig
 from hopper.app.dashboard.feedback import Refused, format_number, notify, parse_number
 from hopper.app.dashboard.panels.entry import QUIET_S, UNFINISHED_QUIET_S, NumberEntry
@@ -183,6 +185,63 @@ def test_a_gravity_the_legs_cannot_hold_the_robot_at_is_refused_and_the_control_
         assert d.sim.config.gravity == MOON_GRAVITY and d.sim.model.opt.gravity[2] == -MOON_GRAVITY
         now = d.sim.time
         assert wait_until(lambda: d.sim.time > now + 0.5), "the simulation stopped"
+    finally:
+        probe.close()
+
+
+PICKY = """
+from hopper.controllers import ControllerError, Param
+
+
+class Picky:
+    \"\"\"A PD whose kd refuses what the wheel cannot take (its setter raises ControllerError).\"\"\"
+
+    params = (Param("kp", 300.0, (0.0, 2000.0), "N m/rad"), Param("kd", 25.0, (0.0, 100.0), "N m s/rad"))
+
+    @property
+    def kd(self):
+        return self._kd
+
+    @kd.setter
+    def kd(self, value):
+        if value > 50.0:
+            raise ControllerError("over 50 the wheel rings at the motor's delay")
+        self._kd = value
+
+    def __call__(self, obs):
+        return self.kp * obs.pitch + self.kd * obs.rate
+"""
+
+
+def test_a_param_value_the_controller_refuses_is_one_line_and_the_slider_and_box_show_the_value_in_use(
+    start: Any, tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """It was 'SetControllerParam failed: ControllerError: ...' with a traceback in the log."""
+    picky = tmp_path / "picky.py"
+    picky.write_text(PICKY)
+    spec = f"{picky}:Picky"
+    d = start(controller_choice=(spec,))
+    probe = ProbeClient(d.url)
+    try:
+        assert wait_until(lambda: d.roles.operator is not None)
+        probe.set_gui_value("Controller", spec)
+        panel = d.layout.controller
+        assert wait_until(lambda: "kd" in panel.entries, timeout=60), "Picky's params were never shown"
+        box, slider = panel.entries["kd"].handle, panel.sliders["kd"]
+        assert probe.wait_for(lambda p: compat.element_id(box) in p.gui), "the page never got the kd box"
+        said = "Picky refused kd = 80 N m s/rad: over 50 the wheel rings at the motor's delay"
+
+        probe.send({"type": "GuiUpdateMessage", "uuid": compat.element_id(box), "updates": {"value": "80"}})
+        assert probe.wait_for(lambda p: bodies(p, "Value refused") == [said]), probe.notifications
+        assert probe.wait_for(lambda p: (compat.element_id(box), {"value": "25"}) in p.gui_log), "the box kept 80"
+        assert d.sim.law.values["kd"] == 25.0 and panel.entries["kd"].value == 25.0 and slider.value == 25.0
+
+        probe.send({"type": "GuiUpdateMessage", "uuid": compat.element_id(slider), "updates": {"value": 60.0}})
+        assert probe.wait_for(lambda p: (compat.element_id(slider), {"value": 25.0}) in p.gui_log), "slider kept 60"
+        assert d.sim.law.values["kd"] == 25.0 and not bodies(probe, "Command failed"), probe.notifications
+        refused = [r for r in caplog.records if "refused" in r.getMessage()]
+        assert refused and all(r.levelno == logging.WARNING and not r.exc_info for r in refused), caplog.text
+        assert not [r for r in caplog.records if r.exc_info], "a refused value logged a traceback"
     finally:
         probe.close()
 

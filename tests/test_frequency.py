@@ -144,10 +144,10 @@ def test_a_crossover_below_the_resolution_is_not_measured():
     [
         ({"length": 0.0}, r"chirp length must be in \(0, 600\] s, got 0"),
         ({"length": 1e9}, r"chirp length must be in \(0, 600\] s, got 1e\+09"),
-        ({"f_max": 600.0}, "beyond the Nyquist frequency of the 1000 Hz loop"),
+        ({"f_max": 600.0}, "must be under the Nyquist frequency of the 1000 Hz loop"),
         ({"f_max": 500.0}, "Nyquist"),
-        ({"amplitude": 40.0}, "motor's limit"),
-        ({"amplitude": 0.5, "at": "reference"}, r"\(0, 0.262\] \(rad\)"),
+        ({"amplitude": 40.0}, "the motor's torque limit"),
+        ({"amplitude": 0.5, "at": "reference"}, r"\(0, 0\.261799\] rad \(a quarter of the fall pitch\)"),
         ({"f_min": 50.0, "f_max": 20.0}, "f_min < f_max"),
         ({"length": float("nan")}, "length"),
         ({"kind": "square"}, "linear, log, stepped"),

@@ -182,38 +182,48 @@ def shown(probe: ProbeClient, uuid: str) -> dict[str, object]:
 
 
 def test_controls_built_after_a_viewer_came_follow_each_clients_role(start: Start, probes) -> None:
-    """A controller's param sliders are built when the operator picks it: long after the viewer's
-    page was greyed. Each arrives greyed for a viewer and live for the operator, as it is created
-    (never live for a moment), and follows a hand-over like the controls built at start."""
+    """A controller's param sliders and typed boxes are built when the operator picks it: long after
+    the viewer's page was greyed. Each arrives greyed for a viewer and live for the operator, as it is
+    created (never live for a moment), and follows a hand-over like the controls built at start."""
     d = start()
     a = join(d, probes)
     b = join(d, probes)
     first, second = d.roles.seated
     panel = d.layout.controller
 
-    def created(name: str) -> str:
-        assert wait_until(lambda: name in panel.sliders), f"the {name} slider was never built"
-        uuid = compat.element_id(panel.sliders[name])
-        assert a.wait_for(lambda p: uuid in p.gui) and b.wait_for(lambda p: uuid in p.gui), "a page missed it"
-        return uuid
+    def created(name: str) -> tuple[str, str]:
+        """The ids of the param's slider and typed box, once both pages have them."""
+        assert wait_until(lambda: name in panel.entries), f"the {name} controls were never built"
+        uuids = compat.element_id(panel.sliders[name]), compat.element_id(panel.entries[name].handle)
+        for probe in (a, b):
+            assert probe.wait_for(lambda p: all(u in p.gui for u in uuids)), "a page missed them"
+        return uuids
 
     a.set_gui_value("Controller", "lqr")
     lqr = created("pitch_tol")
-    assert shown(b, lqr)["disabled"] is True, "the viewer got a live slider"
-    assert shown(a, lqr)["disabled"] is False, "the operator got a greyed slider"
+    for uuid in lqr:
+        assert shown(b, uuid)["disabled"] is True, "the viewer got a live control"
+        assert shown(a, uuid)["disabled"] is False, "the operator got a greyed control"
+    refused = d.roles.refused
+    b.send({"type": "GuiUpdateMessage", "uuid": lqr[1], "updates": {"value": "7"}})  # the viewer types
+    assert wait_until(lambda: d.roles.refused == refused + 1), "the viewer's typed param was not refused"
+    assert d.layout.controller.entries["pitch_tol"].handle.value == "2"  # no text, no timer: nothing to apply
 
-    # Handed over: the late slider follows the roles both ways.
+    # Handed over: the late controls follow the roles both ways.
     a.set_gui_value("Hand over", True)
     assert wait_until(lambda: d.roles.operator == second)
-    assert b.wait_for(lambda p: shown(p, lqr)["disabled"] is False), "the new operator's late slider stayed greyed"
-    assert a.wait_for(lambda p: shown(p, lqr)["disabled"] is True), "the new viewer's late slider stayed live"
+    assert b.wait_for(lambda p: all(shown(p, u)["disabled"] is False for u in lqr)), "the new operator's stayed greyed"
+    assert a.wait_for(lambda p: all(shown(p, u)["disabled"] is True for u in lqr)), "the new viewer's stayed live"
     b.set_gui_value("pitch_tol", 3.0)
     assert wait_until(lambda: d.sim.law.values["pitch_tol"] == 3.0), "the new operator's param did not apply"
+    b.send({"type": "GuiUpdateMessage", "uuid": lqr[1], "updates": {"value": "4.5"}})  # typed: after a pause
+    assert wait_until(lambda: d.sim.law.values["pitch_tol"] == 4.5), "the new operator's typed param did not apply"
 
     # The new operator switches: the new sliders come greyed for the first client, live for the second.
     b.set_gui_value("Controller", "mpc")
     mpc = created("horizon")
-    assert shown(a, mpc)["disabled"] is True and shown(b, mpc)["disabled"] is False
+    for uuid in mpc:
+        assert shown(a, uuid)["disabled"] is True and shown(b, uuid)["disabled"] is False
     refused = d.roles.refused
     a.set_gui_value("horizon", 2.0)
     assert wait_until(lambda: d.roles.refused == refused + 1), "the viewer's param was not refused"

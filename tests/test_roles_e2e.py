@@ -14,6 +14,7 @@ from hopper.app.dashboard.access import page_url
 from hopper.app.dashboard.server import Dashboard
 from net import free_port, wait_until
 from pages import close_notices
+from test_controllers_e2e import _pick
 from test_dashboard_e2e import MIN_CANVAS_COLOURS, PAGE_LOAD_MS, distinct_colours
 from test_dashboard_inputs_e2e import HIDE_SCENE, box, notice, start, type_into
 
@@ -122,6 +123,13 @@ def test_a_viewer_changes_nothing_until_control_is_handed_over(browser, tmp_path
         assert [e.payload.gains.kp for e in d.sim.events if e.kind == EventKind.GAINS] == [600.0]  # type: ignore[union-attr]
         screenshot(second, tmp_path / "operator-after.png")
         screenshot(first, tmp_path / "viewer-after.png")
+
+        # Controls built after the viewer came (a controller's params, as the operator picks it) reach it read-only.
+        _pick(second, d, "lqr")
+        assert wait_until(lambda: "pitch_tol" in d.layout.controller.entries, timeout=60), "no LQR params"
+        late = d.layout.controller.entries["pitch_tol"].handle
+        box(first, late).wait_for(state="attached", timeout=30_000)
+        assert box(first, late).is_disabled() and not box(second, late).is_disabled()
     finally:
         for page in (first, second):
             if page is not None:

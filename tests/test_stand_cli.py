@@ -74,7 +74,7 @@ def test_a_short_chirp_measures_its_whole_band_and_does_not_report_one_segments_
 
 def test_a_chirp_at_the_reference_has_its_own_default_amplitude(tmp_path: Path):
     """--at reference without --amplitude: 2 deg in rad, as the dashboard's Inject panel offers, not the
-    input's 2 N m (refused as "chirp amplitude must be in (0, 0.262] (rad), got 2")."""
+    input's 2 N m (refused as "chirp amplitude must be in (0, 0.261799] rad (a quarter of the fall pitch), got 2")."""
     from hopper.analysis.bench import REFERENCE_AMPLITUDE
 
     out = tmp_path / "reference.json"
@@ -110,8 +110,8 @@ def test_the_help_gives_the_amplitude_defaults_the_command_and_the_dashboard_use
     [
         (["--length", "0"], "chirp length must be in (0, 600] s, got 0"),
         (["--length", "1e9"], "chirp length must be in (0, 600] s, got 1e+09"),
-        (["--f-max", "600"], "beyond the Nyquist frequency"),
-        (["--amplitude", "40"], "the motor's limit"),
+        (["--f-max", "600"], "must be under the Nyquist frequency"),
+        (["--amplitude", "40"], "the motor's torque limit"),
     ],
 )
 def test_a_bad_chirp_is_refused_in_one_line(flags: list[str], said: str):

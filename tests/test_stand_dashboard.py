@@ -7,10 +7,14 @@ import math
 
 import numpy as np
 import pytest
+from hopper.app.dashboard import viser_compat as compat
+from hopper.app.dashboard.panels.inject import AMPLITUDE
 from hopper.app.dashboard.probe import ProbeClient
 from hopper.app.dashboard.server import Dashboard
 from net import wait_until
 
+from hopper.analysis.frequency import MAX_LENGTH_S, REFERENCE_LIMIT
+from hopper.config import WHEEL_TORQUE_LIMIT
 from hopper.sim import Simulation
 from hopper.stand import StandSimulation
 
@@ -94,10 +98,14 @@ def test_a_chirp_injected_live_on_the_stand_is_measured_and_drawn(dashboard: Das
     client.set_gui_value("Mode", "Stand, legs locked")
     assert wait_until(lambda: isinstance(dashboard.sim, StandSimulation) and dashboard.sim.time > 0.3)
     sim = dashboard.sim
-    client.set_gui_value("To (Hz)", "600")  # beyond the loop's Nyquist frequency
+    client.set_gui_value("To (Hz)", "600")  # beyond the loop's Nyquist frequency: the box refuses it
+    client.set_gui_value("Inject", True)
+    assert client.wait_for(lambda p: "Value refused" in titles(p)), titles(client)
+    assert "Nyquist" in client.notifications[-1]["body"]
+    client.set_gui_value("Length (s)", "1")  # under 2 cycles of 1 Hz: the chirp as a whole is refused
     client.set_gui_value("Inject", True)
     assert client.wait_for(lambda p: "Chirp refused" in titles(p)), titles(client)
-    assert "Nyquist" in client.notifications[-1]["body"]
+    assert "under 2 cycles of f_min 1 Hz" in client.notifications[-1]["body"]
     assert sim.injection is None  # nothing was played
 
     client.set_gui_value("To (Hz)", "200")
@@ -119,3 +127,43 @@ def test_a_chirp_injected_live_on_the_stand_is_measured_and_drawn(dashboard: Das
     client.set_gui_value("Reset robot", True)  # a reset ends it, and says so
     assert client.wait_for(lambda p: "Injection stopped" in titles(p)), titles(client)
     assert "reset" in client.notifications[-1]["body"]
+
+
+def test_the_chirp_boxes_clamp_to_what_a_chirp_takes_and_say_which_limit(
+    dashboard: Dashboard, client: ProbeClient
+) -> None:
+    """They clamped to 10,000 whatever the number: 1e9 N m became 10,000 N m, then refused at Inject
+    as over 29.5; a length of 1e9 s became 10,000 s, refused as over 600. Now each box clamps to
+    ChirpSpec's own limit (hopper.analysis.frequency.chirp_limits) and the chirp is taken."""
+    inject = dashboard.layout.stand.inject
+
+    def told(title: str, body: str) -> bool:
+        return client.wait_for(lambda p: (title, body) in [(n.get("title"), n.get("body")) for n in p.notifications])
+
+    torque = "(0, 29.5] N m (the motor's torque limit)"
+    client.set_gui_value("Amplitude (N m)", "1e9")
+    assert told("Value clamped", f"Amplitude 1000000000 N m is outside {torque}; clamped to 29.5 N m")
+    client.set_gui_value("Length (s)", "1e9")
+    assert told("Value clamped", "Length 1000000000 s is outside (0, 600] s; clamped to 600 s")
+    assert wait_until(lambda: (inject.amplitude.value, inject.length.value) == (29.5, 600.0))
+    spec = inject.spec(None)
+    assert spec is not None and (spec.amplitude, spec.length) == (WHEEL_TORQUE_LIMIT, MAX_LENGTH_S)
+
+    # No nearest value under the Nyquist frequency, nor above 0: refused, saying why.
+    client.set_gui_value("To (Hz)", "500")
+    nyquist = "(0, 500) Hz (the Nyquist frequency of the 1000 Hz loop)"
+    assert told("Value refused", f"To 500 Hz is outside {nyquist}; kept 300 Hz"), client.notifications
+    client.set_gui_value("From (Hz)", "0")
+    assert told("Value refused", "From 0 Hz is outside (0, 500) Hz; kept 1 Hz"), client.notifications
+
+    # At the pitch reference the box is in deg, up to a quarter of the fall pitch (15 deg).
+    client.set_gui_value("Inject at", "pitch reference (deg)")
+    assert wait_until(lambda: inject.amplitude.value == AMPLITUDE["reference"][0])  # its default there, in deg
+    box = compat.element_id(inject.amplitude.handle)  # relabelled: found by its id
+    client.send({"type": "GuiUpdateMessage", "uuid": box, "updates": {"value": "1e9"}})
+    quarter = "(0, 15] deg (a quarter of the fall pitch)"
+    assert told("Value clamped", f"Amplitude 1000000000 deg is outside {quarter}; clamped to 15 deg")
+    assert wait_until(lambda: inject.amplitude.value == 15.0)
+    spec = inject.spec(None)
+    assert spec is not None and spec.at == "reference" and spec.amplitude == pytest.approx(REFERENCE_LIMIT, abs=1e-15)
+    assert spec.amplitude <= REFERENCE_LIMIT

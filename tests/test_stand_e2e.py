@@ -27,13 +27,18 @@ def _mode(page, dashboard: Dashboard, option: str) -> None:
 
 
 def _inject_a_chirp(page, dashboard: Dashboard, sim: StandSimulation, tmp_path: Path) -> None:
-    """The Chirp injection folder: a zero length is refused, a 3 s chirp is played and drawn."""
+    """The Chirp injection folder: a zero length, or one too short for its band, is refused; a 3 s
+    chirp is played and drawn."""
     inject = dashboard.layout.stand.inject
     page.get_by_text("Chirp injection", exact=True).click()
     length = box(page, inject.length.handle)
-    type_into(page, length, "0")
+    type_into(page, length, "0")  # the box itself refuses it
+    notice(page, "Length 0 s is outside (0, 600] s; kept 10 s")
+    type_into(page, length, "1")  # a length the box takes, too short for the band's 1 Hz: the chirp is refused
+    # The click counts what the server has been sent: wait for the box's text to get there first.
+    assert wait_until(lambda: inject.length.value == 1.0, timeout=10), inject.length.handle.value
     page.get_by_role("button", name="Inject", exact=True).click()
-    notice(page, "Chirp refused")
+    notice(page, "under 2 cycles of f_min 1 Hz")
     assert sim.injection is None
     type_into(page, box(page, inject.f_max.handle), "200")
     type_into(page, length, "3")

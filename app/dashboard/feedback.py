@@ -73,13 +73,31 @@ def notify_all(server: viser.ViserServer, title: str, body: str, level: Level = 
         notify(client, title, body, level)
 
 
-def _clamp(name: str, value: float, low: float, high: float, unit: str) -> tuple[float, str | None]:
-    if low <= value <= high:
+def _clamp(
+    name: str,
+    value: float,
+    low: float,
+    high: float,
+    unit: str,
+    *,
+    above: bool = False,
+    below: bool = False,
+    why: str = "",
+) -> tuple[float, str | None]:
+    """`value` clamped to [low, high], with the message that says so; Refused where the bound it
+    passed is excluded (`above`: value > low; `below`: value < high), which has no nearest value.
+    `why` names what sets `high` (the motor's limit), told when the value passes it."""
+    if (low < value if above else low <= value) and (value < high if below else value <= high):
         return value, None
-    clamped = min(max(value, low), high)
     u = f" {unit}" if unit else ""
     f = format_number
-    return clamped, f"{name} {f(value)}{u} is outside [{f(low)}, {f(high)}]{u}; clamped to {f(clamped)}{u}"
+    span = f"{'(' if above else '['}{f(low)}, {f(high)}{')' if below else ']'}{u}"
+    if why and value >= high:
+        span += f" ({why})"
+    if (above and value <= low) or (below and value >= high):
+        raise Refused(f"{name} {f(value)}{u} is outside {span}")
+    clamped = min(max(value, low), high)
+    return clamped, f"{name} {f(value)}{u} is outside {span}; clamped to {f(clamped)}{u}"
 
 
 def checked(name: str, value: object, low: float, high: float, unit: str = "") -> tuple[float, str | None]:
@@ -95,11 +113,21 @@ def checked(name: str, value: object, low: float, high: float, unit: str = "") -
 
 
 def parse_number(
-    name: str, text: str, low: float, high: float, unit: str = "", *, integer: bool = False
+    name: str,
+    text: str,
+    low: float,
+    high: float,
+    unit: str = "",
+    *,
+    integer: bool = False,
+    above: bool = False,
+    below: bool = False,
+    why: str = "",
 ) -> tuple[float, str | None]:
     """Typed text as a number in [low, high] (an int if `integer`): clamped with a message, or Refused.
 
-    Takes 800, 12.5, -2.5, 1e3; refuses 1,5 (a decimal comma), abc, NaN, inf and the empty box.
+    Takes 800, 12.5, -2.5, 1e3; refuses 1,5 (a decimal comma), abc, NaN, inf and the empty box, and
+    a number at or past a bound that is excluded (`above` low, `below` high: see `_clamp`).
     """
     typed = text.strip()
     if not typed:
@@ -112,7 +140,7 @@ def parse_number(
         raise Refused(f"{name}: {typed!r} is too large")
     if integer and value != int(value):
         raise Refused(f"{name} must be a whole number, got {typed!r}")
-    value, message = _clamp(name, value, low, high, unit)
+    value, message = _clamp(name, value, low, high, unit, above=above, below=below, why=why)
     return (int(value) if integer else value), message
 
 

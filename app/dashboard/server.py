@@ -484,6 +484,10 @@ class Dashboard:
             notify_all(self.server, "The robot fell", body, "warning")
         elif kind == EventKind.DIVERGED:
             notify_all(self.server, "Simulation diverged", f"{payload.describe()}: the robot was reset", "warning")
+        elif kind == EventKind.COMMAND_FAILED and payload.command == "SetControllerParam":
+            # A value the controller refused (its range, or its own word): why, and the values in use again.
+            notify_all(self.server, "Value refused", payload.message, "warning")
+            layout.controller.resync(self.sim.law)
         elif kind == EventKind.COMMAND_FAILED:
             notify_all(self.server, "Command failed", payload.describe(), "error")
             if payload.command == "SetController":  # the selector shows what flies again

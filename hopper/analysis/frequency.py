@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Literal
+from typing import Literal, NamedTuple
 
 import numpy as np
 from scipy import signal
@@ -55,6 +55,37 @@ class NotMeasured(HopperError, RuntimeError):
     """What a measurement cannot give (no crossover in the band, too little coherence); says why."""
 
 
+class Limit(NamedTuple):
+    """What one of ChirpSpec's numbers may be on its own: above `low` and up to `high` (under it if
+    `below`), in `unit`; `why` names what sets `high` when the plant does (a refusal says so)."""
+
+    low: float
+    high: float
+    unit: str
+    below: bool = False  # `high` itself is refused
+    why: str = ""
+
+    def admits(self, value: float) -> bool:
+        return math.isfinite(value) and self.low < value and (value < self.high if self.below else value <= self.high)
+
+    @property
+    def span(self) -> str:
+        """The range as a refusal writes it: (0, 600] s."""
+        return f"({self.low:g}, {self.high:g}{')' if self.below else ']'} {self.unit}"
+
+
+def chirp_limits(at: str = "input", dt: float = TIMESTEP) -> dict[str, Limit]:
+    """The range of each of ChirpSpec's numbers (f_min, f_max, amplitude, length) at the injection
+    point `at` and the loop's period `dt` (s). ChirpSpec checks these, then what ties the numbers
+    together (f_min under f_max, two cycles of f_min in the length, the stepped sines' cycles)."""
+    band = Limit(0.0, 0.5 / dt, "Hz", below=True, why=f"the Nyquist frequency of the {1.0 / dt:g} Hz loop")
+    if at == "reference":
+        amplitude = Limit(0.0, REFERENCE_LIMIT, "rad", why="a quarter of the fall pitch")
+    else:
+        amplitude = Limit(0.0, WHEEL_TORQUE_LIMIT, "N m", why="the motor's torque limit")
+    return {"f_min": band, "f_max": band, "amplitude": amplitude, "length": Limit(0.0, MAX_LENGTH_S, "s")}
+
+
 @dataclasses.dataclass(frozen=True, kw_only=True)
 class ChirpSpec:
     """An excitation: its band (Hz), amplitude (N m at the plant input, rad at the reference), length (s)."""
@@ -69,23 +100,21 @@ class ChirpSpec:
     dt: float = TIMESTEP  # s, the loop's period
 
     def __post_init__(self) -> None:
-        nyquist = 0.5 / self.dt
         if self.kind not in ("linear", "log", "stepped"):
             raise InvalidChirp(f"chirp kind {self.kind!r} is not one of linear, log, stepped")
         if self.at not in ("input", "reference"):
             raise InvalidChirp(f"injection point {self.at!r} is not one of input, reference")
-        if not (math.isfinite(self.length) and 0.0 < self.length <= MAX_LENGTH_S):
-            raise InvalidChirp(f"chirp length must be in (0, {MAX_LENGTH_S:g}] s, got {self.length:g}")
+        limits = chirp_limits(self.at, self.dt)
+        if not limits["length"].admits(self.length):
+            raise InvalidChirp(f"chirp length must be in {limits['length'].span}, got {self.length:g}")
         if not (math.isfinite(self.f_min) and math.isfinite(self.f_max) and 0.0 < self.f_min < self.f_max):
             raise InvalidChirp(f"chirp range must be 0 < f_min < f_max (Hz), got {self.f_min:g} to {self.f_max:g}")
-        if self.f_max >= nyquist:
-            raise InvalidChirp(
-                f"chirp f_max {self.f_max:g} Hz is beyond the Nyquist frequency of the {1.0 / self.dt:g} Hz loop "
-                f"({nyquist:g} Hz)"
-            )
-        limit, unit = (WHEEL_TORQUE_LIMIT, "N m, the motor's limit") if self.at == "input" else (REFERENCE_LIMIT, "rad")
-        if not (math.isfinite(self.amplitude) and 0.0 < self.amplitude <= limit):
-            raise InvalidChirp(f"chirp amplitude must be in (0, {limit:.3g}] ({unit}), got {self.amplitude:g}")
+        band = limits["f_max"]
+        if not band.admits(self.f_max):
+            raise InvalidChirp(f"chirp f_max {self.f_max:g} Hz must be under {band.why} ({band.high:g} Hz)")
+        amplitude = limits["amplitude"]
+        if not amplitude.admits(self.amplitude):
+            raise InvalidChirp(f"chirp amplitude must be in {amplitude.span} ({amplitude.why}), got {self.amplitude:g}")
         if self.length * self.f_min < 2.0:
             raise InvalidChirp(
                 f"a {self.length:g} s chirp holds under 2 cycles of f_min {self.f_min:g} Hz: lengthen it or raise f_min"

@@ -80,10 +80,17 @@ class FlightLaw:
         return {p.name: float(getattr(self.controller, p.name)) for p in self.params}
 
     def set_param(self, name: str, value: float) -> None:
-        """Change one declared param between ticks (a dashboard slider)."""
+        """Change one declared param between ticks (a dashboard slider); ControllerError, with the
+        param unchanged, if it is out of its range or the controller refuses it (raising ControllerError)."""
         for p in self.params:
             if p.name == name:
-                setattr(self.controller, name, p.check(value, self.name))
+                value = p.check(value, self.name)
+                try:
+                    setattr(self.controller, name, value)
+                except ControllerError as exc:  # the law's own word (a property's setter): say which value
+                    raise ControllerError(
+                        f"{self.name} refused {name} = {value:g} {p.unit}".rstrip() + f": {exc}"
+                    ) from None
                 return
         raise ControllerError(
             f"{self.name} has no parameter {name} (its parameters: {', '.join(p.name for p in self.params) or 'none'})"

@@ -37,6 +37,8 @@ class NumberEntry:
     that gives the range and units. `on_apply(value, client)` then receives the new value (on a
     timer or viser thread: it must only validate and queue). `words` name values that are no
     number in range (Speed's Max): the box shows the word and takes it typed, in any case.
+    `above` / `below` exclude low / high (refused, not clamped: no nearest number is in range);
+    `why` names what sets high (a notice says it).
     """
 
     def __init__(
@@ -52,9 +54,13 @@ class NumberEntry:
         on_apply: Apply | None = None,
         quiet_s: float = QUIET_S,
         words: Mapping[str, float] | None = None,
+        above: bool = False,
+        below: bool = False,
+        why: str = "",
     ) -> None:
         self.handle, self.name, self.low, self.high, self.unit = handle, name, low, high, unit
         self.integer, self.on_apply, self.quiet_s = integer, on_apply, quiet_s
+        self.above, self.below, self.why = above, below, why
         self.words = dict(words or {})
         self._value = value
         self._lock = threading.Lock()
@@ -73,6 +79,14 @@ class NumberEntry:
         with self._lock:
             self._value = value
             self.handle.value = self.text(value)  # its own update event has no client: ignored
+
+    def close(self) -> None:
+        """Drop typing not yet applied and apply nothing more (the box is being removed)."""
+        with self._lock:
+            if self._timer is not None:
+                self._timer.cancel()
+                self._timer = None
+            self.on_apply = None
 
     def commit(self, client: viser.ClientHandle | None = None) -> float | None:
         """Apply what is typed now; the value in use, or None if the text was refused (and notified)."""
@@ -116,7 +130,17 @@ class NumberEntry:
             if text.strip().lower() == word.lower():
                 return value, None
         try:
-            return parse_number(self.name, text, self.low, self.high, self.unit, integer=self.integer)
+            return parse_number(
+                self.name,
+                text,
+                self.low,
+                self.high,
+                self.unit,
+                integer=self.integer,
+                above=self.above,
+                below=self.below,
+                why=self.why,
+            )
         except Refused as exc:
             if not self.words:
                 raise
@@ -151,11 +175,11 @@ class NumberEntry:
             notify(client, "Something went wrong", f"{type(exc).__name__}: {exc}", "error")
 
 
-def hide_slider_boxes(gui: viser.GuiApi, sliders: list[viser.GuiSliderHandle[float]]) -> None:
+def hide_slider_boxes(gui: viser.GuiApi, sliders: list[viser.GuiSliderHandle[float]]) -> viser.GuiHtmlHandle:
     """Hide the number box viser draws beside each slider: it has the faults NumberEntry avoids.
 
     viser gives a slider's root element the handle's id and draws the box right after it (no
-    option of add_slider leaves it out).
+    option of add_slider leaves it out). Returns the style's element (remove it with the sliders).
     """
     selectors = ", ".join(f'[id="{compat.element_id(s)}"] + .mantine-NumberInput-root' for s in sliders)
-    gui.add_html(f"<style>{selectors} {{ display: none; }}</style>")
+    return gui.add_html(f"<style>{selectors} {{ display: none; }}</style>")

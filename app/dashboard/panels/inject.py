@@ -5,7 +5,10 @@ The chirp (hopper.analysis.frequency.ChirpSpec: kind, band, amplitude, length) i
 wheel torque (N m) or at the pitch reference (deg) by the loop, one sample a tick
 (hopper.stand.Injection); kicks, reference steps and the charts go on meanwhile, and a recording
 carries the injected signal. The estimate and its plot are made on a worker thread, never on the
-loop. A bad spec, an injection off the stand or over another one is refused with a notice.
+loop. Each box takes what ChirpSpec takes of its number (hopper.analysis.frequency.chirp_limits):
+past a limit it is clamped to it, past an excluded one (0, the loop's Nyquist frequency) refused, with
+a notice that names the limit. What ties the numbers together (the band's order, two cycles of its
+lowest frequency) is judged by ChirpSpec at Inject; so are an injection off the stand or over another.
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ from hopper.app.dashboard.panels import PanelContext, measured
 from hopper.app.dashboard.panels.entry import NumberEntry
 
 from hopper.analysis.bench import REFERENCE_AMPLITUDE, STAND_AMPLITUDE
-from hopper.analysis.frequency import ChirpSpec, InvalidChirp, excitation
+from hopper.analysis.frequency import ChirpSpec, InvalidChirp, Limit, chirp_limits, excitation
 from hopper.commands import Inject
 from hopper.stand import Injection
 
@@ -34,6 +37,21 @@ AT = {"wheel torque (N m)": "input", "pitch reference (deg)": "reference"}
 KINDS = {"logarithmic": "log", "linear": "linear", "stepped sines": "stepped"}
 # Defaults that stay linear, and units (the reference's shown in deg, rad in ChirpSpec and the CLI).
 AMPLITUDE = {"input": (STAND_AMPLITUDE, "N m"), "reference": (math.degrees(REFERENCE_AMPLITUDE), "deg")}
+
+
+def amplitude_limit(at: str) -> Limit:
+    """ChirpSpec's amplitude range at `at`, in the unit the box shows (deg at the reference)."""
+    limit = chirp_limits(at)["amplitude"]
+    if at == "input":
+        return limit
+    # 15 deg, not degrees(radians(15)) = 14.999999999999998: what the box shows and clamps to.
+    return limit._replace(high=round(math.degrees(limit.high), 9), unit="deg")
+
+
+def bound(entry: NumberEntry, limit: Limit) -> None:
+    """Give a box the range it clamps (or refuses) typed numbers to."""
+    entry.low, entry.high, entry.unit = limit.low, limit.high, limit.unit
+    entry.above, entry.below, entry.why = True, limit.below, limit.why  # a Limit's low is excluded
 
 
 @dataclasses.dataclass
@@ -56,8 +74,9 @@ class InjectPanel:
 
     def show_point(self) -> None:
         """The amplitude box in the unit of the injection point chosen, at its default."""
-        value, unit = AMPLITUDE[AT[str(self.at.value)]]
-        self.amplitude.unit = unit
+        at = AT[str(self.at.value)]
+        value, unit = AMPLITUDE[at]
+        bound(self.amplitude, amplitude_limit(at))
         self.amplitude.handle.label = f"Amplitude ({unit})"
         self.amplitude.show(value)
 
@@ -68,8 +87,8 @@ class InjectPanel:
             return None  # the entry has said why
         f_min, f_max, amplitude, length = values
         at = AT[str(self.at.value)]
-        if at == "reference":
-            amplitude = math.radians(amplitude)
+        if at == "reference":  # the box's limit in deg, back in rad: never past ChirpSpec's by a rounding
+            amplitude = min(math.radians(amplitude), chirp_limits(at)["amplitude"].high)
         try:
             return ChirpSpec(f_min=f_min, f_max=f_max, amplitude=amplitude, length=length,
                              kind=KINDS[str(self.kind.value)], at=at)  # fmt: skip
@@ -126,17 +145,32 @@ class InjectPanel:
 
 
 def build_inject_panel(gui: viser.GuiApi, ctx: PanelContext) -> InjectPanel:
-    def entry(label: str, value: float, unit: str, hint: str) -> NumberEntry:
-        # Words are refused here; the numbers are judged together by ChirpSpec (band, Nyquist, the motor).
-        return NumberEntry(gui.add_text(f"{label} ({unit})", "", hint=hint), label, 0.0, 1e4, unit, value=value)
+    limits = chirp_limits("input")
 
+    def entry(label: str, value: float, limit: Limit, hint: str) -> NumberEntry:
+        box = NumberEntry(
+            gui.add_text(f"{label} ({limit.unit})", "", hint=hint), label, limit.low, limit.high, value=value
+        )
+        bound(box, limit)  # its unit, and which ends are excluded
+        return box
+
+    band = limits["f_max"]
+    nyquist = f"{band.why} ({band.high:g} Hz)"
+    amplitude_hint = (
+        f"Up to {limits['amplitude'].high:g} N m at the wheel torque ({limits['amplitude'].why}), "
+        f"{amplitude_limit('reference').high:g} deg at the reference"
+    )
     at = gui.add_dropdown("Inject at", tuple(AT), hint="The plant input (the loop's response) or the reference")
     kind = gui.add_dropdown("Chirp", tuple(KINDS), hint="A swept sine, or sines held one frequency at a time")
-    f_min = entry("From", 1.0, "Hz", "The chirp's lowest frequency")
-    f_max = entry("To", 300.0, "Hz", "Its highest: under the loop's Nyquist frequency (500 Hz at 1 kHz)")
-    value, unit = AMPLITUDE["input"]
-    amplitude = entry("Amplitude", value, unit, "N m at the wheel torque, deg at the reference")
-    length = entry("Length", 10.0, "s", "The chirp's length: 2 cycles of its lowest frequency at least")
+    f_min = entry("From", 1.0, limits["f_min"], "The chirp's lowest frequency: under its highest")
+    f_max = entry("To", 300.0, band, f"Its highest: under {nyquist}")
+    amplitude = entry("Amplitude", AMPLITUDE["input"][0], amplitude_limit("input"), amplitude_hint)
+    length = entry(
+        "Length",
+        10.0,
+        limits["length"],
+        f"The chirp's length, up to {limits['length'].high:g} s: 2 cycles of its lowest frequency at least",
+    )
     button = gui.add_button("Inject", icon=viser.Icon.WAVE_SINE, hint="Play the chirp into the stand's loop, live")
     status = gui.add_html("<div class='hd-measured hd-dim'>nothing injected yet</div>")
     bode = gui.add_image(
