@@ -295,6 +295,7 @@ class Dashboard:
         if isinstance(old, StandSimulation):
             old.stop_injection(f"the mode changed to {mode}")  # it would play into the old one's memory
         new.listeners[:] = old.listeners
+        new.run_index = old.run_index  # one session, one numbering: the event log's "run N" goes on
         self.sim, self.mode = new, mode
         self.physics.terrain_changed(new)
         new.reset(reason=mode.split()[0])  # its listeners hear the reset: the charts and tables start over
