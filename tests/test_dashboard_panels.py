@@ -26,6 +26,7 @@ from hopper.app.dashboard.scene import LOOK_OFFSET
 from hopper.app.dashboard.server import Dashboard
 from net import free_port, wait_until
 
+from hopper import keyframes
 from hopper.commands import Reset, SetWheel
 from hopper.config import GAIN_RANGES, GRAVITY_PRESETS, MOON_GRAVITY, WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT
 from hopper.events import Event
@@ -413,6 +414,26 @@ def test_a_history_further_back_than_it_reaches_is_clamped_with_a_notice(
     assert wait_until(lambda: replay.scrubbed is not None)
     assert replay.scrub.value == pytest.approx(-held, abs=0.051)  # the box shows it (to the line's 0.1 s)
     assert f"({held:.1f} s back of " in replay.scrub_info.content
+
+
+def test_a_keyframe_saved_or_imported_under_a_taken_name_is_kept_beside_the_first(
+    dashboard: Dashboard, client: ProbeClient
+) -> None:
+    """Save pressed twice under the box's name, or a file imported twice, replaced the first keyframe
+    without a word. Both are kept: the second is "name (2)", and the notice says so."""
+    replay = dashboard.layout.replay
+    client.set_gui_value("Save keyframe", True)
+    assert wait_until(lambda: list(replay.keyframes) == ["keyframe 1"])
+    first = replay.keyframes["keyframe 1"]
+    client.set_gui_value("Save keyframe", True)
+    assert wait_until(lambda: list(replay.keyframes) == ["keyframe 1", "keyframe 1 (2)"]), list(replay.keyframes)
+    assert replay.keyframes["keyframe 1"] is first and replay.choice.value == "keyframe 1 (2)"
+    assert client.wait_for(lambda p: len(bodies(p, "Keyframe saved")) == 2), client.notifications
+    assert bodies(client, "Keyframe saved")[1].endswith("('keyframe 1' is taken: both are kept)")
+    text = keyframes.to_json(first).encode()
+    for _ in range(2):
+        replay.import_file(text, None)
+    assert list(replay.keyframes)[2:] == ["keyframe 1 (3)", "keyframe 1 (4)"]
 
 
 @pytest.mark.parametrize(

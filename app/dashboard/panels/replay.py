@@ -206,11 +206,15 @@ class ReplayPanel:
             self.scrub_info.content = _scrub_html(None, 0.0, self.host.history.span)
 
     # -- keyframes -------------------------------------------------------------------------
-    def add_keyframe(self, keyframe: keyframes.Keyframe) -> None:
-        with self._lock:
-            self.keyframes[keyframe.name] = keyframe
+    def add_keyframe(self, keyframe: keyframes.Keyframe) -> keyframes.Keyframe:
+        """Keep `keyframe` and select it; under a taken name it becomes "name (2)" (the one kept)."""
+        with self._lock:  # a save and an import may come at once: the name is chosen and taken together
+            name = keyframes.unique_name(keyframe.name, self.keyframes)
+            keyframe = dataclasses.replace(keyframe, name=name)
+            self.keyframes[name] = keyframe
             self.choice.options = tuple(self.keyframes)
-            self.choice.value = keyframe.name
+            self.choice.value = name
+        return keyframe
 
     def selected(self, client: viser.ClientHandle | None) -> keyframes.Keyframe | None:
         keyframe = self.keyframes.get(self.choice.value)
@@ -227,9 +231,15 @@ class ReplayPanel:
         except keyframes.KeyframeError as exc:
             notify(client, "Keyframe refused", str(exc), "error")
             return None
-        self.add_keyframe(keyframe)
-        notify(client, "Keyframe imported", f"{keyframe.name!r} at t = {keyframe.time:.2f} s")
-        return keyframe
+        kept = self.add_keyframe(keyframe)
+        notify(client, "Keyframe imported", _kept(kept, keyframe.name))
+        return kept
+
+
+def _kept(keyframe: keyframes.Keyframe, asked: str) -> str:
+    """A save's or an import's notice: the name kept, and why it is not the one asked."""
+    renamed = f" ({asked!r} is taken: both are kept)" if keyframe.name != asked else ""
+    return f"{keyframe.name!r} at t = {keyframe.time:.2f} s{renamed}"
 
 
 def _scrub_html(snap: Snapshot | None, back: float, span: float) -> str:
@@ -296,8 +306,7 @@ def build_replay_panel(
             return
 
         def saved(keyframe: keyframes.Keyframe) -> None:
-            panel.add_keyframe(keyframe)
-            notify(event.client, "Keyframe saved", f"{keyframe.name!r} at t = {keyframe.time:.2f} s")
+            notify(event.client, "Keyframe saved", _kept(panel.add_keyframe(keyframe), keyframe.name))
 
         ctx.submit(SaveKeyframe(keyframe_name, saved))
 
