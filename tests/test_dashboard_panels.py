@@ -395,6 +395,72 @@ def test_the_trail_creates_each_node_once_then_sends_only_its_points() -> None:
         server.stop()
 
 
+def test_a_rewound_trail_ends_at_the_moment_shown_until_the_run_goes_on_from_there() -> None:
+    """Scrubbed back, the robot stood behind the end of its own trail: the path ahead of it was still
+    drawn. It ends at the moment shown now; a later moment brings the path back while paused, and once
+    the run goes on from the moment the path it left is dropped (as the history after it is)."""
+    from hopper.app.dashboard.scene import TRAIL_CHUNK, TRAIL_SAMPLE_S, Trail
+
+    step = 2.0 ** math.ceil(math.log2(TRAIL_SAMPLE_S))  # s between samples: exact, so none is skipped
+    server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
+    probe = ProbeClient(f"http://127.0.0.1:{server.get_port()}")
+
+    def drawn() -> set[tuple[float, ...]]:
+        """The segments (x0, z0, x1, z1) the page draws: the trail nodes' shown and not collapsed."""
+        return {
+            (float(a[0]), float(a[2]), float(b[0]), float(b[2]))
+            for name, points in probe.scene_points.items()
+            if name.startswith("/world/trail/") and probe.scene_visible.get(name)
+            for a, b in points
+            if (a != b).any()
+        }
+
+    def drawn_to() -> float:
+        """The largest x (m) the page draws a trail segment to."""
+        return max((x1 for _, _, x1, _ in drawn()), default=-1.0)
+
+    def shows_to(x: float) -> bool:
+        return probe.wait_for(lambda p: drawn_to() == np.float32(x), timeout=20)
+
+    def shows_the_path() -> bool:
+        f = np.float32
+        path = [(float(f(x)), float(f(z))) for x, z in trail.points]
+        segments = {(*a, *b) for a, b in zip(path[:-1], path[1:], strict=True)}
+        return probe.wait_for(lambda p: drawn() == segments, timeout=20)
+
+    try:
+        trail = Trail(server.scene)
+        path = [(0.01 * k, 0.3) for k in range(5 * TRAIL_CHUNK + 3)]  # six chunks
+        for k, (x, z) in enumerate(path):
+            trail.sample(k * step, x, z)
+        trail.publish()
+        assert shows_to(path[-1][0])
+        cut, later = 2 * TRAIL_CHUNK + 4, 4 * TRAIL_CHUNK + 1
+        trail.rewind(cut * step, *path[cut])
+        trail.publish()
+        assert shows_to(path[cut][0]), drawn_to()
+        assert trail.points == path[: cut + 1]
+        trail.rewind(later * step, *path[later])  # still paused: a later moment of the same path
+        trail.publish()
+        assert shows_to(path[later][0]), drawn_to()
+        trail.rewind(cut * step, *path[cut])
+        # The run goes on from there another way, before the next publish (a restore while running):
+        # the cut chunk comes back to its length with other points.
+        for k in range(cut + 1, later + 1):
+            trail.sample(k * step, path[k][0], 0.5)
+        trail.publish()
+        regrown = path[: cut + 1] + [(x, 0.5) for x, _ in path[cut + 1 : later + 1]]
+        assert trail.points == regrown and shows_the_path(), sorted(drawn())
+        trail.rewind(len(path) * step, *regrown[-1])
+        assert trail.points == regrown  # the path it left is gone
+        trail.rewind(cut * step, 50.0, 0.3)  # a moment the path does not lead to (a keyframe from elsewhere)
+        trail.publish()
+        assert trail.points == [] and probe.wait_for(lambda p: drawn_to() == -1.0, timeout=20)
+    finally:
+        probe.close()
+        server.stop()
+
+
 def test_a_history_further_back_than_it_reaches_is_clamped_with_a_notice(
     dashboard: Dashboard, client: ProbeClient
 ) -> None:

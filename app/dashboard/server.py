@@ -321,6 +321,8 @@ class Dashboard:
         self.history.rewound(snapshot)
         self._next_sample = snapshot.time
         self.layout.plots.drop_after(snapshot.time)
+        torso = self.sim.state()
+        self.trail.rewind(snapshot.time, torso.x, torso.z)  # no path ahead of the robot shown
         if snapshot.hops is not None:  # the hop table shows the hops of the moment restored
             self.layout.hops.show(list(snapshot.hops))
 
