@@ -6,6 +6,7 @@ Browser input is stood in for by `ProbeClient`, which speaks viser's real websoc
 from __future__ import annotations
 
 import contextlib
+import html
 import math
 import time
 from pathlib import Path
@@ -482,6 +483,49 @@ def test_a_history_further_back_than_it_reaches_is_clamped_with_a_notice(
     assert f"({held:.1f} s back of " in replay.scrub_info.content
 
 
+def test_back_is_typed_in_seconds_ago_and_the_log_tells_each_restore_and_resume(
+    dashboard: Dashboard, client: ProbeClient
+) -> None:
+    """The Back box took -40 to 0 s: 5, meaning 5 s ago, was clamped to live and the line read
+    "-0.0 s back". It takes seconds ago (a minus sign is dropped); the slider stays a timeline, the
+    past to the left. Restores and resumes left no line in the event log; each has one, and the
+    trail ends at the robot shown."""
+    replay, log = dashboard.layout.replay, dashboard.layout.events
+
+    def newest() -> str:
+        return html.unescape((log.lines or [""])[0])
+
+    assert wait_until(lambda: dashboard.history.span >= 8.0, timeout=90)
+    client.set_gui_value("s back", "5")
+    assert wait_until(lambda: replay.scrubbed is not None and dashboard.sim.time == replay.scrubbed.time, timeout=30)
+    ring, snap = list(dashboard.history.ring), replay.scrubbed
+    assert 50 <= len(ring) - 1 - ring.index(snap) <= 90  # 50 ring entries, and those before the pause took
+    assert replay.back.value == 5.0 and replay.scrub.value == -5.0
+    assert "(5.0 s back of " in replay.scrub_info.content
+    assert wait_until(lambda: "restored the moment 5.0 s back" in newest()), newest()
+    torso = dashboard.sim.state()
+    assert wait_until(lambda: math.dist(dashboard.trail.points[-1], (torso.x, torso.z)) < 0.1)
+
+    client.set_gui_value("s back", "-3")  # as the box took it before: 3 s back
+    assert wait_until(lambda: "(3.0 s back of " in replay.scrub_info.content), replay.scrub_info.content
+    assert replay.back.value == 3.0 and client.wait_for(lambda p: p.shown_value("s back") == "3")
+    client.set_gui_value("s back", "0")
+    assert wait_until(lambda: "(0.0 s back of " in replay.scrub_info.content), replay.scrub_info.content
+    assert wait_until(lambda: "restored the moment 0.0 s back" in newest()), newest()
+    assert "-0.0" not in replay.scrub_info.content + "".join(log.lines)
+    client.set_gui_value("Resume from here", True)
+    assert wait_until(lambda: "resumed from the moment restored" in newest()), newest()
+    assert not bodies(client, "Value clamped"), client.notifications
+
+    client.set_gui_value("Save keyframe", True)
+    assert wait_until(lambda: "keyframe 1" in replay.keyframes)
+    client.set_gui_value("Restore keyframe", True)  # while running: it goes on at once, no resume line
+    assert wait_until(lambda: "restored keyframe 'keyframe 1'" in newest()), newest()
+    later = dashboard.sim.time + 0.5
+    assert wait_until(lambda: dashboard.sim.time > later)
+    assert "resumed" not in newest()
+
+
 def test_a_keyframe_saved_or_imported_under_a_taken_name_is_kept_beside_the_first(
     dashboard: Dashboard, client: ProbeClient
 ) -> None:
@@ -506,7 +550,7 @@ def test_a_keyframe_saved_or_imported_under_a_taken_name_is_kept_beside_the_firs
     "label, refusal",
     [
         ("× real time", "Speed: {!r} is not a number (or Max); kept 1 x"),
-        ("s", "Back: {!r} is not a number; kept 0 s"),
+        ("s back", "Back: {!r} is not a number; kept 0 s"),
     ],
 )
 def test_text_in_the_speed_or_back_box_is_refused_and_the_box_shows_the_value_in_use_again(

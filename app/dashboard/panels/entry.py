@@ -36,7 +36,9 @@ class NumberEntry:
     box shows the value in use again; a number out of [low, high] is clamped, with a notification
     that gives the range and units. `on_apply(value, client)` then receives the new value (on a
     timer or viser thread: it must only validate and queue). `words` name values that are no
-    number in range (Speed's Max): the box shows the word and takes it typed, in any case.
+    number in range (Speed's Max): the box shows the word and takes it typed, in any case. With
+    `magnitude`, a negative number is taken as its size (Back: "-5" and "5" both mean 5 s ago;
+    the box then shows 5).
     """
 
     def __init__(
@@ -52,10 +54,12 @@ class NumberEntry:
         on_apply: Apply | None = None,
         quiet_s: float = QUIET_S,
         words: Mapping[str, float] | None = None,
+        magnitude: bool = False,
     ) -> None:
         self.handle, self.name, self.low, self.high, self.unit = handle, name, low, high, unit
         self.integer, self.on_apply, self.quiet_s = integer, on_apply, quiet_s
         self.words = dict(words or {})
+        self.magnitude = magnitude
         self._value = value
         self._lock = threading.Lock()
         self._timer: threading.Timer | None = None
@@ -115,6 +119,8 @@ class NumberEntry:
         for word, value in self.words.items():
             if text.strip().lower() == word.lower():
                 return value, None
+        if self.magnitude and text.strip().startswith("-"):
+            text = text.strip()[1:]
         try:
             return parse_number(self.name, text, self.low, self.high, self.unit, integer=self.integer)
         except Refused as exc:
