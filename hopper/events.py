@@ -34,6 +34,8 @@ class EventKind(enum.StrEnum):
     SCHEDULE = "schedule"
     CONTROLLER = "controller"
     CONTROLLER_FAILED = "controller_failed"
+    RESTORE = "restore"
+    RESUME = "resume"
 
 
 def _hop_text(hop: HopMetrics) -> str:
@@ -256,6 +258,28 @@ class ControllerFailed:
         return f"controller {self.spec} failed, the PID flies on: {self.cause}"
 
 
+@dataclasses.dataclass(frozen=True)
+class Restored:
+    """The simulation was put back to an earlier moment (a front end's history, a keyframe); the
+    event's time is that moment's."""
+
+    kind: ClassVar[EventKind] = EventKind.RESTORE
+    what: str  # "the moment 5.0 s back", "keyframe 'mid hop'"
+
+    def describe(self) -> str:
+        return f"restored {self.what}"
+
+
+@dataclasses.dataclass(frozen=True)
+class Resumed:
+    """The simulation steps on from a moment it was restored to while paused."""
+
+    kind: ClassVar[EventKind] = EventKind.RESUME
+
+    def describe(self) -> str:
+        return "resumed from the moment restored"
+
+
 OperatorReason = Literal["first", "handed over", "disconnected", "idle"]
 
 
@@ -285,7 +309,7 @@ Payload = (
     | TerrainChanged
     | Disturbance | Dragged
     | DisturbanceArmed | Diverged | CommandFailed | Recording | OperatorChanged | ScheduleChanged
-    | ControllerChanged | ControllerFailed
+    | ControllerChanged | ControllerFailed | Restored | Resumed
 )  # fmt: skip
 
 

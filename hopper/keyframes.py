@@ -3,7 +3,8 @@
 The file carries the state arrays in base64 (float64 / the kernel's raw record, little-endian),
 the gains, terrain kind and seed, gravity, sensing and wheel, and a SHA-256 of the arrays so that
 a damaged file is refused rather than restored into a wrong state. Reading validates everything
-before anything changes.
+before anything changes. The file is strict JSON (jq, JavaScript's JSON.parse read it): a time that
+never comes is null, not the extension `Infinity` that files before version 4 carry (still read).
 """
 
 from __future__ import annotations
@@ -13,6 +14,8 @@ import dataclasses
 import hashlib
 import json
 import math
+import re
+from collections.abc import Collection
 
 import numpy as np
 
@@ -25,8 +28,9 @@ from hopper.sim import Simulation
 from hopper.snapshot import Pending, Snapshot, SnapshotMismatch
 
 FORMAT = "hopper-keyframe"
-VERSION = 3  # 3: where the terrain window stood; 2: the loop's pending disturbances and the hop in progress by name
-READS = (1, 2, 3)  # versions read (1: the same state as three lists; 1 and 2 were made on the start window)
+VERSION = 4  # 4: strict JSON (null for a time that never comes); 3: where the terrain window stood;
+# 2: the loop's pending disturbances and the hop in progress by name
+READS = (1, 2, 3, 4)  # versions read (1: the same state as three lists; 1 and 2 were made on the start window)
 MAX_FILE_BYTES = 1_000_000  # a keyframe is ~4 KB; anything far larger is not one
 MAX_NAME = 60  # characters
 
@@ -52,6 +56,21 @@ def check_name(name: str) -> str:
     if len(name) > MAX_NAME or not name.isprintable():
         raise KeyframeError(f"a keyframe name is at most {MAX_NAME} printable characters")
     return name
+
+
+def unique_name(name: str, taken: Collection[str]) -> str:
+    """`name`, or if it is taken the first free "name (2)", "name (3)", ... (a copy of "a (2)" is
+    "a (3)"), cut to MAX_NAME characters."""
+    if name not in taken:
+        return name
+    base = re.sub(r" \(\d+\)$", "", name)
+    n = 2
+    while True:
+        suffix = f" ({n})"
+        candidate = base[: MAX_NAME - len(suffix)].rstrip() + suffix
+        if candidate not in taken:
+            return candidate
+        n += 1
 
 
 def save(sim: Simulation, name: str) -> Keyframe:
@@ -94,7 +113,7 @@ def to_json(keyframe: Keyframe) -> str:
             "wheel": c.wheel,
             "timestep": c.timestep,
         },
-        "pending": dataclasses.asdict(s.pending),  # inf (nothing scheduled) as the JSON extension Infinity
+        "pending": {k: _never_as_null(v) for k, v in dataclasses.asdict(s.pending).items()},
         "schedule": dataclasses.asdict(s.schedule) if s.schedule else None,
         "progress": dataclasses.asdict(s.progress),
         "terrain_first": s.terrain_first,
@@ -106,7 +125,12 @@ def to_json(keyframe: Keyframe) -> str:
             "sha256": _digest(physics.tobytes(), sensors.tobytes(), memory),
         },
     }
-    return json.dumps(doc, indent=1)
+    return json.dumps(doc, indent=1, allow_nan=False)  # a non-finite value left is a bug: raise, not write it
+
+
+def _never_as_null(value: float) -> float | None:
+    """A time that never comes (inf) as null: strict JSON has no Infinity."""
+    return None if value == math.inf else value
 
 
 def _need(doc: dict, key: str, kind: type | tuple[type, ...]) -> object:
@@ -128,21 +152,22 @@ def _array(text: object, what: str) -> bytes:
 V1_PROGRESS = ("last_touchdown_x", "ground_start", "liftoff_time", "liftoff_z", "liftoff_momentum")
 
 
-def _fields(value: object, cls: type, what: str) -> dict:
-    """`value` as the keyword arguments of dataclass `cls`: every field, each a number (or null)."""
+def _fields(value: object, cls: type, what: str, null: float | None = None) -> dict:
+    """`value` as the keyword arguments of dataclass `cls`: every field, each a number (or null, read
+    as `null`)."""
     names = [f.name for f in dataclasses.fields(cls)]
     if not isinstance(value, dict) or set(value) != set(names):
         raise KeyframeError(f"field {what!r} must hold {', '.join(names)}")
     for name, v in value.items():
         if not (v is None or (isinstance(v, (int, float)) and not isinstance(v, bool))):
             raise KeyframeError(f"field {what}.{name} must be a number, got {v!r}")
-    return {k: (float(v) if v is not None else None) for k, v in value.items()}
+    return {k: (float(v) if v is not None else null) for k, v in value.items()}
 
 
 def _loop_state(doc: dict) -> tuple[Pending, HopInProgress]:
-    """The loop's pending disturbances and the hop in progress, from a version 2 or 1 file."""
-    if doc.get("version") in (2, 3):
-        return Pending(**_fields(doc.get("pending"), Pending, "pending")), HopInProgress(
+    """The loop's pending disturbances and the hop in progress, from a version 4, 3, 2 or 1 file."""
+    if doc.get("version") in (2, 3, 4):  # a pending time is null (never) from version 4, Infinity before
+        return Pending(**_fields(doc.get("pending"), Pending, "pending", null=math.inf)), HopInProgress(
             **_fields(doc.get("progress"), HopInProgress, "progress")
         )
     pulse, kick, metrics = doc.get("pulse"), doc.get("kick", [math.inf, 0.0]), doc.get("metrics")
@@ -200,7 +225,7 @@ def from_json(text: str | bytes, sim: Simulation) -> Keyframe:
     if len(physics) % 8 or len(sensors) % 8:
         raise KeyframeError("state arrays have a wrong length")
     pending, progress = _loop_state(doc)
-    terrain_first = doc.get("terrain_first") if doc.get("version") == 3 else None  # 1, 2: the 30 m strip
+    terrain_first = doc.get("terrain_first") if doc.get("version") in (3, 4) else None  # 1, 2: the 30 m strip
     if terrain_first is not None and (not isinstance(terrain_first, int) or isinstance(terrain_first, bool)):
         raise KeyframeError(f"field 'terrain_first' must be an integer grid column, got {terrain_first!r}")
     schedule = doc.get("schedule")

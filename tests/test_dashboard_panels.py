@@ -6,6 +6,7 @@ Browser input is stood in for by `ProbeClient`, which speaks viser's real websoc
 from __future__ import annotations
 
 import contextlib
+import html
 import logging
 import math
 import time
@@ -28,6 +29,7 @@ from hopper.app.dashboard.scene import LOOK_OFFSET
 from hopper.app.dashboard.server import Dashboard
 from net import free_port, wait_until
 
+from hopper import keyframes
 from hopper.commands import Reset, SetWheel
 from hopper.config import GAIN_RANGES, GRAVITY_PRESETS, MOON_GRAVITY, WHEEL_NO_LOAD_SPEED, WHEEL_TORQUE_LIMIT
 from hopper.events import Event
@@ -453,6 +455,72 @@ def test_the_trail_creates_each_node_once_then_sends_only_its_points() -> None:
         server.stop()
 
 
+def test_a_rewound_trail_ends_at_the_moment_shown_until_the_run_goes_on_from_there() -> None:
+    """Scrubbed back, the robot stood behind the end of its own trail: the path ahead of it was still
+    drawn. It ends at the moment shown now; a later moment brings the path back while paused, and once
+    the run goes on from the moment the path it left is dropped (as the history after it is)."""
+    from hopper.app.dashboard.scene import TRAIL_CHUNK, TRAIL_SAMPLE_S, Trail
+
+    step = 2.0 ** math.ceil(math.log2(TRAIL_SAMPLE_S))  # s between samples: exact, so none is skipped
+    server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
+    probe = ProbeClient(f"http://127.0.0.1:{server.get_port()}")
+
+    def drawn() -> set[tuple[float, ...]]:
+        """The segments (x0, z0, x1, z1) the page draws: the trail nodes' shown and not collapsed."""
+        return {
+            (float(a[0]), float(a[2]), float(b[0]), float(b[2]))
+            for name, points in probe.scene_points.items()
+            if name.startswith("/world/trail/") and probe.scene_visible.get(name)
+            for a, b in points
+            if (a != b).any()
+        }
+
+    def drawn_to() -> float:
+        """The largest x (m) the page draws a trail segment to."""
+        return max((x1 for _, _, x1, _ in drawn()), default=-1.0)
+
+    def shows_to(x: float) -> bool:
+        return probe.wait_for(lambda p: drawn_to() == np.float32(x), timeout=20)
+
+    def shows_the_path() -> bool:
+        f = np.float32
+        path = [(float(f(x)), float(f(z))) for x, z in trail.points]
+        segments = {(*a, *b) for a, b in zip(path[:-1], path[1:], strict=True)}
+        return probe.wait_for(lambda p: drawn() == segments, timeout=20)
+
+    try:
+        trail = Trail(server.scene)
+        path = [(0.01 * k, 0.3) for k in range(5 * TRAIL_CHUNK + 3)]  # six chunks
+        for k, (x, z) in enumerate(path):
+            trail.sample(k * step, x, z)
+        trail.publish()
+        assert shows_to(path[-1][0])
+        cut, later = 2 * TRAIL_CHUNK + 4, 4 * TRAIL_CHUNK + 1
+        trail.rewind(cut * step, *path[cut])
+        trail.publish()
+        assert shows_to(path[cut][0]), drawn_to()
+        assert trail.points == path[: cut + 1]
+        trail.rewind(later * step, *path[later])  # still paused: a later moment of the same path
+        trail.publish()
+        assert shows_to(path[later][0]), drawn_to()
+        trail.rewind(cut * step, *path[cut])
+        # The run goes on from there another way, before the next publish (a restore while running):
+        # the cut chunk comes back to its length with other points.
+        for k in range(cut + 1, later + 1):
+            trail.sample(k * step, path[k][0], 0.5)
+        trail.publish()
+        regrown = path[: cut + 1] + [(x, 0.5) for x, _ in path[cut + 1 : later + 1]]
+        assert trail.points == regrown and shows_the_path(), sorted(drawn())
+        trail.rewind(len(path) * step, *regrown[-1])
+        assert trail.points == regrown  # the path it left is gone
+        trail.rewind(cut * step, 50.0, 0.3)  # a moment the path does not lead to (a keyframe from elsewhere)
+        trail.publish()
+        assert trail.points == [] and probe.wait_for(lambda p: drawn_to() == -1.0, timeout=20)
+    finally:
+        probe.close()
+        server.stop()
+
+
 def test_a_history_further_back_than_it_reaches_is_clamped_with_a_notice(
     dashboard: Dashboard, client: ProbeClient
 ) -> None:
@@ -474,11 +542,74 @@ def test_a_history_further_back_than_it_reaches_is_clamped_with_a_notice(
     assert f"({held:.1f} s back of " in replay.scrub_info.content
 
 
+def test_back_is_typed_in_seconds_ago_and_the_log_tells_each_restore_and_resume(
+    dashboard: Dashboard, client: ProbeClient
+) -> None:
+    """The Back box took -40 to 0 s: 5, meaning 5 s ago, was clamped to live and the line read
+    "-0.0 s back". It takes seconds ago (a minus sign is dropped); the slider stays a timeline, the
+    past to the left. Restores and resumes left no line in the event log; each has one, and the
+    trail ends at the robot shown."""
+    replay, log = dashboard.layout.replay, dashboard.layout.events
+
+    def newest() -> str:
+        return html.unescape((log.lines or [""])[0])
+
+    assert wait_until(lambda: dashboard.history.span >= 8.0, timeout=90)
+    client.set_gui_value("s back", "5")
+    assert wait_until(lambda: replay.scrubbed is not None and dashboard.sim.time == replay.scrubbed.time, timeout=30)
+    ring, snap = list(dashboard.history.ring), replay.scrubbed
+    assert 50 <= len(ring) - 1 - ring.index(snap) <= 90  # 50 ring entries, and those before the pause took
+    assert replay.back.value == 5.0 and replay.scrub.value == -5.0
+    assert "(5.0 s back of " in replay.scrub_info.content
+    assert wait_until(lambda: "restored the moment 5.0 s back" in newest()), newest()
+    torso = dashboard.sim.state()
+    assert wait_until(lambda: math.dist(dashboard.trail.points[-1], (torso.x, torso.z)) < 0.1)
+
+    client.set_gui_value("s back", "-3")  # as the box took it before: 3 s back
+    assert wait_until(lambda: "(3.0 s back of " in replay.scrub_info.content), replay.scrub_info.content
+    assert replay.back.value == 3.0 and client.wait_for(lambda p: p.shown_value("s back") == "3")
+    client.set_gui_value("s back", "0")
+    assert wait_until(lambda: "(0.0 s back of " in replay.scrub_info.content), replay.scrub_info.content
+    assert wait_until(lambda: "restored the moment 0.0 s back" in newest()), newest()
+    assert "-0.0" not in replay.scrub_info.content + "".join(log.lines)
+    client.set_gui_value("Resume from here", True)
+    assert wait_until(lambda: "resumed from the moment restored" in newest()), newest()
+    assert not bodies(client, "Value clamped"), client.notifications
+
+    client.set_gui_value("Save keyframe", True)
+    assert wait_until(lambda: "keyframe 1" in replay.keyframes)
+    client.set_gui_value("Restore keyframe", True)  # while running: it goes on at once, no resume line
+    assert wait_until(lambda: "restored keyframe 'keyframe 1'" in newest()), newest()
+    later = dashboard.sim.time + 0.5
+    assert wait_until(lambda: dashboard.sim.time > later)
+    assert "resumed" not in newest()
+
+
+def test_a_keyframe_saved_or_imported_under_a_taken_name_is_kept_beside_the_first(
+    dashboard: Dashboard, client: ProbeClient
+) -> None:
+    """Save pressed twice under the box's name, or a file imported twice, replaced the first keyframe
+    without a word. Both are kept: the second is "name (2)", and the notice says so."""
+    replay = dashboard.layout.replay
+    client.set_gui_value("Save keyframe", True)
+    assert wait_until(lambda: list(replay.keyframes) == ["keyframe 1"])
+    first = replay.keyframes["keyframe 1"]
+    client.set_gui_value("Save keyframe", True)
+    assert wait_until(lambda: list(replay.keyframes) == ["keyframe 1", "keyframe 1 (2)"]), list(replay.keyframes)
+    assert replay.keyframes["keyframe 1"] is first and replay.choice.value == "keyframe 1 (2)"
+    assert client.wait_for(lambda p: len(bodies(p, "Keyframe saved")) == 2), client.notifications
+    assert bodies(client, "Keyframe saved")[1].endswith("('keyframe 1' is taken: both are kept)")
+    text = keyframes.to_json(first).encode()
+    for _ in range(2):
+        replay.import_file(text, None)
+    assert list(replay.keyframes)[2:] == ["keyframe 1 (3)", "keyframe 1 (4)"]
+
+
 @pytest.mark.parametrize(
     "label, refusal",
     [
         ("× real time", "Speed: {!r} is not a number (or Max); kept 1 x"),
-        ("s", "Back: {!r} is not a number; kept 0 s"),
+        ("s back", "Back: {!r} is not a number; kept 0 s"),
     ],
 )
 def test_text_in_the_speed_or_back_box_is_refused_and_the_box_shows_the_value_in_use_again(

@@ -34,6 +34,8 @@ SAMPLES = [
     ev.Disturbance("pitch_kick", 0.3, "N m s", after_liftoff_s=0.15),
     ev.ControllerChanged("lqr", "LQR", (("q_pitch", 1.0),)),
     ev.ControllerFailed("my.py:Law", "Law returned nan N m, not a finite torque"),
+    ev.Restored("keyframe 'mid hop'"),
+    ev.Resumed(),
 ]
 
 

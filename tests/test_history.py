@@ -5,6 +5,7 @@ from __future__ import annotations
 import base64
 import dataclasses
 import json
+import math
 
 import numpy as np
 import pytest
@@ -145,6 +146,54 @@ def test_keyframe_round_trip_is_bit_identical():
     assert keyframe.name == "mid hop" and sim.gains == Gains()
     assert _state(sim) == saved
     assert _trace(sim, 800) == continuation
+
+
+def _strict(text: str) -> dict:
+    """`text` read as jq and JavaScript's JSON.parse read it: Infinity, -Infinity and NaN are refused."""
+
+    def refuse(constant: str) -> None:
+        raise ValueError(f"{constant} is not JSON")
+
+    return json.loads(text, parse_constant=refuse)
+
+
+def test_an_exported_keyframe_is_strict_json_and_reads_back(flat_sim: Simulation) -> None:
+    """A pending time that never comes (no pulse, no kick: inf) was written as the extension
+    Infinity, which strict readers refuse; it is null now, and null reads back as never."""
+    flat_sim.run(1)
+    keyframe = keyframes.save(flat_sim, "k")
+    pending = dataclasses.asdict(keyframe.snapshot.pending)
+    assert pending["pulse_at"] == pending["kick_at"] == math.inf  # nothing scheduled
+    doc = _strict(keyframes.to_json(keyframe))
+    assert doc["version"] == 4 and doc["pending"]["pulse_at"] is None and doc["pending"]["kick_at"] is None
+    back = keyframes.from_json(json.dumps(doc), flat_sim)
+    assert dataclasses.asdict(back.snapshot.pending) == pending
+
+
+def test_a_keyframe_exported_with_infinity_before_version_4_still_imports(flat_sim: Simulation) -> None:
+    flat_sim.run(1)
+    doc = _doc(flat_sim)
+    doc["version"] = 3
+    doc["pending"] = {k: math.inf if v is None else v for k, v in doc["pending"].items()}
+    text = json.dumps(doc)  # as version 3 wrote it
+    assert '"pulse_at": Infinity' in text
+    pending = keyframes.from_json(text, flat_sim).snapshot.pending
+    assert dataclasses.asdict(pending) == dataclasses.asdict(flat_sim.snapshot().pending)
+
+
+@pytest.mark.parametrize(
+    "name, taken, expected",
+    [
+        ("mid hop", set(), "mid hop"),
+        ("mid hop", {"mid hop"}, "mid hop (2)"),
+        ("mid hop", {"mid hop", "mid hop (2)"}, "mid hop (3)"),
+        ("mid hop (2)", {"mid hop", "mid hop (2)"}, "mid hop (3)"),  # a copy of the copy
+        ("x" * keyframes.MAX_NAME, {"x" * keyframes.MAX_NAME}, "x" * (keyframes.MAX_NAME - 4) + " (2)"),
+    ],
+)
+def test_a_taken_keyframe_name_gets_the_next_free_number(name: str, taken: set[str], expected: str) -> None:
+    assert keyframes.unique_name(name, taken) == expected
+    assert keyframes.check_name(expected) == expected
 
 
 def _doc(sim: Simulation) -> dict:

@@ -4,6 +4,7 @@ and reference steps on it, bad values refused with a notice while the loop runs 
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -14,6 +15,7 @@ from hopper.app.dashboard.server import Dashboard
 from net import wait_until
 
 from hopper.analysis.frequency import MAX_LENGTH_S, REFERENCE_LIMIT
+from hopper.commands import Reset
 from hopper.config import WHEEL_TORQUE_LIMIT
 from hopper.sim import Simulation
 from hopper.stand import StandSimulation
@@ -167,3 +169,23 @@ def test_the_chirp_boxes_clamp_to_what_a_chirp_takes_and_say_which_limit(
     spec = inject.spec(None)
     assert spec is not None and spec.at == "reference" and spec.amplitude == pytest.approx(REFERENCE_LIMIT, abs=1e-15)
     assert spec.amplitude <= REFERENCE_LIMIT
+
+
+def test_run_numbers_go_on_counting_across_mode_switches(dashboard: Dashboard) -> None:
+    """A mode switch built a new simulation whose runs counted from 0 again: the event log said
+    "run 1" after "run 2". One dashboard session is one numbering."""
+    log = dashboard.layout.events
+
+    def newest() -> str:
+        return (log.lines or [""])[0]
+
+    dashboard.submit(Reset())
+    assert wait_until(lambda: "reset (user)" in newest())
+    runs = [newest()]
+    for mode in ("stand locked", "hop"):
+        dashboard.set_mode(mode)
+        reset = f"reset ({mode.split()[0]})"  # the switch's own reset, the log's newest line
+        assert wait_until(lambda reset=reset: reset in newest()), newest()
+        runs.append(newest())
+    assert [re.search(r"run (\d+)</span>", line)[1] for line in runs] == ["1", "2", "3"], runs
+    assert dashboard.sim.run_index == 3

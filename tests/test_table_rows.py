@@ -5,6 +5,7 @@ sends its own rows (and the means), never the rows already shown."""
 from __future__ import annotations
 
 import dataclasses
+import re
 from collections.abc import Iterator
 
 import pytest
@@ -99,6 +100,9 @@ def test_each_event_sends_its_own_line_newest_first(
         assert shows(probe, folder_id, log.content), f"event {i}: the page's log is not the server's"
         content = [u["content"] for _, u in probe.gui_log[before:] if "content" in u]
         assert len(content) == 1 and f"+{i + 1} N s" in content[0]
+        # The side panel cuts a long line with "…": its whole text shows on hover.
+        cell = re.search(r"<td title='([^']*)'>([^<]*)</td>", content[0])
+        assert cell is not None and cell[1] == cell[2], content[0]
     assert len(log.lines) == LINES and f"+{LINES + 4} N s" in log.lines[0]  # newest first
     late = connect(server, probes)
     assert shows(late, folder_id, log.content)

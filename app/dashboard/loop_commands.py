@@ -25,7 +25,7 @@ class Loop(Protocol):
 
     def apply_stay_fallen(self, stay: bool) -> None: ...
 
-    def apply_restore(self, snapshot: Snapshot) -> None: ...
+    def apply_restore(self, snapshot: Snapshot, what: str) -> None: ...
 
     def apply_mode(self, mode: str) -> None: ...
 
@@ -70,9 +70,10 @@ class StayFallen:
 class Restore:
     loop: Loop
     snapshot: Snapshot
+    what: str  # for the event log: "the moment 5.0 s back", "keyframe 'mid hop'"
 
     def apply(self, sim: Simulation) -> None:
-        self.loop.apply_restore(self.snapshot)
+        self.loop.apply_restore(self.snapshot, self.what)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -123,6 +123,7 @@ class ProbeClient:
         self.gui_updates: dict[str, dict[str, Any]] = {}  # uuid -> latest value of each property updated (not charts)
         self.scene_counts: collections.Counter[tuple[str, str]] = collections.Counter()  # (type, node name) -> messages
         self.scene_points: dict[str, np.ndarray] = {}  # node name -> its latest `points` (float32)
+        self.scene_visible: dict[str, bool] = {}  # node name -> its latest visibility message's
         self.closed = False
         self._thread = threading.Thread(target=self._receive, name="probe", daemon=True)
         self._thread.start()
@@ -269,6 +270,11 @@ class ProbeClient:
         """Count a scene node's message; keep its points (line segments, arrows) as the page would draw them."""
         name = str(message["name"])
         self.scene_counts[kind, name] += 1
+        if kind == "SetSceneNodeVisibilityMessage":
+            self.scene_visible[name] = bool(message["visible"])
+        elif kind == "RemoveSceneNodeMessage":  # the page draws it no more
+            self.scene_points.pop(name, None)
+            self.scene_visible.pop(name, None)
         points = {**message.get("props", {}), **message.get("updates", {})}.get("points")
         if isinstance(points, dict):
             dtype, data = self._resolve(points, raw, compressed, lengths)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import bisect
 import math
 import warnings
 
@@ -25,6 +26,10 @@ TRAIL_CHUNK = 10  # segments per line-segment node; only the newest chunk is re-
 TRAIL_CHUNKS = 30  # nodes kept: 15 s of trail
 TRAIL_PUBLISH_S = 0.2  # s of wall time between re-sends of the newest chunk; 5 a second, as the charts refresh
 TRAIL_COLOR = (255, 176, 59)
+# m: a path whose last point before a rewound moment is farther from the robot does not lead to it.
+# The torso moves less between two points: they are the charts' samples, 0.05 s of simulation apart at
+# 1x, 0.4 s at 64x (a hop's 0.5-1 m/s). At the worst (Max on a fast machine) a path is forgotten.
+TRAIL_JOIN_M = 1.0
 SATURATION_COLORS = ((70, 200, 120), (245, 190, 40), (235, 60, 50))  # free, half, saturated
 RING_STEP = 0.1  # of saturation: the ring's colour steps (10 from free to saturated; finer re-sent it 9 times a second)
 LABEL_POSITION = (0.0, 0.0, 0.42)  # m above the torso's origin: the phase label clears the wheel
@@ -238,14 +243,23 @@ class Trail:
     Each node is created once and then only its points are re-sent (about 0.26 kB, where re-creating
     it cost about 0.6 with the pose and visibility messages viser sends with a new node): a chunk
     always has TRAIL_CHUNK segments, those not yet reached collapsed onto its newest point, so its
-    colours never change shape. Full chunks are never re-sent until their node is recycled.
+    colours never change shape. A chunk is sent again only when its points change: the newest as it
+    grows, a recycled one, the one a rewind cuts.
+
+    While the robot is rewound (a restore), the path ends at the moment shown; the rest is kept aside
+    (a later moment shown again brings it back) until the path grows again from the moment: the run
+    then takes another course, and the path it left is dropped, as the history after it is.
     """
 
     def __init__(self, scene: viser.SceneApi) -> None:
         self._scene = scene
         self._handles: dict[int, viser.LineSegmentsHandle] = {}
-        self._points: list[tuple[float, float, float]] = []  # the open chunk's, at most TRAIL_CHUNK + 1 sent
-        self._chunk = 0
+        # node slot -> (chunk, its samples) shown: a rewound path regrown to the same length differs
+        self._sent: dict[int, tuple[int, tuple[tuple[float, float, float], ...]]] = {}
+        # (t s, x m, z m), oldest first; chunk k holds samples k * TRAIL_CHUNK to (k + 1) * TRAIL_CHUNK.
+        self._path: list[tuple[float, float, float]] = []
+        self._first = 0  # the chunk _path[0] begins
+        self._ahead: list[tuple[float, float, float]] = []  # after a rewound moment
         self._next_time = 0.0
         self._dirty = False
         self._shown = True
@@ -257,49 +271,76 @@ class Trail:
         if time < self._next_time:
             return
         self._next_time = time + TRAIL_SAMPLE_S
-        self._points.append((x, 0.0, z))
+        self._ahead.clear()  # the run goes on from the moment rewound to: the path it left is no more
+        self._path.append((time, x, z))
+        if len(self._path) > TRAIL_CHUNKS * TRAIL_CHUNK + 1:  # a chunk more than the nodes: the oldest goes
+            del self._path[:TRAIL_CHUNK]
+            self._first += 1
         self._dirty = True
 
+    def rewind(self, time: float, x: float, z: float) -> None:
+        """The robot was put back to simulation `time` (s), its torso at (x, z) (m): show the path up to
+        there. A path that does not lead there (another run's moment, a keyframe from elsewhere) is
+        not the robot's: it is forgotten."""
+        path = self._path + self._ahead
+        n = bisect.bisect_right(path, time, key=lambda p: p[0])  # the points up to `time`
+        if n == 0 or math.hypot(path[n - 1][1] - x, path[n - 1][2] - z) > TRAIL_JOIN_M:
+            self.clear()
+            self._next_time = time
+            return
+        self._path, self._ahead = path[:n], path[n:]
+        self._next_time = path[n - 1][0] + TRAIL_SAMPLE_S
+        self._dirty = True
+
+    @property
+    def points(self) -> list[tuple[float, float]]:
+        """The path shown, (x, z) m, oldest first (for tests)."""
+        return [(x, z) for _, x, z in self._path]
+
     def publish(self, now: float | None = None) -> None:
-        """Send the chunks that grew (at most every TRAIL_PUBLISH_S of wall time `now`, if given)."""
+        """Send the chunks that changed (at most every TRAIL_PUBLISH_S of wall time `now`, if given)."""
         if self.visible != self._shown:
             self._shown = self.visible
-            for handle in self._handles.values():
-                handle.visible = self._shown
-        if not self._dirty or len(self._points) < 2 or (now is not None and now < self._next_publish):
+            for slot in self._sent:
+                self._handles[slot].visible = self._shown
+        if not self._dirty or (now is not None and now < self._next_publish):
             return
         self._dirty = False
         if now is not None:
             self._next_publish = now + TRAIL_PUBLISH_S
-        # Fast-forward samples several chunks between two publishes: each is sent once, full.
-        while len(self._points) > TRAIL_CHUNK + 1:
-            self._send(self._points[: TRAIL_CHUNK + 1])
-            self._chunk += 1
-            self._points = self._points[TRAIL_CHUNK:]  # the next chunk starts where this one ends
-        self._send(self._points)
-        if len(self._points) == TRAIL_CHUNK + 1:
-            self._chunk += 1
-            self._points = self._points[-1:]
+        # Fast-forward samples several chunks between two publishes: each is sent once, as it is now.
+        chunks = {}
+        for i in range(0, max(len(self._path) - 1, 0), TRAIL_CHUNK):
+            chunk = self._first + i // TRAIL_CHUNK
+            chunks[chunk % TRAIL_CHUNKS] = (chunk, tuple(self._path[i : i + TRAIL_CHUNK + 1]))
+        for slot in [s for s in self._sent if s not in chunks]:  # beyond a rewound moment
+            self._handles[slot].visible = False
+            del self._sent[slot]
+        for slot, shown in chunks.items():
+            if self._sent.get(slot) != shown:
+                self._send(slot, [(x, 0.0, z) for _, x, z in shown[1]])
+                self._sent[slot] = shown
 
-    def _send(self, points: list[tuple[float, float, float]]) -> None:
-        """Show `points` (2 to TRAIL_CHUNK + 1) in the current chunk's node."""
+    def _send(self, slot: int, points: list[tuple[float, float, float]]) -> None:
+        """Show `points` (2 to TRAIL_CHUNK + 1) in node `slot`."""
         path = np.asarray(points + points[-1:] * (TRAIL_CHUNK + 1 - len(points)), dtype=np.float32)
         segments = np.stack([path[:-1], path[1:]], axis=1)
-        slot = self._chunk % TRAIL_CHUNKS
         handle = self._handles.get(slot)
         if handle is None:
             self._handles[slot] = self._scene.add_line_segments(
                 f"{WORLD}/trail/{slot}", segments, TRAIL_COLOR, thickness=0.012, visible=self._shown
             )
         else:
-            handle.points = segments  # a recycled or growing chunk: one small update
+            handle.points = segments  # a recycled, growing or cut chunk: one small update
+            handle.visible = self._shown  # a node hidden beyond a rewound moment shows again
 
     def clear(self) -> None:
         """Forget the path (after a reset or a new terrain)."""
         for handle in self._handles.values():
             handle.remove()
         self._handles.clear()
-        self._points, self._chunk, self._next_time, self._dirty = [], 0, 0.0, False
+        self._sent.clear()
+        self._path, self._ahead, self._first, self._next_time, self._dirty = [], [], 0, 0.0, False
         self._next_publish = -math.inf
 
 

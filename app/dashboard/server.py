@@ -41,7 +41,7 @@ from hopper.app.recordings import FileLimits
 
 from hopper import interrupts
 from hopper.errors import HopperError
-from hopper.events import Event, EventKind, Fall
+from hopper.events import Event, EventKind, Fall, Restored, Resumed
 from hopper.history import History
 from hopper.metrics import RAD_S_TO_RPM
 from hopper.sim import Command, Simulation
@@ -97,6 +97,8 @@ class Dashboard:
         self._next_sample = 0.0
         self.chart_scale = chart_scale(self.pacer.pace, CHART_WALL_S, PLOT_WINDOW_S)  # the charts' window / 10 s
         self._pending_restore: Snapshot | None = None  # a Restore drained, applied at the next round's top
+        self._restore_what = ""  # what it is, for the event log
+        self._held: Snapshot | None = None  # a moment restored while paused, until the loop steps on
         self._pending_mode: str | None = None  # a SetMode drained, applied at the next round's top
         self.mode = "hop"
         self.frames = 0  # pose frames published, for tests and the benchmark
@@ -242,8 +244,8 @@ class Dashboard:
     def pause(self, paused: bool) -> None:
         self.layout.simulation.set_paused(paused)
 
-    def request_restore(self, snapshot: Snapshot) -> None:
-        self.submit(Restore(self, snapshot))
+    def request_restore(self, snapshot: Snapshot, what: str) -> None:
+        self.submit(Restore(self, snapshot, what))
 
     # -- loop_commands.Loop (on the loop thread, as the queue is drained) ---------------------
     def apply_paused(self, paused: bool) -> None:
@@ -266,10 +268,10 @@ class Dashboard:
     def apply_stay_fallen(self, stay: bool) -> None:
         self.stay_fallen = stay
 
-    def apply_restore(self, snapshot: Snapshot) -> None:
+    def apply_restore(self, snapshot: Snapshot, what: str) -> None:
         """Restore `snapshot` at the top of the next round, never inside a tick (the queue may be
         drained by sim.step mid-batch; the batch stops there)."""
-        self._pending_restore = snapshot
+        self._pending_restore, self._restore_what = snapshot, what
 
     def apply_mode(self, mode: str) -> None:
         """Switch at the top of the next round, never inside a tick (as a restore)."""
@@ -295,7 +297,8 @@ class Dashboard:
         if isinstance(old, StandSimulation):
             old.stop_injection(f"the mode changed to {mode}")  # it would play into the old one's memory
         new.listeners[:] = old.listeners
-        self.sim, self.mode = new, mode
+        new.run_index = old.run_index  # one session, one numbering: the event log's "run N" goes on
+        self.sim, self.mode, self._held = new, mode, None
         self.physics.terrain_changed(new)
         new.reset(reason=mode.split()[0])  # its listeners hear the reset: the charts and tables start over
         notify_all(
@@ -317,9 +320,13 @@ class Dashboard:
             log.exception("restoring a snapshot failed")
             notify_all(self.server, "Restore failed", f"{type(exc).__name__}: {exc}", "error")
             return
+        self.sim.emit(Restored(self._restore_what))  # after the settings' own events: the log's newest line
+        self._held = snapshot if self.pacer.paused else None  # a restore while running goes on at once
         self.history.rewound(snapshot)
         self._next_sample = snapshot.time
         self.layout.plots.drop_after(snapshot.time)
+        torso = self.sim.state()
+        self.trail.rewind(snapshot.time, torso.x, torso.z)  # no path ahead of the robot shown
         if snapshot.hops is not None:  # the hop table shows the hops of the moment restored
             self.layout.hops.show(list(snapshot.hops))
 
@@ -359,6 +366,8 @@ class Dashboard:
             if restored:
                 budgeted = 0  # the restored moment must be the one shown
             extra, self._single_steps = self._single_steps, 0
+            if self._held is not None and budgeted + extra > 0:
+                self._resume_held()
             taken = self._step(budgeted + extra)
             self.pacer.done(min(budgeted, taken), now, max(taken - budgeted, 0))
             self._watchdog(now)
@@ -377,6 +386,13 @@ class Dashboard:
             if pacer.flat_out and not pacer.paused:
                 continue  # no sleep at Max: the next round steps at once
             self._stopping.wait(max(0.0, min(next_frame - time.perf_counter(), MAX_SLEEP_S)))
+
+    def _resume_held(self) -> None:
+        """The loop steps on from a moment restored while paused (Resume from here, Resume, a step)."""
+        held, self._held = self._held, None
+        assert held is not None
+        if self.sim.time == held.time:  # not after a reset meanwhile: that says so itself
+            self.sim.emit(Resumed())
 
     def _apply_commands(self) -> None:
         """Apply queued commands before this round's steps (paused, a reset or new gains show at once)."""

@@ -38,7 +38,8 @@ class NumberEntry:
     timer or viser thread: it must only validate and queue). `words` name values that are no
     number in range (Speed's Max): the box shows the word and takes it typed, in any case.
     `above` / `below` exclude low / high (refused, not clamped: no nearest number is in range);
-    `why` names what sets high (a notice says it).
+    `why` names what sets high (a notice says it). With `magnitude`, a negative number is taken
+    as its size (Back: "-5" and "5" both mean 5 s ago; the box then shows 5).
     """
 
     def __init__(
@@ -57,11 +58,13 @@ class NumberEntry:
         above: bool = False,
         below: bool = False,
         why: str = "",
+        magnitude: bool = False,
     ) -> None:
         self.handle, self.name, self.low, self.high, self.unit = handle, name, low, high, unit
         self.integer, self.on_apply, self.quiet_s = integer, on_apply, quiet_s
         self.above, self.below, self.why = above, below, why
         self.words = dict(words or {})
+        self.magnitude = magnitude
         self._value = value
         self._lock = threading.Lock()
         self._timer: threading.Timer | None = None
@@ -129,6 +132,8 @@ class NumberEntry:
         for word, value in self.words.items():
             if text.strip().lower() == word.lower():
                 return value, None
+        if self.magnitude and text.strip().startswith("-"):
+            text = text.strip()[1:]
         try:
             return parse_number(
                 self.name,

@@ -10,7 +10,10 @@ from hopper.app.dashboard.panels.rows import BAND, Rows
 
 from hopper.events import Event, EventKind, Reset
 
-LINES = 7
+# Lines shown. A restore and its resume take two (three with the gains it brings back): 10 keep a
+# tuning session's last 8 kicks, as many as the hop table's rows, in view beside them. The count costs
+# nothing per event (a new line rewrites one element of the ring), only the page's first load.
+LINES = 10
 SHOWN = frozenset(
     {
         EventKind.DISTURBANCE,
@@ -28,6 +31,8 @@ SHOWN = frozenset(
         EventKind.OPERATOR,
         EventKind.CONTROLLER,
         EventKind.CONTROLLER_FAILED,
+        EventKind.RESTORE,
+        EventKind.RESUME,
     }
 )
 QUIET_RESETS = ("start", "terrain", "diverged")  # the event that caused them is shown already
@@ -46,7 +51,9 @@ def line_html(event: Event, text: str) -> str:
     """One line of the log, a table of its own (panels/rows.py)."""
     # Simulation time restarts at every reset: the run number says which run a time belongs to.
     when = f"<span class='hd-dim'>run {event.run}</span> {event.time:.2f} s"
-    return f"<table class='hd-log'><tr><td>{when}</td><td>{html.escape(text)}</td></tr></table>"
+    # A long line is cut with "…" in the side panel: the whole of it shows on hover.
+    text = html.escape(text)
+    return f"<table class='hd-log'><tr><td>{when}</td><td title='{text}'>{text}</td></tr></table>"
 
 
 EMPTY = "<table class='hd-log'><tr><td></td><td class='hd-dim'>no events yet</td></tr></table>"

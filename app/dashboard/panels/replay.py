@@ -43,8 +43,9 @@ class ReplayHost(Protocol):
 
     def pause(self, paused: bool) -> None: ...
 
-    def request_restore(self, snapshot: Snapshot) -> None:
-        """Put the live simulation back into `snapshot` between two step batches (no tick after it)."""
+    def request_restore(self, snapshot: Snapshot, what: str) -> None:
+        """Put the live simulation back into `snapshot` between two step batches (no tick after it);
+        the event log says `what` was restored."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -116,7 +117,7 @@ class ReplayPanel:
     refly_button: viser.GuiButtonHandle
     ab: viser.GuiHtmlHandle
     scrub: viser.GuiSliderHandle[float]
-    back: NumberEntry  # the typed Back, beside the slider (its own box is hidden)
+    back: NumberEntry  # the typed Back, seconds ago, beside the slider (its own box is hidden)
     scrub_info: viser.GuiHtmlHandle
     resume_here: viser.GuiButtonHandle
     name: viser.GuiTextHandle
@@ -157,21 +158,22 @@ class ReplayPanel:
         return comparison
 
     # -- history scrubber ------------------------------------------------------------------
-    def go_back(self, value: float, client: viser.ClientHandle | None, message: str | None = None) -> None:
-        """Show the moment `-value` s back (`value` in [-RING_SPAN_S, 0], `message` if it was clamped to
-        that), or the history's oldest if it holds less; slider and box show the moment shown."""
+    def go_back(self, seconds: float, client: viser.ClientHandle | None, message: str | None = None) -> None:
+        """Show the moment `seconds` back (in [0, RING_SPAN_S], `message` if it was clamped to that), or
+        the history's oldest if it holds less; slider and box show the moment shown."""
         span = self.host.history.span
-        if -value > span:  # further back than the history reaches: its oldest moment
-            value, message = -span, f"Back: the history holds {span:.1f} s; showing its oldest moment"
+        if seconds > span:  # further back than the history reaches: its oldest moment
+            seconds, message = span, f"Back: the history holds {span:.1f} s; showing its oldest moment"
         if message:
             notify(client, "Back clamped", message, "warning")
-        self._show_back(value)
-        if self.scrub_to(-value) is None:
+        self._show_back(seconds)
+        if self.scrub_to(seconds) is None:
             notify(client, "No history yet", "The simulation has not run long enough.", "warning")
 
-    def _show_back(self, value: float) -> None:
-        self.scrub.value = value  # a program assignment: the slider's handler ignores it
-        shown = round(value, 1)  # to the ring's period, as the history line says it
+    def _show_back(self, seconds: float) -> None:
+        # The slider is a timeline, the past to the left: it holds minus the seconds back (0.0 - x: never -0.0).
+        self.scrub.value = 0.0 - seconds  # a program assignment: the slider's handler ignores it
+        shown = _seconds_back(seconds, RING_SPAN_S)  # to the ring's period, as the history line says it
         if self.back.value != shown:  # a typed value is shown by its box already
             self.back.show(shown)
 
@@ -184,8 +186,9 @@ class ReplayPanel:
         self.host.pause(True)  # queued: the loop applies it with the restore, in order
         self._scrub_paused = False
         self.scrubbed = snap
-        self.host.request_restore(snap)
-        self.scrub_info.content = _scrub_html(snap, min(max(seconds_back, 0.0), history.span), history.span)
+        back = _seconds_back(seconds_back, history.span)
+        self.host.request_restore(snap, f"the moment {back:.1f} s back")
+        self.scrub_info.content = _scrub_html(snap, back, history.span)
         return snap
 
     def resume(self) -> None:
@@ -206,11 +209,15 @@ class ReplayPanel:
             self.scrub_info.content = _scrub_html(None, 0.0, self.host.history.span)
 
     # -- keyframes -------------------------------------------------------------------------
-    def add_keyframe(self, keyframe: keyframes.Keyframe) -> None:
-        with self._lock:
-            self.keyframes[keyframe.name] = keyframe
+    def add_keyframe(self, keyframe: keyframes.Keyframe) -> keyframes.Keyframe:
+        """Keep `keyframe` and select it; under a taken name it becomes "name (2)" (the one kept)."""
+        with self._lock:  # a save and an import may come at once: the name is chosen and taken together
+            name = keyframes.unique_name(keyframe.name, self.keyframes)
+            keyframe = dataclasses.replace(keyframe, name=name)
+            self.keyframes[name] = keyframe
             self.choice.options = tuple(self.keyframes)
-            self.choice.value = keyframe.name
+            self.choice.value = name
+        return keyframe
 
     def selected(self, client: viser.ClientHandle | None) -> keyframes.Keyframe | None:
         keyframe = self.keyframes.get(self.choice.value)
@@ -219,7 +226,7 @@ class ReplayPanel:
         return keyframe
 
     def restore_keyframe(self, keyframe: keyframes.Keyframe) -> None:
-        self.host.request_restore(keyframe.snapshot)
+        self.host.request_restore(keyframe.snapshot, f"keyframe {keyframe.name!r}")
 
     def import_file(self, content: bytes, client: viser.ClientHandle | None) -> keyframes.Keyframe | None:
         try:
@@ -227,9 +234,20 @@ class ReplayPanel:
         except keyframes.KeyframeError as exc:
             notify(client, "Keyframe refused", str(exc), "error")
             return None
-        self.add_keyframe(keyframe)
-        notify(client, "Keyframe imported", f"{keyframe.name!r} at t = {keyframe.time:.2f} s")
-        return keyframe
+        kept = self.add_keyframe(keyframe)
+        notify(client, "Keyframe imported", _kept(kept, keyframe.name))
+        return kept
+
+
+def _kept(keyframe: keyframes.Keyframe, asked: str) -> str:
+    """A save's or an import's notice: the name kept, and why it is not the one asked."""
+    renamed = f" ({asked!r} is taken: both are kept)" if keyframe.name != asked else ""
+    return f"{keyframe.name!r} at t = {keyframe.time:.2f} s{renamed}"
+
+
+def _seconds_back(seconds: float, span: float) -> float:
+    """`seconds` (s back) within [0, span], to the ring's 0.1 s: what the box and the line show (never -0.0)."""
+    return round(min(max(seconds, 0.0), span), 1) + 0.0  # -0.0 + 0.0 is 0.0
 
 
 def _scrub_html(snap: Snapshot | None, back: float, span: float) -> str:
@@ -254,11 +272,15 @@ def build_replay_panel(
         )
         ab = gui.add_html(ab_table_html([]))
     with gui.add_folder("History"):
+        # A timeline, the past to the left (its value is minus the seconds back); its marks read seconds back.
+        marks = tuple((-s, f"{s:g}" if s else "now") for s in (RING_SPAN_S, RING_SPAN_S / 2, 0.0))
         scrub = gui.add_slider(
-            "Back (s)", -RING_SPAN_S, 0.0, SCRUB_STEP_S, 0.0, hint="Pause and show the robot this long ago"
+            "Back (s)", -RING_SPAN_S, 0.0, SCRUB_STEP_S, 0.0, marks=marks, hint="Pause and show the robot this long ago"
         )
-        hint = f"Type how far back, -{RING_SPAN_S:g} to 0 s; applied after a pause"
-        back = NumberEntry(gui.add_text("s", "", hint=hint), "Back", -RING_SPAN_S, 0.0, "s", value=0.0)
+        hint = f"Type how many seconds back, 0 to {RING_SPAN_S:g}; applied after a pause"
+        back = NumberEntry(
+            gui.add_text("s back", "", hint=hint), "Back", 0.0, RING_SPAN_S, "s", value=0.0, magnitude=True
+        )
         hide_slider_boxes(gui, [scrub])
         scrub_info = gui.add_html(_scrub_html(None, 0.0, 0.0))
         resume_here = gui.add_button("Resume from here", icon=viser.Icon.PLAYER_PLAY, color="green")
@@ -280,11 +302,12 @@ def build_replay_panel(
     def on_scrub(event: viser.GuiEvent) -> None:
         if event.client is None:  # a program assignment (resume, a clamp) moves the slider
             return
+        # A drag stays in range; a value out of it comes from no page of ours: clamped in the slider's terms.
         value, message = checked("Back", scrub.value, -RING_SPAN_S, 0.0, "s")  # Refused: notified, kept
-        panel.go_back(value, event.client, message)
+        panel.go_back(0.0 - value, event.client, message)
 
     scrub.on_update(on_scrub)
-    back.on_apply = panel.go_back  # (value, client): out of [-RING_SPAN_S, 0] the box clamps and says so
+    back.on_apply = panel.go_back  # (seconds, client): out of [0, RING_SPAN_S] the box clamps and says so
     resume_here.on_click(guarded(lambda _: panel.resume()))
 
     @guarded
@@ -296,8 +319,7 @@ def build_replay_panel(
             return
 
         def saved(keyframe: keyframes.Keyframe) -> None:
-            panel.add_keyframe(keyframe)
-            notify(event.client, "Keyframe saved", f"{keyframe.name!r} at t = {keyframe.time:.2f} s")
+            notify(event.client, "Keyframe saved", _kept(panel.add_keyframe(keyframe), keyframe.name))
 
         ctx.submit(SaveKeyframe(keyframe_name, saved))
 
