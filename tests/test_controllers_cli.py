@@ -66,6 +66,8 @@ def test_compare_stress_sweep_and_league_fly_it(example: Path) -> None:
     assert set(rows) == {"pid", SPEC} and rows[SPEC]["episodes"] == rows["pid"]["episodes"] > 10
     assert rows[SPEC]["compute_us"] > 0.0 == rows["pid"]["compute_us"]
     assert SPEC in league.stdout
+    pid_line = next(line for line in league.stdout.splitlines() if line.startswith("pid "))
+    assert pid_line.split()[-1] == "compiled", pid_line  # no Python call to time, not "0.00"
     assert all(r["energy_j"] > 0 for r in rows.values())  # electrical energy per hop, J
     report = hopper_sim("report", str(example / "l.json"), "--out", str(example / "report"), cwd=example)
     assert report.returncode == 0, report.stderr

@@ -155,8 +155,9 @@ def table(rows: list[Row]) -> list[str]:
     lines = [f"{HEADINGS[0]:<{width}} " + " ".join(f"{h:>9}" for h in HEADINGS[1:])]
     for r in rows:
         figures = (r.success_pct, r.landing_p50_deg, r.landing_p95_deg, r.landing_max_deg, r.peak_pitch_deg,
-                   r.rms_rate_deg_s, r.energy_j, r.saturation_s, r.compute_us)  # fmt: skip
-        lines.append(f"{r.controller:<{width}} " + " ".join(f"{v:>9.2f}" for v in figures))
+                   r.rms_rate_deg_s, r.energy_j, r.saturation_s)  # fmt: skip
+        compute = f"{r.compute_us:>9.2f}" if r.compute_us else f"{'compiled':>9}"  # no Python call to time
+        lines.append(f"{r.controller:<{width}} " + " ".join(f"{v:>9.2f}" for v in figures) + f" {compute}")
     for r in rows:
         if r.worst:
             lines.append(f"{r.controller}: {r.falls} fell, {r.faults} controller faults; e.g. {r.worst}")

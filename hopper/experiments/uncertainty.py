@@ -74,9 +74,10 @@ def _factor(unit: str, nominal: float, what: str) -> Param:
 def params() -> dict[str, Param]:
     """Every parameter a [model] table may sample, by name (the order of the dataset's columns)."""
     q, s, ms = _nominal_model(), SensingParams(), TIMESTEP * 1e3
-    out = {f"mass_{p}": _factor("kg", q[f"mass_{p}"], f"the {p}'s mass (each)")
+    each = {"thigh": " (each)", "shank": " (each)"}  # the legs' two, scaled alike
+    out = {f"mass_{p}": _factor("kg", q[f"mass_{p}"], f"the {p}'s mass{each.get(p, '')}")
            for p in ("torso", "wheel", "thigh", "shank")}  # fmt: skip
-    out |= {f"inertia_{p}": _factor("kg m^2", q[f"inertia_{p}"], f"the {p}'s pitch inertia (each)")
+    out |= {f"inertia_{p}": _factor("kg m^2", q[f"inertia_{p}"], f"the {p}'s pitch inertia{each.get(p, '')}")
             for p in ("torso", "thigh", "shank")}  # fmt: skip
     out["wheel_inertia"] = _factor("kg m^2", q["wheel_spin"], "the wheel's spin inertia + rotor")
     out["motor_torque"] = _factor("N m/A", MOTOR_TORQUE_CONSTANT, "the wheel motor's k_t")
