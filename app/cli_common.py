@@ -110,6 +110,18 @@ def writable_file(text: str) -> Path:
     return path
 
 
+def same_file(a: Path | str, b: Path | str) -> bool:
+    """`a` and `b` name one file: the same resolved path (symlinks, ./x and x), or, both there, the
+    same inode (a hard link)."""
+    a, b = Path(a), Path(b)
+    if a.resolve() == b.resolve():
+        return True
+    try:
+        return os.path.samefile(a, b)
+    except OSError:  # either is not there
+        return False
+
+
 def make_writable_folder(path: Path) -> None:
     """Make the folder `path` (and its parents) and write in it; OSError if that cannot be done.
 

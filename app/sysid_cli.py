@@ -24,6 +24,7 @@ from hopper.app.cli_common import (
     finite,
     gravity,
     made_out,
+    same_file,
     seed,
     writable_file,
 )
@@ -321,6 +322,7 @@ def command_identify(args: argparse.Namespace) -> int:
         fail(f"--hops must be at least 1, got {args.hops}")
     if args.max_evaluations < 1:
         fail(f"--max-evaluations must be at least 1, got {args.max_evaluations}")
+    identify_out(args)
     log = read_log(args.log)
     world = replay_world(args, log)
     (model, _), (fresh, _) = world_model(world), world_model(world)  # the fit edits `model`
@@ -355,6 +357,18 @@ def command_identify(args: argparse.Namespace) -> int:
     args.out.write_text(spec.to_xml())
     print(f'wrote {args.out} (the identified robot; the gyro bias in <numeric name="gyro_bias">, rad/s)')
     return EXIT_OK
+
+
+def identify_out(args: argparse.Namespace) -> None:
+    """Refuse (one line, exit 2, before any work) an --out that would overwrite the log or the model the
+    fit starts from (the same file by its resolved path: symlinks, ./x and x), or that is no .xml."""
+    out, start = args.out, args.model or str(MODEL_XML)
+    if same_file(out, args.log):
+        fail(f"--out {out}: is the log; write the identified MJCF to another file")
+    if same_file(out, start):
+        fail(f"--out {out}: is the model the fit starts from ({start}); write the identified MJCF to another file")
+    if out.suffix.lower() != ".xml":
+        fail(f"--out {out}: identify writes the identified robot as MJCF: give a path ending in .xml")
 
 
 def table(fit, truth: dict[str, float]) -> str:  # noqa: ANN001 (a sysid.Fit)

@@ -99,6 +99,46 @@ def test_bad_input_is_refused_in_one_line(argv, message, logged: Path, tmp_path:
 
 
 @pytest.mark.parametrize(
+    ("out", "extra", "message"),
+    [
+        ("victim.csv", [], "--out victim.csv: is the log; write the identified MJCF to another file"),
+        ("./victim.csv", [], "--out victim.csv: is the log"),  # the same file by another spelling
+        ("link.xml", [], "--out link.xml: is the log"),  # a symlink to it
+        ("hard.xml", [], "--out hard.xml: is the log"),  # a hard link to it
+        ("m.xml", ["--model", "m.xml"], "--out m.xml: is the model the fit starts from"),
+        ("x.csv", [], "--out x.csv: identify writes the identified robot as MJCF: give a path ending in .xml"),
+    ],
+)
+def test_identify_refuses_an_out_that_would_overwrite_its_inputs_before_any_work(
+    out: str,
+    extra: list[str],
+    message: str,
+    logged: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """identify --out victim.csv on victim.csv wrote an MJCF over the log (exit 0), and over --model's."""
+    import shutil
+
+    from hopper.model import MODEL_XML
+
+    monkeypatch.chdir(tmp_path)
+    shutil.copy(logged, "victim.csv")
+    shutil.copy(MODEL_XML, "m.xml")
+    Path("link.xml").symlink_to("victim.csv")
+    Path("hard.xml").hardlink_to("victim.csv")
+    before = {p: p.read_bytes() for p in (Path("victim.csv"), Path("m.xml"))}
+    with pytest.raises(SystemExit) as stop:
+        main(["identify", "victim.csv", "--out", out, "--hops", "1", "--max-evaluations", "1", *extra])
+    got, err = capsys.readouterr()
+    assert stop.value.code == 2 and got == "", got  # before the log is read: no world line
+    assert err.startswith("hopper-sim: error: ") and len(err.splitlines()) == 1 and message in err, err
+    assert all(p.read_bytes() == data for p, data in before.items())
+    assert not Path("x.csv").exists()
+
+
+@pytest.mark.parametrize(
     ("argv", "message"),
     [
         (["--out", "FILE"], "--out: FILE is not a folder"),
