@@ -118,7 +118,10 @@ def add_commands(commands: argparse._SubParsersAction) -> None:  # noqa: SLF001 
         help="the legs fly the log's torques alone (default), or with a servo to the log's angles too: a whole "
         "hop then measures the torso and the wheel, not the open-loop stance's chaos",
     )  # fmt: skip
-    rep.add_argument("--out", type=Path, metavar="DIR", help="write replay.png and .pdf (errors over time) here")
+    rep.add_argument(
+        "--out", type=Path, metavar="DIR",
+        help="write replay.png and .pdf (errors over time) in this folder (made if missing, in one that exists)",
+    )  # fmt: skip
 
     ide = commands.add_parser(
         "identify", help="fit the model to a log; print estimates, write the MJCF", epilog=IDENTIFY_EPILOG
@@ -241,7 +244,9 @@ def replay_flags(args: argparse.Namespace) -> None:
 
 def command_replay(args: argparse.Namespace) -> int:
     replay_flags(args)
-    with made_out(args.out):  # made and written to now, before the replay; unmade if the log's checks refuse
+    # made and written to now, before the replay, in a folder that exists (as identify's and export's
+    # files must be); unmade if the log's checks refuse
+    with made_out(args.out, parents=False):
         return _replay(args)
 
 

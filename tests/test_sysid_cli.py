@@ -143,6 +143,8 @@ def test_identify_refuses_an_out_that_would_overwrite_its_inputs_before_any_work
     [
         (["--out", "FILE"], "--out: FILE is not a folder"),
         (["--out", "FILE/sub"], "--out: FILE is not a folder"),  # the nearest folder that exists
+        # a folder is made for the figure, not a path to it (as identify's and export's files: folder must exist)
+        (["--out", "TMP/none/deeper/out"], "--out: folder TMP/none/deeper does not exist"),
         (["--out", "/proc/replay"], "--out: cannot write to /proc/replay"),
         (["--to", "3"], "--to 3 needs --from"),
         (["--from", "1", "--hops", "1"], "--hops replays hops from their liftoffs; --from 1 replays one span"),
@@ -157,11 +159,12 @@ def test_replay_refuses_an_out_it_cannot_write_or_flags_it_would_ignore_before_a
     file = tmp_path / "file"
     file.write_text("")
     with pytest.raises(SystemExit) as stop:
-        main(["replay", str(logged), *(a.replace("FILE", str(file)) for a in argv)])
+        main(["replay", str(logged), *(a.replace("FILE", str(file)).replace("TMP", str(tmp_path)) for a in argv)])
     out, err = capsys.readouterr()
     assert stop.value.code == 2 and out == ""  # refused before the log is read ("world: ..." not printed)
     assert err.startswith("hopper-sim: error: ") and len(err.splitlines()) == 1, err
-    assert message.replace("FILE", str(file)) in err
+    assert message.replace("FILE", str(file)).replace("TMP", str(tmp_path)) in err
+    assert not (tmp_path / "none").exists()
 
 
 @pytest.mark.parametrize(
@@ -182,7 +185,7 @@ def test_replay_refused_after_reading_the_log_leaves_no_folder_it_made(
     kept.mkdir()
     (tmp_path / "full").mkdir()
     (tmp_path / "full" / "notes.txt").write_text("mine")
-    for out in (tmp_path / "new" / "sub", kept, tmp_path / "full"):
+    for out in (tmp_path / "new", kept, tmp_path / "full"):
         with pytest.raises(SystemExit) as stop:
             main(["replay", *(names.get(a, a) for a in argv), "--out", str(out)])
         err = capsys.readouterr().err
