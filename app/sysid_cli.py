@@ -354,7 +354,7 @@ def command_identify(args: argparse.Namespace) -> int:
     print(
         f"fit: {fit.windows} windows of {args.windows[-1]:g} s at the last stage, {fit.evaluations} simulations, "
         f"{fit.seconds:.0f} s; "
-        f"residual RMS before -> after: "
+        f"residual RMS on those windows, the starting model -> the identified: "
         + ", ".join(f"{c} {fit.residual_before[c]:.3g} -> {fit.residual_after[c]:.3g}" for c in fit.residual_after)
     )
     spec = mujoco.MjSpec.from_file(args.model or str(MODEL_XML))  # the robot the fit started from

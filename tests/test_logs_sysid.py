@@ -123,3 +123,16 @@ def test_friction_is_found_by_its_line_search() -> None:
     assert fit.values["friction"] == pytest.approx(0.6, rel=0.10)  # the issue's tolerance for friction
     low, high = fit.profile["friction"]
     assert low <= fit.values["friction"] <= high
+
+
+def test_the_residuals_before_and_after_are_over_the_last_stages_windows(log: Log) -> None:
+    """identify printed stage 1's 0.05 s windows as 'before' beside the last stage's 0.3 s as 'after'."""
+    model, _ = world_model(World())
+    flight, names = replay.flights(log)[0], ("motor_torque",)
+    fit = sysid.identify(model, log, flight, names, stages=(0.05, 0.3), max_evaluations=3)
+    fresh, _ = world_model(World())
+    last = sysid.Problem(sysid.Robot(fresh), log, replay.windows(log, flight, 0.3), names, sysid.DEFAULT_DELAY_TICKS)
+    assert fit.windows == len(last.spans)
+    assert fit.residual_before == pytest.approx(last.channel_rms(last.residuals(np.zeros(1))), rel=1e-12)
+    z = np.array([(fit.values["motor_torque"] - 1.0) / last.scale[0]])
+    assert fit.residual_after == pytest.approx(last.channel_rms(last.residuals(z)), rel=1e-9)

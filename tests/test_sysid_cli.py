@@ -48,6 +48,8 @@ def test_identify_prints_the_table_and_writes_the_mjcf(logged: Path, tmp_path: P
     row = next(line for line in text.splitlines() if line.startswith("motor_torque"))
     estimate = float(row.split()[4])
     assert estimate == pytest.approx(0.9, rel=0.01)
+    assert "windows of 0.1 s at the last stage" in text
+    assert "residual RMS on those windows, the starting model -> the identified: pitch " in text
     held = "whole, each from its liftoff, legs held to the log's angles"
     for measure in ("re-anchored every 0.3 s", held, "whole, each from its liftoff"):
         assert f"replay of hops 1..1 ({measure}) before" in text and f"({measure}) after" in text
