@@ -24,13 +24,14 @@ from hopper.app.cli_common import (
     finite,
     gravity,
     made_out,
+    model_file,
     same_file,
     seed,
     writable_file,
 )
 
 from hopper.config import GRAVITY_PRESETS, MISMATCH_FACTORS, MISMATCH_OFFSETS, SensingParams, SimConfig, check_mismatch
-from hopper.errors import HopperError
+from hopper.errors import HopperError, ModelError
 from hopper.logs.io import READERS, WRITERS, read_log, write_log, writer
 from hopper.logs.replay import HELD, REANCHOR_S, Errors, hops, replay_hops, simulate, world_model
 from hopper.logs.schema import Log
@@ -155,6 +156,17 @@ def add_model_flags(p: argparse.ArgumentParser) -> None:
         help=f"ticks (1 ms) from a logged wheel command to the motor (default the log's, else {DEFAULT_DELAY_TICKS})",
     )  # fmt: skip
     add_model_flag(p)
+    p.add_argument(
+        "--drive", type=drive_model, metavar="PATH.xml|packaged",
+        help="the robot whose wheel motor the log's torque commands were made for: the drive inverts it to a "
+        "voltage, and the model replayed turns that into torque with its own motor (default the log's robot if the "
+        "log says, as a capture's does, else the packaged one)",
+    )  # fmt: skip
+
+
+def drive_model(text: str) -> str:
+    """--drive: an MJCF of the robot (checked as --model is) or the word packaged."""
+    return text if text == "packaged" else model_file(text)
 
 
 def windows(text: str) -> tuple[float, ...]:
@@ -177,7 +189,11 @@ def truth_pair(text: str) -> tuple[str, float]:
 def replay_world(args: argparse.Namespace, log: Log) -> World:
     """The world to fly the log in (the flags, else the log's: hopper.logs.world.resolve); says which."""
     try:
-        world, origin = resolve(log.world, args.terrain, args.seed, args.gravity, args.model, args.delay_ticks)
+        world, origin = resolve(
+            log.world, args.terrain, args.seed, args.gravity, args.model, args.delay_ticks, args.drive
+        )  # fmt: skip
+    except ModelError as exc:  # the log's robot, whose motor the drive inverts, is not there
+        fail(f"{exc}; say which motor with --drive PATH.xml (or packaged)")
     except ValueError as exc:  # a delay the kernel's line cannot hold
         fail(f"--delay-ticks: {exc}")
     print(f"world: {world.describe()} ({origin})")
@@ -266,7 +282,9 @@ def _replay(args: argparse.Namespace) -> int:
             fail(f"--to {args.stop:g} s leaves nothing to replay after --from {args.start:g} s")
         from hopper.logs.replay import errors
 
-        traj = simulate(model, log, a, b, delay_ticks=world.command_delay, window=window, servo=servo)
+        traj = simulate(
+            model, log, a, b, delay_ticks=world.command_delay, window=window, servo=servo, drive=world.drive
+        )  # fmt: skip
         parts = [(f"from {t[a]:.3f} s" + (f", {HELD}" if servo else ""), errors(log, traj))]
     else:
         found = len(hops(log))
@@ -277,7 +295,8 @@ def _replay(args: argparse.Namespace) -> int:
         parts = []
         for i, (a, _) in enumerate(hops(log)[: args.hops]):
             done = replay_hops(
-                model, log, 1, first=i, delay_ticks=world.command_delay, window=window, every=args.every, servo=servo
+                model, log, 1, first=i, delay_ticks=world.command_delay, window=window, every=args.every, servo=servo,
+                drive=world.drive,
             )  # fmt: skip
             parts.append((f"hop {i + 1} from {log.time[a]:.3f} s{anchored}", Errors.concat([e for _, e in done])))
     for label, e in parts:
@@ -337,12 +356,13 @@ def command_identify(args: argparse.Namespace) -> int:
         (f"whole, each from its liftoff, {HELD}", None, True),
         ("whole, each from its liftoff", None, False),
     )
-    before = [sysid.replay_error(fresh, log, 0, args.hops, world.command_delay, e, s) for _, e, s in measures]
+    drive, delay = world.drive, world.command_delay
+    before = [sysid.replay_error(fresh, log, 0, args.hops, delay, e, s, drive) for _, e, s in measures]
     fit = sysid.identify(
-        model, log, span, names, stages=args.windows, delay_ticks=world.command_delay,
-        max_evaluations=args.max_evaluations, progress=lambda line: print(f"identify: {line}", file=sys.stderr),
+        model, log, span, names, stages=args.windows, delay_ticks=delay, max_evaluations=args.max_evaluations,
+        progress=lambda line: print(f"identify: {line}", file=sys.stderr), drive=drive,
     )  # fmt: skip
-    after = [sysid.replay_error(model, log, 0, args.hops, world.command_delay, e, s) for _, e, s in measures]
+    after = [sysid.replay_error(model, log, 0, args.hops, delay, e, s, drive) for _, e, s in measures]
     truth = truth_values(fresh, args.truth)
     print(table(fit, truth))
     for (what, _, _), e0, e1 in zip(measures, before, after, strict=True):

@@ -143,3 +143,26 @@ def test_a_replay_re_anchored_on_the_log_measures_the_model_where_a_whole_stance
     assert all(e.pitch[0] == 0.0 for _, e in parts)
     with pytest.raises(ReplayError, match="every positive number of seconds"):
         replay_hops(nominal, log, every=0.0)
+
+
+def test_a_robot_with_its_own_wheel_motor_replays_its_own_log(tmp_path) -> None:  # noqa: ANN001
+    """A --model robot's controller makes its commands for its own motor: the log's world records that
+    motor and the replay's drive inverts it. It had inverted the packaged motor: 10 deg RMS re-anchored."""
+    import variants
+
+    from hopper.logs.world import resolve
+
+    path = str(variants.motor_constant(tmp_path, 0.85))
+    log = capture(SimConfig(terrain="flat", sensing="realistic", seed=5, model=path), 2).log
+    assert log.world.drive.wheel_torque_limit == pytest.approx(0.85 * 29.5, rel=1e-4)
+    world, _ = resolve(log.world, model=path)
+    model, window = world_model(world)
+    for every in (None, REANCHOR_S):
+        parts = replay_hops(model, log, window=window, delay_ticks=world.command_delay, drive=world.drive, every=every)
+        e = Errors.concat([e for _, e in parts])
+        assert e.rms("pitch") < 1e-6 and e.rms("wheel_speed") < 1e-5, (every, e.rms("pitch"))
+    # The packaged model, driven as this robot's drive was, is a motor 1/0.85 as strong: it shows.
+    packaged, window = world_model(resolve(log.world)[0])
+    a, b = flights(log)[0]
+    flight = errors(log, simulate(packaged, log, a, b, window=window, drive=world.drive))
+    assert flight.rms("pitch") > math.radians(1.0)

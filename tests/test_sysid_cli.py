@@ -241,3 +241,31 @@ def test_help_says_what_identify_fits_and_each_commands_exit_statuses(
     assert len(DEFAULT_FIT) == 8 and set(PARAMS) - set(DEFAULT_FIT) == {"wheel_armature", "motor_damping"}
     assert f"(default these 8: {', '.join(DEFAULT_FIT)}; not wheel_armature or motor_damping," in texts["identify"]
     assert "1 the robot fell or the run reached its time limit before the hops asked" in texts["capture"]
+
+
+def test_a_robot_with_its_own_motor_replays_and_identifies_its_log(tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    """capture --model kt.xml (k_t x 0.85) then replay --model kt.xml was 10 deg RMS off, and identify found
+    motor_torque 1.0008 for 0.85: the drive inverted the packaged motor, not the one the log's commands were for."""
+    import variants
+
+    kt = str(variants.motor_constant(tmp_path, 0.85))
+    log = tmp_path / "c_kt.npz"
+    assert main(["capture", str(log), "--model", kt, "--hops", "1"]) == 0
+    capsys.readouterr()
+    assert main(["replay", str(log), "--model", kt, "--every", "0.3"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].endswith("wheel commands 3 ticks late for a 25.07 N m, 49.28 rad/s wheel motor (the log's)"), out
+    assert "pitch RMS 0.000 deg, wheel speed RMS 0.000 rad/s" in out[-1], out
+    argv = ["identify", str(log), "--out", str(tmp_path / "id.xml"), "--hops", "1", "--params", "motor_torque"]
+    assert main([*argv, "--windows", "0.3", "--max-evaluations", "8", "--truth", "motor_torque=0.85"]) == 0
+    row = next(line for line in capsys.readouterr().out.splitlines() if line.startswith("motor_torque"))
+    assert float(row.split()[4]) == pytest.approx(0.85, rel=0.01), row
+    # A CSV keeps no world: its drive is the packaged motor's unless --drive names the robot's.
+    csv = tmp_path / "c_kt.csv"
+    assert main(["log", "export", str(log), str(csv)]) == 0
+    capsys.readouterr()
+    rms = []
+    for extra in ([], ["--drive", kt]):
+        assert main(["replay", str(csv), "--model", kt, "--every", "0.3", *extra]) == 0
+        rms.append(float(capsys.readouterr().out.splitlines()[-1].split("pitch RMS ")[1].split()[0]))
+    assert rms[1] == 0.0 < 1.0 < rms[0], rms

@@ -103,7 +103,8 @@ def replay_log(path: str, config: SimConfig, every: float | None = None, servo: 
     model, window = world_model(world)
     found = len(hops(recorded))
     parts = replay_hops(
-        model, recorded, MAX_HOPS, window=window, delay_ticks=world.command_delay, every=every, servo=servo
+        model, recorded, MAX_HOPS, window=window, delay_ticks=world.command_delay, every=every, servo=servo,
+        drive=world.drive,
     )  # fmt: skip
     first, last = parts[0][0], parts[-1][0]
     rows = slice(first.first, last.first + len(last.time))
