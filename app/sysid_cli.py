@@ -32,6 +32,7 @@ from hopper.app.cli_common import (
 
 from hopper.config import GRAVITY_PRESETS, MISMATCH_FACTORS, MISMATCH_OFFSETS, SensingParams, SimConfig, check_mismatch
 from hopper.errors import HopperError, ModelError
+from hopper.logs import gaps
 from hopper.logs.io import READERS, WRITERS, read_log, write_log, writer
 from hopper.logs.replay import HELD, REANCHOR_S, Errors, hops, replay_hops, simulate, world_model
 from hopper.logs.schema import Log
@@ -282,10 +283,13 @@ def _replay(args: argparse.Namespace) -> int:
             fail(f"--to {args.stop:g} s leaves nothing to replay after --from {args.start:g} s")
         from hopper.logs.replay import errors
 
-        traj = simulate(
-            model, log, a, b, delay_ticks=world.command_delay, window=window, servo=servo, drive=world.drive
-        )  # fmt: skip
-        parts = [(f"from {t[a]:.3f} s" + (f", {HELD}" if servo else ""), errors(log, traj))]
+        said(gaps.note(log, f"the replay from {t[a]:.3f} s", (a, b), whole=False))
+        parts = []
+        for x, y in gaps.pieces(log, (a, b)):  # one replay, or one each side of a gap
+            traj = simulate(
+                model, log, x, y, delay_ticks=world.command_delay, window=window, servo=servo, drive=world.drive
+            )  # fmt: skip
+            parts.append((f"from {t[x]:.3f} s" + (f", {HELD}" if servo else ""), errors(log, traj)))
     else:
         found = len(hops(log))
         if args.hops is not None and args.hops > found:
@@ -293,12 +297,17 @@ def _replay(args: argparse.Namespace) -> int:
         anchored = "" if args.every is None else f", re-anchored every {args.every:g} s"
         anchored += f", {HELD}" if servo else ""
         parts = []
-        for i, (a, _) in enumerate(hops(log)[: args.hops]):
+        for i, (a, b) in enumerate(hops(log)[: args.hops]):
+            # A whole hop across a gap is left out; re-anchored, it starts again at the gap's far side.
+            if said(gaps.note(log, f"hop {i + 1}", (a, b), whole=args.every is None)) and args.every is None:
+                continue
             done = replay_hops(
                 model, log, 1, first=i, delay_ticks=world.command_delay, window=window, every=args.every, servo=servo,
                 drive=world.drive,
             )  # fmt: skip
             parts.append((f"hop {i + 1} from {log.time[a]:.3f} s{anchored}", Errors.concat([e for _, e in done])))
+        if not parts:
+            fail("each hop asked holds a gap, and a whole hop is not scored across one: re-anchor with --every")
     for label, e in parts:
         print(error_line(label, e))
     total = Errors.concat([e for _, e in parts])
@@ -311,6 +320,13 @@ def _replay(args: argparse.Namespace) -> int:
         paths = save(error_figure(parts, args.log.name), args.out, "replay")
         print(f"wrote {', '.join(str(p) for p in paths)}")
     return EXIT_OK
+
+
+def said(note: str | None, command: str = "replay") -> bool:
+    """Print `note` (a gap's, hopper.logs.gaps.note) on stderr if there is one; whether there was."""
+    if note is not None:
+        print(f"{command}: {note}", file=sys.stderr)
+    return note is not None
 
 
 def truth_values(model: mujoco.MjModel, truth: list[tuple[str, float]]) -> dict[str, float]:
@@ -351,11 +367,16 @@ def command_identify(args: argparse.Namespace) -> int:
     world = replay_world(args, log)
     (model, _), (fresh, _) = world_model(world), world_model(world)  # the fit edits `model`
     span = sysid.hop_span(log, 0, args.hops)
+    for i, hop in enumerate(hops(log)[: args.hops]):  # the fit's windows are cut at a gap (replay.windows)
+        note = gaps.note(log, f"hop {i + 1}", hop, whole=False)
+        said(note and f"{note} (the fit's windows too); the whole-hop replays leave it out", "identify")
     measures = (
         (f"re-anchored every {REANCHOR_S:g} s", REANCHOR_S, False),
         (f"whole, each from its liftoff, {HELD}", None, True),
         ("whole, each from its liftoff", None, False),
     )
+    if all(gaps.crossed(log, hop) for hop in hops(log)[: args.hops]):  # no whole hop to score
+        measures = measures[:1]
     drive, delay = world.drive, world.command_delay
     before = [sysid.replay_error(fresh, log, 0, args.hops, delay, e, s, drive) for _, e, s in measures]
     fit = sysid.identify(

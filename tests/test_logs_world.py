@@ -149,3 +149,25 @@ def test_a_log_carries_its_command_delay_and_a_replay_uses_it(tmp_path: Path, ca
     assert exit_.value.code == 2
     err = capsys.readouterr().err.strip()
     assert err == "hopper-sim: error: --delay-ticks: the wheel command delay must be 0..16 ticks, got 40", err
+
+
+def test_the_dashboard_leaves_a_hop_with_a_gap_out_and_says_so(cratered: Log, tmp_path: Path) -> None:
+    """The dashboard's replay ran through a gap as the CLI did; now it leaves the hop out (whole) or
+    re-anchors past the gap, names it in its summary, and keeps both ghosts on the same rows."""
+    from hopper.logs.schema import find_gaps
+
+    keep = np.ones(len(cratered.time), bool)
+    keep[2000:2500] = False
+    time = cratered.time[keep]
+    holed = Log(time, {k: v[keep] for k, v in cratered.signals.items()}, "g", find_gaps(time), cratered.world)
+    path = write_log(holed, tmp_path / "gap.npz")
+    whole = replay_log(str(path), SimConfig())
+    assert whole.shown == 2 and len(whole.notes) == 1 and whole.notes[0].startswith("hop 1 (")
+    assert whole.notes[0].endswith("0.501 s without samples (1.999-2.500 s): not scored")
+    assert "2 of 3 hops" in summary_html(whole) and "not scored" in summary_html(whole)
+    assert whole.logged.shape == whole.simulated.shape and len(whole.logged_on) == whole.errors.time.size
+    assert math.degrees(whole.errors.rms("pitch")) < 1e-3
+    anchored = replay_log(str(path), SimConfig(), every=0.3)
+    assert anchored.shown == 3 and anchored.notes[0].endswith("re-anchored on the log's state at its far side")
+    assert anchored.logged.shape == anchored.simulated.shape and len(anchored.simulated_on) == anchored.errors.time.size
+    assert math.degrees(anchored.errors.rms("pitch")) < 1e-3

@@ -269,3 +269,49 @@ def test_a_robot_with_its_own_motor_replays_and_identifies_its_log(tmp_path: Pat
         assert main(["replay", str(csv), "--model", kt, "--every", "0.3", *extra]) == 0
         rms.append(float(capsys.readouterr().out.splitlines()[-1].split("pitch RMS ")[1].split()[0]))
     assert rms[1] == 0.0 < 1.0 < rms[0], rms
+
+
+def test_replay_and_identify_never_score_across_a_gap(logged: Path, tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    """Rows 2000-2499 removed (log check: 0.501 s without samples): replay ran straight through the gap
+    (hop 1 at 32 deg RMS), said nothing, and its figure drew a line across it."""
+    import numpy as np
+    from hopper.app.replay_figure import error_figure
+
+    from hopper.logs.io import write_log
+    from hopper.logs.replay import REANCHOR_S, replay_hops, world_model
+    from hopper.logs.schema import Log, find_gaps
+    from hopper.logs.world import World
+
+    log = read_log(logged)
+    keep = np.ones(len(log.time), bool)
+    keep[2000:2500] = False
+    time = log.time[keep]
+    path = write_log(Log(time, {k: v[keep] for k, v in log.signals.items()}, "t", find_gaps(time)), tmp_path / "g.csv")
+    gap = "holds a gap, 0.501 s without samples (1.999-2.500 s)"
+    assert main(["replay", str(path)]) == 0
+    out, err = capsys.readouterr()
+    assert err == f"replay: hop 1 (1.501-4.848 s) {gap}: not scored\n", err
+    assert "hop 1 from" not in out and "hop 2 from 4.849 s:" in out and "all (1 replay(s)" in out, out
+    assert main(["replay", str(path), "--every", "0.3"]) == 0
+    out, err = capsys.readouterr()
+    assert err == f"replay: hop 1 (1.501-4.848 s) {gap}: re-anchored on the log's state at its far side\n", err
+    assert "hop 1 from 1.501 s, re-anchored every 0.3 s" in out and "all (2 replay(s)" in out, out
+    with pytest.raises(SystemExit) as stop:
+        main(["replay", str(path), "--hops", "1"])
+    assert stop.value.code == 2 and "each hop asked holds a gap" in capsys.readouterr().err
+    argv = ["identify", str(path), "--out", str(tmp_path / "id.xml"), "--hops", "1", "--params", "gyro_bias"]
+    assert main([*argv, "--windows", "0.3", "--max-evaluations", "1"]) == 0
+    out, err = capsys.readouterr()
+    assert f"identify: hop 1 (1.501-4.848 s) {gap}: re-anchored on the log's state at its far side (the fit's " in err
+    assert "(re-anchored every 0.3 s) after" in out and "(whole, each from its liftoff) after" not in out, out
+    # The figure breaks each line at the gap: no straight line across it.
+    gapped = read_log(path)
+    model, _ = world_model(World())
+    parts = replay_hops(model, gapped, 1, every=REANCHOR_S)
+    from hopper.logs.replay import Errors
+
+    fig = error_figure([("hop 1", Errors.concat([e for _, e in parts]))], "g.csv")
+    for ax in fig.axes[:2]:
+        x, y = ax.lines[0].get_xdata(), ax.lines[0].get_ydata()
+        k = np.flatnonzero(np.isnan(y))
+        assert k.size == 1 and x[k[0] - 1] < 2.0 and x[k[0] + 1] > 2.5, (x[k[0] - 1 : k[0] + 2], k)

@@ -26,6 +26,7 @@ import numpy as np
 
 from hopper.errors import HopperError
 from hopper.layout import LEG_JOINTS, ModelLayout
+from hopper.logs import gaps
 from hopper.logs.schema import STATE, Log
 from hopper.logs.world import DEFAULT_DELAY_TICKS, World
 from hopper.model import build_model, set_terrain, terrain_window
@@ -151,11 +152,19 @@ def simulate(
     Row k's simulated values are those of t_k, as the log's are (hopper.logs.capture): pitch, rates
     and positions before the step that applies row k's commands, the feet's forces of its forward pass.
     A state that goes non-finite (a diverging open-loop flight) stops the run: the rest is NaN.
+    Rows that run across a gap in the log are refused (hopper.logs.gaps: cut them there).
     """
     check_replayable(log)
     n = len(log.time)
     if not 0 <= start < stop <= n:
         raise ReplayError(f"{log.source}: rows {start}..{stop} are outside its {n} samples")
+    across = gaps.crossed(log, (start, stop))
+    if across:
+        a, b = across[0]
+        raise ReplayError(
+            f"{log.source}: a replay of {log.time[start]:.3f}..{log.time[stop - 1]:.3f} s reads across a gap "
+            f"({a:.3f}-{b:.3f} s without samples): it flies no commands the log does not hold"
+        )
     data = mujoco.MjData(model) if data is None else data
     lay = ModelLayout.of(model)
     if window is not None:
@@ -301,11 +310,13 @@ def replay_spans(
 
 
 def windows(log: Log, span: tuple[int, int], window_s: float) -> list[tuple[int, int]]:
-    """Rows span[0]..span[1] cut into consecutive windows of about window_s (s)."""
-    a, b = span
+    """Rows span[0]..span[1] cut into consecutive windows of about window_s (s), and at each gap: the
+    window after a gap starts at its far side (hopper.logs.gaps)."""
     step = max(int(round(window_s / log.period)), 2)
-    cuts = list(range(a, b, step))
-    return [(c, min(c + step, b)) for c in cuts if min(c + step, b) - c >= 2]
+    out = []
+    for a, b in gaps.pieces(log, span):
+        out += [(c, min(c + step, b)) for c in range(a, b, step) if min(c + step, b) - c >= 2]
+    return out
 
 
 def replay_hops(
@@ -324,11 +335,16 @@ def replay_hops(
     to the next; with `every` (s), each hop in windows of that length, each from the log's state at its
     start (multiple shooting). Whole, an open-loop stance is an inverted pendulum without feedback on
     slipping feet: it drifts off unless the model is the robot to the last digit (REANCHOR_S), or
-    the legs are held to the log's angles (`servo`: simulate's; `drive` too)."""
+    the legs are held to the log's angles (`servo`: simulate's; `drive` too). A hop that holds a gap
+    is left out whole, and re-anchored at the gap's far side with `every` (hopper.logs.gaps.note)."""
     if every is not None and not every > 0.0:
         raise ReplayError(f"a replay re-anchors every positive number of seconds, got {every}")
     spans = hops(log)[first:]
     spans = spans if count is None else spans[:count]
     if every is not None:
         spans = [w for hop in spans for w in windows(log, hop, every)]
+    elif spans:
+        spans = [hop for hop in spans if not gaps.crossed(log, hop)]
+        if not spans:
+            raise ReplayError(f"{log.source}: each hop asked holds a gap: a whole hop is not scored across one")
     return replay_spans(model, log, spans, delay_ticks=delay_ticks, window=window, servo=servo, drive=drive)
