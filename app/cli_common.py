@@ -110,6 +110,18 @@ def writable_file(text: str) -> Path:
     return path
 
 
+def same_file(a: Path | str, b: Path | str) -> bool:
+    """`a` and `b` name one file: the same resolved path (symlinks, ./x and x), or, both there, the
+    same inode (a hard link)."""
+    a, b = Path(a), Path(b)
+    if a.resolve() == b.resolve():
+        return True
+    try:
+        return os.path.samefile(a, b)
+    except OSError:  # either is not there
+        return False
+
+
 def make_writable_folder(path: Path) -> None:
     """Make the folder `path` (and its parents) and write in it; OSError if that cannot be done.
 
@@ -121,11 +133,13 @@ def make_writable_folder(path: Path) -> None:
     probe.unlink()
 
 
-def check_out(out: Path, flag: str = "--out") -> list[Path]:
-    """OUT is a folder (or can be made one, with its missing parents) that can be written: made and
-    written to now, before any work; one line and exit 2 otherwise. Returns the folders it made, OUT
-    first (see made_out)."""
+def check_out(out: Path, flag: str = "--out", parents: bool = True) -> list[Path]:
+    """OUT is a folder (or can be made one, with its missing parents; without `parents`, in a folder
+    that exists, as a file's path must be) that can be written: made and written to now, before any
+    work; one line and exit 2 otherwise. Returns the folders it made, OUT first (see made_out)."""
     folder, made = out.absolute(), []
+    if not parents and not folder.parent.exists():
+        fail(f"{flag}: folder {folder.parent} does not exist")
     while not folder.exists():  # OUT itself, or the nearest of its parents that exists
         made.append(folder)
         folder = folder.parent
@@ -140,11 +154,11 @@ def check_out(out: Path, flag: str = "--out") -> list[Path]:
 
 
 @contextlib.contextmanager
-def made_out(out: Path | None, flag: str = "--out") -> Iterator[None]:
+def made_out(out: Path | None, flag: str = "--out", parents: bool = True) -> Iterator[None]:
     """check_out(OUT) (nothing without one); if the block then stops on an exception (a check that
     refuses, Ctrl-C), the folders check_out made are removed again if still empty: a refused command
     leaves no empty folder behind, and never removes one it did not make or that holds anything."""
-    made = check_out(out, flag) if out is not None else []
+    made = check_out(out, flag, parents) if out is not None else []
     try:
         yield
     except BaseException:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from hopper.app.cli_common import EXIT_OK, fail, writable_file
+from hopper.app.cli_common import EXIT_OK, fail, same_file, writable_file
 
 from hopper.logs.io import WRITERS, read_log, write_log, writer
 from hopper.logs.schema import ACCEL, COMMANDS, MEASUREMENTS, STATE, Log, LogError
@@ -62,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
             log = read_log(args.file)
         else:
             writer(args.output)  # its suffix, before reading
-            if args.output.resolve() == args.input.resolve():
+            if same_file(args.output, args.input):
                 fail(f"{args.output}: is the input; write the export to another file")
             log = read_log(args.input)
             path = write_log(log, args.output)

@@ -24,12 +24,15 @@ from hopper.app.cli_common import (
     finite,
     gravity,
     made_out,
+    model_file,
+    same_file,
     seed,
     writable_file,
 )
 
 from hopper.config import GRAVITY_PRESETS, MISMATCH_FACTORS, MISMATCH_OFFSETS, SensingParams, SimConfig, check_mismatch
-from hopper.errors import HopperError
+from hopper.errors import HopperError, ModelError
+from hopper.logs import gaps
 from hopper.logs.io import READERS, WRITERS, read_log, write_log, writer
 from hopper.logs.replay import HELD, REANCHOR_S, Errors, hops, replay_hops, simulate, world_model
 from hopper.logs.schema import Log
@@ -117,7 +120,10 @@ def add_commands(commands: argparse._SubParsersAction) -> None:  # noqa: SLF001 
         help="the legs fly the log's torques alone (default), or with a servo to the log's angles too: a whole "
         "hop then measures the torso and the wheel, not the open-loop stance's chaos",
     )  # fmt: skip
-    rep.add_argument("--out", type=Path, metavar="DIR", help="write replay.png and .pdf (errors over time) here")
+    rep.add_argument(
+        "--out", type=Path, metavar="DIR",
+        help="write replay.png and .pdf (errors over time) in this folder (made if missing, in one that exists)",
+    )  # fmt: skip
 
     ide = commands.add_parser(
         "identify", help="fit the model to a log; print estimates, write the MJCF", epilog=IDENTIFY_EPILOG
@@ -151,6 +157,17 @@ def add_model_flags(p: argparse.ArgumentParser) -> None:
         help=f"ticks (1 ms) from a logged wheel command to the motor (default the log's, else {DEFAULT_DELAY_TICKS})",
     )  # fmt: skip
     add_model_flag(p)
+    p.add_argument(
+        "--drive", type=drive_model, metavar="PATH.xml|packaged",
+        help="the robot whose wheel motor the log's torque commands were made for: the drive inverts it to a "
+        "voltage, and the model replayed turns that into torque with its own motor (default the log's robot if the "
+        "log says, as a capture's does, else the packaged one)",
+    )  # fmt: skip
+
+
+def drive_model(text: str) -> str:
+    """--drive: an MJCF of the robot (checked as --model is) or the word packaged."""
+    return text if text == "packaged" else model_file(text)
 
 
 def windows(text: str) -> tuple[float, ...]:
@@ -173,7 +190,11 @@ def truth_pair(text: str) -> tuple[str, float]:
 def replay_world(args: argparse.Namespace, log: Log) -> World:
     """The world to fly the log in (the flags, else the log's: hopper.logs.world.resolve); says which."""
     try:
-        world, origin = resolve(log.world, args.terrain, args.seed, args.gravity, args.model, args.delay_ticks)
+        world, origin = resolve(
+            log.world, args.terrain, args.seed, args.gravity, args.model, args.delay_ticks, args.drive
+        )  # fmt: skip
+    except ModelError as exc:  # the log's robot, whose motor the drive inverts, is not there
+        fail(f"{exc}; say which motor with --drive PATH.xml (or packaged)")
     except ValueError as exc:  # a delay the kernel's line cannot hold
         fail(f"--delay-ticks: {exc}")
     print(f"world: {world.describe()} ({origin})")
@@ -240,7 +261,9 @@ def replay_flags(args: argparse.Namespace) -> None:
 
 def command_replay(args: argparse.Namespace) -> int:
     replay_flags(args)
-    with made_out(args.out):  # made and written to now, before the replay; unmade if the log's checks refuse
+    # made and written to now, before the replay, in a folder that exists (as identify's and export's
+    # files must be); unmade if the log's checks refuse
+    with made_out(args.out, parents=False):
         return _replay(args)
 
 
@@ -260,8 +283,13 @@ def _replay(args: argparse.Namespace) -> int:
             fail(f"--to {args.stop:g} s leaves nothing to replay after --from {args.start:g} s")
         from hopper.logs.replay import errors
 
-        traj = simulate(model, log, a, b, delay_ticks=world.command_delay, window=window, servo=servo)
-        parts = [(f"from {t[a]:.3f} s" + (f", {HELD}" if servo else ""), errors(log, traj))]
+        said(gaps.note(log, f"the replay from {t[a]:.3f} s", (a, b), whole=False))
+        parts = []
+        for x, y in gaps.pieces(log, (a, b)):  # one replay, or one each side of a gap
+            traj = simulate(
+                model, log, x, y, delay_ticks=world.command_delay, window=window, servo=servo, drive=world.drive
+            )  # fmt: skip
+            parts.append((f"from {t[x]:.3f} s" + (f", {HELD}" if servo else ""), errors(log, traj)))
     else:
         found = len(hops(log))
         if args.hops is not None and args.hops > found:
@@ -269,11 +297,17 @@ def _replay(args: argparse.Namespace) -> int:
         anchored = "" if args.every is None else f", re-anchored every {args.every:g} s"
         anchored += f", {HELD}" if servo else ""
         parts = []
-        for i, (a, _) in enumerate(hops(log)[: args.hops]):
+        for i, (a, b) in enumerate(hops(log)[: args.hops]):
+            # A whole hop across a gap is left out; re-anchored, it starts again at the gap's far side.
+            if said(gaps.note(log, f"hop {i + 1}", (a, b), whole=args.every is None)) and args.every is None:
+                continue
             done = replay_hops(
-                model, log, 1, first=i, delay_ticks=world.command_delay, window=window, every=args.every, servo=servo
+                model, log, 1, first=i, delay_ticks=world.command_delay, window=window, every=args.every, servo=servo,
+                drive=world.drive,
             )  # fmt: skip
             parts.append((f"hop {i + 1} from {log.time[a]:.3f} s{anchored}", Errors.concat([e for _, e in done])))
+        if not parts:
+            fail("each hop asked holds a gap, and a whole hop is not scored across one: re-anchor with --every")
     for label, e in parts:
         print(error_line(label, e))
     total = Errors.concat([e for _, e in parts])
@@ -286,6 +320,13 @@ def _replay(args: argparse.Namespace) -> int:
         paths = save(error_figure(parts, args.log.name), args.out, "replay")
         print(f"wrote {', '.join(str(p) for p in paths)}")
     return EXIT_OK
+
+
+def said(note: str | None, command: str = "replay") -> bool:
+    """Print `note` (a gap's, hopper.logs.gaps.note) on stderr if there is one; whether there was."""
+    if note is not None:
+        print(f"{command}: {note}", file=sys.stderr)
+    return note is not None
 
 
 def truth_values(model: mujoco.MjModel, truth: list[tuple[str, float]]) -> dict[str, float]:
@@ -321,21 +362,28 @@ def command_identify(args: argparse.Namespace) -> int:
         fail(f"--hops must be at least 1, got {args.hops}")
     if args.max_evaluations < 1:
         fail(f"--max-evaluations must be at least 1, got {args.max_evaluations}")
+    identify_out(args)
     log = read_log(args.log)
     world = replay_world(args, log)
     (model, _), (fresh, _) = world_model(world), world_model(world)  # the fit edits `model`
     span = sysid.hop_span(log, 0, args.hops)
+    for i, hop in enumerate(hops(log)[: args.hops]):  # the fit's windows are cut at a gap (replay.windows)
+        note = gaps.note(log, f"hop {i + 1}", hop, whole=False)
+        said(note and f"{note} (the fit's windows too); the whole-hop replays leave it out", "identify")
     measures = (
         (f"re-anchored every {REANCHOR_S:g} s", REANCHOR_S, False),
         (f"whole, each from its liftoff, {HELD}", None, True),
         ("whole, each from its liftoff", None, False),
     )
-    before = [sysid.replay_error(fresh, log, 0, args.hops, world.command_delay, e, s) for _, e, s in measures]
+    if all(gaps.crossed(log, hop) for hop in hops(log)[: args.hops]):  # no whole hop to score
+        measures = measures[:1]
+    drive, delay = world.drive, world.command_delay
+    before = [sysid.replay_error(fresh, log, 0, args.hops, delay, e, s, drive) for _, e, s in measures]
     fit = sysid.identify(
-        model, log, span, names, stages=args.windows, delay_ticks=world.command_delay,
-        max_evaluations=args.max_evaluations, progress=lambda line: print(f"identify: {line}", file=sys.stderr),
+        model, log, span, names, stages=args.windows, delay_ticks=delay, max_evaluations=args.max_evaluations,
+        progress=lambda line: print(f"identify: {line}", file=sys.stderr), drive=drive,
     )  # fmt: skip
-    after = [sysid.replay_error(model, log, 0, args.hops, world.command_delay, e, s) for _, e, s in measures]
+    after = [sysid.replay_error(model, log, 0, args.hops, delay, e, s, drive) for _, e, s in measures]
     truth = truth_values(fresh, args.truth)
     print(table(fit, truth))
     for (what, _, _), e0, e1 in zip(measures, before, after, strict=True):
@@ -347,7 +395,7 @@ def command_identify(args: argparse.Namespace) -> int:
     print(
         f"fit: {fit.windows} windows of {args.windows[-1]:g} s at the last stage, {fit.evaluations} simulations, "
         f"{fit.seconds:.0f} s; "
-        f"residual RMS before -> after: "
+        f"residual RMS on those windows, the starting model -> the identified: "
         + ", ".join(f"{c} {fit.residual_before[c]:.3g} -> {fit.residual_after[c]:.3g}" for c in fit.residual_after)
     )
     spec = mujoco.MjSpec.from_file(args.model or str(MODEL_XML))  # the robot the fit started from
@@ -355,6 +403,18 @@ def command_identify(args: argparse.Namespace) -> int:
     args.out.write_text(spec.to_xml())
     print(f'wrote {args.out} (the identified robot; the gyro bias in <numeric name="gyro_bias">, rad/s)')
     return EXIT_OK
+
+
+def identify_out(args: argparse.Namespace) -> None:
+    """Refuse (one line, exit 2, before any work) an --out that would overwrite the log or the model the
+    fit starts from (the same file by its resolved path: symlinks, ./x and x), or that is no .xml."""
+    out, start = args.out, args.model or str(MODEL_XML)
+    if same_file(out, args.log):
+        fail(f"--out {out}: is the log; write the identified MJCF to another file")
+    if same_file(out, start):
+        fail(f"--out {out}: is the model the fit starts from ({start}); write the identified MJCF to another file")
+    if out.suffix.lower() != ".xml":
+        fail(f"--out {out}: identify writes the identified robot as MJCF: give a path ending in .xml")
 
 
 def table(fit, truth: dict[str, float]) -> str:  # noqa: ANN001 (a sysid.Fit)

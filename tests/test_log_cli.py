@@ -78,3 +78,41 @@ def test_export_refuses_what_it_cannot_write_before_reading(tmp_path: Path, caps
     assert "is the input" in refused(["log", "export", str(path), str(path)], capsys)
     assert "folder" in refused(["log", "export", str(path), str(tmp_path / "no" / "out.csv")], capsys)
     assert not (tmp_path / "out.rrd").exists()
+
+
+@pytest.mark.parametrize(
+    ("column", "row", "value", "says"),
+    [
+        ("wheel_torque_cmd", 40, "1e300", "column wheel_torque_cmd is 1e+300 N m at sample 40 (t = 0.040000 s), "
+         "beyond 2950 N m (100x the wheel motor's stall torque): is its unit right? (line 42)"),
+        ("wheel_speed", 7, "1e308", "column wheel_speed is 1e+308 rad/s at sample 7 (t = 0.007000 s), beyond 4189 "
+         "rad/s (100x the wheel's no-load speed)"),
+        ("foot_L_force", 90, "-3e7", "column foot_L_force is -3e+07 N at sample 90"),
+    ],
+)  # fmt: skip
+def test_check_refuses_a_finite_value_no_robot_gives(
+    column: str, row: int, value: str, says: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A torque command of 1e300 passed `log check`; a wheel speed of 1e308 then replayed to 'RMS inf'."""
+    path = csv_log.write(synthetic_log(0.1), tmp_path / "log.csv")
+    lines = path.read_text().splitlines()
+    k = lines[0].split(",").index(next(h for h in lines[0].split(",") if h.startswith(f"{column} [")))
+    cells = lines[row + 1].split(",")
+    cells[k] = value
+    lines[row + 1] = ",".join(cells)
+    path.write_text("\n".join(lines) + "\n")
+    assert says in refused(["log", "check", str(path)], capsys)
+
+
+def test_check_refuses_a_time_column_in_another_unit_than_it_says(tmp_path: Path, capsys) -> None:
+    """Seconds labelled ms passed at 'rate: 1000000.0 Hz'; replay then said 'the log has 0 hop(s)'."""
+    path = csv_log.write(synthetic_log(0.1), tmp_path / "log.csv")
+    text = path.read_text().replace("time [s]", "time [ms]", 1)
+    path.write_text(text)
+    err = refused(["log", "check", str(path)], capsys)
+    assert "its sample rate is 1e+06 Hz (median period 1e-06 s), outside 10 Hz..100000 Hz" in err, err
+    assert "is its time in the unit it says?" in err
+    header, *rows = csv_log.write(synthetic_log(0.1), tmp_path / "slow.csv").read_text().splitlines()
+    slow = [",".join([repr(200.0 * float(r.split(",")[0])), *r.split(",")[1:]]) for r in rows]  # 5 Hz
+    (tmp_path / "slow.csv").write_text("\n".join([header, *slow]) + "\n")
+    assert "its sample rate is 5 Hz" in refused(["log", "check", str(tmp_path / "slow.csv")], capsys)

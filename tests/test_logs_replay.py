@@ -143,3 +143,63 @@ def test_a_replay_re_anchored_on_the_log_measures_the_model_where_a_whole_stance
     assert all(e.pitch[0] == 0.0 for _, e in parts)
     with pytest.raises(ReplayError, match="every positive number of seconds"):
         replay_hops(nominal, log, every=0.0)
+
+
+def test_a_robot_with_its_own_wheel_motor_replays_its_own_log(tmp_path) -> None:  # noqa: ANN001
+    """A --model robot's controller makes its commands for its own motor: the log's world records that
+    motor and the replay's drive inverts it. It had inverted the packaged motor: 10 deg RMS re-anchored."""
+    import variants
+
+    from hopper.logs.world import resolve
+
+    path = str(variants.motor_constant(tmp_path, 0.85))
+    log = capture(SimConfig(terrain="flat", sensing="realistic", seed=5, model=path), 2).log
+    assert log.world.drive.wheel_torque_limit == pytest.approx(0.85 * 29.5, rel=1e-4)
+    world, _ = resolve(log.world, model=path)
+    model, window = world_model(world)
+    for every in (None, REANCHOR_S):
+        parts = replay_hops(model, log, window=window, delay_ticks=world.command_delay, drive=world.drive, every=every)
+        e = Errors.concat([e for _, e in parts])
+        assert e.rms("pitch") < 1e-6 and e.rms("wheel_speed") < 1e-5, (every, e.rms("pitch"))
+    # The packaged model, driven as this robot's drive was, is a motor 1/0.85 as strong: it shows.
+    packaged, window = world_model(resolve(log.world)[0])
+    a, b = flights(log)[0]
+    flight = errors(log, simulate(packaged, log, a, b, window=window, drive=world.drive))
+    assert flight.rms("pitch") > math.radians(1.0)
+
+
+def gapped(log: Log, start: int = 2000, stop: int = 2500) -> Log:
+    """`log` without rows start..stop-1 (in hop 1's flight), its gap marked as a reader marks it."""
+    from hopper.logs.schema import find_gaps
+
+    keep = np.ones(len(log.time), bool)
+    keep[start:stop] = False
+    time = log.time[keep]
+    return Log(time, {k: v[keep] for k, v in log.signals.items()}, "gap.csv", find_gaps(time), log.world)
+
+
+def test_a_replay_never_flies_across_a_gap(log: Log) -> None:
+    """A log with 0.5 s missing in hop 1's flight replayed straight through it (32 deg RMS), silently."""
+    from hopper.logs import gaps
+
+    holed = gapped(log)
+    assert len(holed.gaps) == 1
+    model, window = robot(MISMATCH)
+    hop = hops(holed)[0]
+    with pytest.raises(
+        ReplayError, match=r"gap.csv: a replay of .* reads across a gap \(1.999-2.500 s without samples\)"
+    ):
+        simulate(model, holed, *hop)
+    cut = replay_hops(model, holed, every=REANCHOR_S, window=window)
+    assert [p.first for p, _ in cut].count(2000 + gaps.LEAD) == 1  # a window starts again past the gap
+    assert all(not gaps.crossed(holed, (p.first, p.first + len(p.time))) for p, _ in cut)
+    assert Errors.concat([e for _, e in cut]).rms("pitch") < 1e-6
+    whole = replay_hops(model, holed, window=window)  # the hop holding the gap is left out, the others scored
+    assert [p.first for p, _ in whole] == [a for a, _ in hops(holed)[1:]]
+    assert Errors.concat([e for _, e in whole]).rms("pitch") < 1e-6
+    assert gaps.note(holed, "hop 1", hop, whole=True) == (
+        f"hop 1 ({holed.time[hop[0]]:.3f}-{holed.time[hop[1] - 1]:.3f} s) holds a gap, 0.501 s without samples "
+        "(1.999-2.500 s): not scored"
+    )
+    with pytest.raises(ReplayError, match="each hop asked holds a gap"):
+        replay_hops(model, holed, 1)

@@ -123,3 +123,33 @@ def test_friction_is_found_by_its_line_search() -> None:
     assert fit.values["friction"] == pytest.approx(0.6, rel=0.10)  # the issue's tolerance for friction
     low, high = fit.profile["friction"]
     assert low <= fit.values["friction"] <= high
+
+
+def test_the_residuals_before_and_after_are_over_the_last_stages_windows(log: Log) -> None:
+    """identify printed stage 1's 0.05 s windows as 'before' beside the last stage's 0.3 s as 'after'."""
+    model, _ = world_model(World())
+    flight, names = replay.flights(log)[0], ("motor_torque",)
+    fit = sysid.identify(model, log, flight, names, stages=(0.05, 0.3), max_evaluations=3)
+    fresh, _ = world_model(World())
+    last = sysid.Problem(sysid.Robot(fresh), log, replay.windows(log, flight, 0.3), names, sysid.DEFAULT_DELAY_TICKS)
+    assert fit.windows == len(last.spans)
+    assert fit.residual_before == pytest.approx(last.channel_rms(last.residuals(np.zeros(1))), rel=1e-12)
+    z = np.array([(fit.values["motor_torque"] - 1.0) / last.scale[0]])
+    assert fit.residual_after == pytest.approx(last.channel_rms(last.residuals(z)), rel=1e-9)
+
+
+def test_the_motor_of_a_robot_with_its_own_motor_is_found(tmp_path: Path) -> None:
+    """A --model robot's commands are made for its own motor (k_t 0.85): the fit's drive inverts that
+    motor and the candidate's turns the voltage into torque, so motor_torque is found against the
+    packaged model's (it came out 1.0008 while the drive inverted the packaged motor)."""
+    import variants
+
+    from hopper.logs.world import resolve
+
+    path = str(variants.motor_constant(tmp_path, 0.85))
+    log = capture(SimConfig(terrain="flat", sensing="realistic", seed=3, model=path), 1).log
+    world, _ = resolve(log.world)  # the packaged model, the log's drive
+    model, _ = world_model(world)
+    flight = replay.flights(log)[0]
+    fit = sysid.identify(model, log, flight, ("motor_torque",), stages=(0.3,), max_evaluations=10, drive=world.drive)
+    assert fit.values["motor_torque"] == pytest.approx(0.85, rel=0.01)

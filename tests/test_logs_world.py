@@ -15,14 +15,17 @@ from hopper.app.dashboard.terrain_view import terrain_glb
 from hopper.app.sim_cli import main
 
 from hopper.config import SimConfig
+from hopper.errors import ModelError
 from hopper.logs import mcap_log, npz
 from hopper.logs.capture import capture
 from hopper.logs.io import read_log, write_log
 from hopper.logs.schema import Log
-from hopper.logs.world import World, resolve
+from hopper.logs.world import World, motor_of, resolve
 from hopper.model import terrain_window
+from hopper.robot import PACKAGED
 
-WORLD = World(terrain="crater", seed=5, gravity=1.625, delay_ticks=3)  # realistic sensing: 3 ms late
+# realistic sensing: 3 ms late; the commands made for the packaged motor
+WORLD = World(terrain="crater", seed=5, gravity=1.625, delay_ticks=3, wheel_motor=motor_of(PACKAGED))
 
 
 @pytest.fixture(scope="module")
@@ -73,15 +76,23 @@ def test_a_bad_world_is_refused_in_one_line(cratered: Log, tmp_path: Path) -> No
 def test_the_world_is_the_flags_then_the_logs_then_the_defaults() -> None:
     assert resolve(WORLD) == (WORLD, "the log's")
     world, origin = resolve(WORLD, terrain="flat", model="robot.xml")
-    assert world == World(terrain="flat", seed=5, gravity=1.625, model="robot.xml", delay_ticks=3)
+    assert world == World(
+        terrain="flat", seed=5, gravity=1.625, model="robot.xml", delay_ticks=3, wheel_motor=motor_of(PACKAGED)
+    )
     assert origin == "as asked (terrain); the log's is crater seed 5, 1.625 m/s^2, wheel commands 3 ticks late"
     assert resolve(WORLD, delay_ticks=0)[0].command_delay == 0
     with pytest.raises(ValueError, match="0..16 ticks, got 20"):
         resolve(WORLD, delay_ticks=20)
     assert World().command_delay == 3  # a log that does not say: realistic sensing's
     assert resolve(None) == (World(), "the log names no world: the defaults")
-    # The log's robot is the one compared with, never the model replayed.
-    assert resolve(World(model="truth.xml"))[0].model is None
+    # The log's robot is the one compared with, never the model replayed; its motor is the drive's.
+    truth = World(model="truth.xml", wheel_motor=(25.0, 0.5))
+    assert resolve(truth)[0].model is None and resolve(truth)[0].drive.wheel_torque_limit == 25.0
+    assert resolve(truth)[0].drive.wheel_damping == pytest.approx(0.5)
+    # A log written before the motor was recorded: its robot's MJCF says, and must be there to.
+    with pytest.raises(ModelError, match="the log's robot, whose wheel motor its commands were made for: .*truth.xml"):
+        resolve(World(model="truth.xml"))
+    assert resolve(World(model="truth.xml"), drive="packaged")[0].wheel_motor == motor_of(PACKAGED)
 
 
 def test_the_cli_and_the_dashboard_replay_in_the_logs_world(cratered: Log, tmp_path: Path, capsys) -> None:  # noqa: ANN001
@@ -138,3 +149,25 @@ def test_a_log_carries_its_command_delay_and_a_replay_uses_it(tmp_path: Path, ca
     assert exit_.value.code == 2
     err = capsys.readouterr().err.strip()
     assert err == "hopper-sim: error: --delay-ticks: the wheel command delay must be 0..16 ticks, got 40", err
+
+
+def test_the_dashboard_leaves_a_hop_with_a_gap_out_and_says_so(cratered: Log, tmp_path: Path) -> None:
+    """The dashboard's replay ran through a gap as the CLI did; now it leaves the hop out (whole) or
+    re-anchors past the gap, names it in its summary, and keeps both ghosts on the same rows."""
+    from hopper.logs.schema import find_gaps
+
+    keep = np.ones(len(cratered.time), bool)
+    keep[2000:2500] = False
+    time = cratered.time[keep]
+    holed = Log(time, {k: v[keep] for k, v in cratered.signals.items()}, "g", find_gaps(time), cratered.world)
+    path = write_log(holed, tmp_path / "gap.npz")
+    whole = replay_log(str(path), SimConfig())
+    assert whole.shown == 2 and len(whole.notes) == 1 and whole.notes[0].startswith("hop 1 (")
+    assert whole.notes[0].endswith("0.501 s without samples (1.999-2.500 s): not scored")
+    assert "2 of 3 hops" in summary_html(whole) and "not scored" in summary_html(whole)
+    assert whole.logged.shape == whole.simulated.shape and len(whole.logged_on) == whole.errors.time.size
+    assert math.degrees(whole.errors.rms("pitch")) < 1e-3
+    anchored = replay_log(str(path), SimConfig(), every=0.3)
+    assert anchored.shown == 3 and anchored.notes[0].endswith("re-anchored on the log's state at its far side")
+    assert anchored.logged.shape == anchored.simulated.shape and len(anchored.simulated_on) == anchored.errors.time.size
+    assert math.degrees(anchored.errors.rms("pitch")) < 1e-3

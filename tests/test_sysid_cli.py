@@ -48,6 +48,8 @@ def test_identify_prints_the_table_and_writes_the_mjcf(logged: Path, tmp_path: P
     row = next(line for line in text.splitlines() if line.startswith("motor_torque"))
     estimate = float(row.split()[4])
     assert estimate == pytest.approx(0.9, rel=0.01)
+    assert "windows of 0.1 s at the last stage" in text
+    assert "residual RMS on those windows, the starting model -> the identified: pitch " in text
     held = "whole, each from its liftoff, legs held to the log's angles"
     for measure in ("re-anchored every 0.3 s", held, "whole, each from its liftoff"):
         assert f"replay of hops 1..1 ({measure}) before" in text and f"({measure}) after" in text
@@ -99,10 +101,52 @@ def test_bad_input_is_refused_in_one_line(argv, message, logged: Path, tmp_path:
 
 
 @pytest.mark.parametrize(
+    ("out", "extra", "message"),
+    [
+        ("victim.csv", [], "--out victim.csv: is the log; write the identified MJCF to another file"),
+        ("./victim.csv", [], "--out victim.csv: is the log"),  # the same file by another spelling
+        ("link.xml", [], "--out link.xml: is the log"),  # a symlink to it
+        ("hard.xml", [], "--out hard.xml: is the log"),  # a hard link to it
+        ("m.xml", ["--model", "m.xml"], "--out m.xml: is the model the fit starts from"),
+        ("x.csv", [], "--out x.csv: identify writes the identified robot as MJCF: give a path ending in .xml"),
+    ],
+)
+def test_identify_refuses_an_out_that_would_overwrite_its_inputs_before_any_work(
+    out: str,
+    extra: list[str],
+    message: str,
+    logged: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """identify --out victim.csv on victim.csv wrote an MJCF over the log (exit 0), and over --model's."""
+    import shutil
+
+    from hopper.model import MODEL_XML
+
+    monkeypatch.chdir(tmp_path)
+    shutil.copy(logged, "victim.csv")
+    shutil.copy(MODEL_XML, "m.xml")
+    Path("link.xml").symlink_to("victim.csv")
+    Path("hard.xml").hardlink_to("victim.csv")
+    before = {p: p.read_bytes() for p in (Path("victim.csv"), Path("m.xml"))}
+    with pytest.raises(SystemExit) as stop:
+        main(["identify", "victim.csv", "--out", out, "--hops", "1", "--max-evaluations", "1", *extra])
+    got, err = capsys.readouterr()
+    assert stop.value.code == 2 and got == "", got  # before the log is read: no world line
+    assert err.startswith("hopper-sim: error: ") and len(err.splitlines()) == 1 and message in err, err
+    assert all(p.read_bytes() == data for p, data in before.items())
+    assert not Path("x.csv").exists()
+
+
+@pytest.mark.parametrize(
     ("argv", "message"),
     [
         (["--out", "FILE"], "--out: FILE is not a folder"),
         (["--out", "FILE/sub"], "--out: FILE is not a folder"),  # the nearest folder that exists
+        # a folder is made for the figure, not a path to it (as identify's and export's files: folder must exist)
+        (["--out", "TMP/none/deeper/out"], "--out: folder TMP/none/deeper does not exist"),
         (["--out", "/proc/replay"], "--out: cannot write to /proc/replay"),
         (["--to", "3"], "--to 3 needs --from"),
         (["--from", "1", "--hops", "1"], "--hops replays hops from their liftoffs; --from 1 replays one span"),
@@ -117,11 +161,12 @@ def test_replay_refuses_an_out_it_cannot_write_or_flags_it_would_ignore_before_a
     file = tmp_path / "file"
     file.write_text("")
     with pytest.raises(SystemExit) as stop:
-        main(["replay", str(logged), *(a.replace("FILE", str(file)) for a in argv)])
+        main(["replay", str(logged), *(a.replace("FILE", str(file)).replace("TMP", str(tmp_path)) for a in argv)])
     out, err = capsys.readouterr()
     assert stop.value.code == 2 and out == ""  # refused before the log is read ("world: ..." not printed)
     assert err.startswith("hopper-sim: error: ") and len(err.splitlines()) == 1, err
-    assert message.replace("FILE", str(file)) in err
+    assert message.replace("FILE", str(file)).replace("TMP", str(tmp_path)) in err
+    assert not (tmp_path / "none").exists()
 
 
 @pytest.mark.parametrize(
@@ -142,7 +187,7 @@ def test_replay_refused_after_reading_the_log_leaves_no_folder_it_made(
     kept.mkdir()
     (tmp_path / "full").mkdir()
     (tmp_path / "full" / "notes.txt").write_text("mine")
-    for out in (tmp_path / "new" / "sub", kept, tmp_path / "full"):
+    for out in (tmp_path / "new", kept, tmp_path / "full"):
         with pytest.raises(SystemExit) as stop:
             main(["replay", *(names.get(a, a) for a in argv), "--out", str(out)])
         err = capsys.readouterr().err
@@ -196,3 +241,77 @@ def test_help_says_what_identify_fits_and_each_commands_exit_statuses(
     assert len(DEFAULT_FIT) == 8 and set(PARAMS) - set(DEFAULT_FIT) == {"wheel_armature", "motor_damping"}
     assert f"(default these 8: {', '.join(DEFAULT_FIT)}; not wheel_armature or motor_damping," in texts["identify"]
     assert "1 the robot fell or the run reached its time limit before the hops asked" in texts["capture"]
+
+
+def test_a_robot_with_its_own_motor_replays_and_identifies_its_log(tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    """capture --model kt.xml (k_t x 0.85) then replay --model kt.xml was 10 deg RMS off, and identify found
+    motor_torque 1.0008 for 0.85: the drive inverted the packaged motor, not the one the log's commands were for."""
+    import variants
+
+    kt = str(variants.motor_constant(tmp_path, 0.85))
+    log = tmp_path / "c_kt.npz"
+    assert main(["capture", str(log), "--model", kt, "--hops", "1"]) == 0
+    capsys.readouterr()
+    assert main(["replay", str(log), "--model", kt, "--every", "0.3"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].endswith("wheel commands 3 ticks late for a 25.07 N m, 49.28 rad/s wheel motor (the log's)"), out
+    assert "pitch RMS 0.000 deg, wheel speed RMS 0.000 rad/s" in out[-1], out
+    argv = ["identify", str(log), "--out", str(tmp_path / "id.xml"), "--hops", "1", "--params", "motor_torque"]
+    assert main([*argv, "--windows", "0.3", "--max-evaluations", "8", "--truth", "motor_torque=0.85"]) == 0
+    row = next(line for line in capsys.readouterr().out.splitlines() if line.startswith("motor_torque"))
+    assert float(row.split()[4]) == pytest.approx(0.85, rel=0.01), row
+    # A CSV keeps no world: its drive is the packaged motor's unless --drive names the robot's.
+    csv = tmp_path / "c_kt.csv"
+    assert main(["log", "export", str(log), str(csv)]) == 0
+    capsys.readouterr()
+    rms = []
+    for extra in ([], ["--drive", kt]):
+        assert main(["replay", str(csv), "--model", kt, "--every", "0.3", *extra]) == 0
+        rms.append(float(capsys.readouterr().out.splitlines()[-1].split("pitch RMS ")[1].split()[0]))
+    assert rms[1] == 0.0 < 1.0 < rms[0], rms
+
+
+def test_replay_and_identify_never_score_across_a_gap(logged: Path, tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    """Rows 2000-2499 removed (log check: 0.501 s without samples): replay ran straight through the gap
+    (hop 1 at 32 deg RMS), said nothing, and its figure drew a line across it."""
+    import numpy as np
+    from hopper.app.replay_figure import error_figure
+
+    from hopper.logs.io import write_log
+    from hopper.logs.replay import REANCHOR_S, replay_hops, world_model
+    from hopper.logs.schema import Log, find_gaps
+    from hopper.logs.world import World
+
+    log = read_log(logged)
+    keep = np.ones(len(log.time), bool)
+    keep[2000:2500] = False
+    time = log.time[keep]
+    path = write_log(Log(time, {k: v[keep] for k, v in log.signals.items()}, "t", find_gaps(time)), tmp_path / "g.csv")
+    gap = "holds a gap, 0.501 s without samples (1.999-2.500 s)"
+    assert main(["replay", str(path)]) == 0
+    out, err = capsys.readouterr()
+    assert err == f"replay: hop 1 (1.501-4.848 s) {gap}: not scored\n", err
+    assert "hop 1 from" not in out and "hop 2 from 4.849 s:" in out and "all (1 replay(s)" in out, out
+    assert main(["replay", str(path), "--every", "0.3"]) == 0
+    out, err = capsys.readouterr()
+    assert err == f"replay: hop 1 (1.501-4.848 s) {gap}: re-anchored on the log's state at its far side\n", err
+    assert "hop 1 from 1.501 s, re-anchored every 0.3 s" in out and "all (2 replay(s)" in out, out
+    with pytest.raises(SystemExit) as stop:
+        main(["replay", str(path), "--hops", "1"])
+    assert stop.value.code == 2 and "each hop asked holds a gap" in capsys.readouterr().err
+    argv = ["identify", str(path), "--out", str(tmp_path / "id.xml"), "--hops", "1", "--params", "gyro_bias"]
+    assert main([*argv, "--windows", "0.3", "--max-evaluations", "1"]) == 0
+    out, err = capsys.readouterr()
+    assert f"identify: hop 1 (1.501-4.848 s) {gap}: re-anchored on the log's state at its far side (the fit's " in err
+    assert "(re-anchored every 0.3 s) after" in out and "(whole, each from its liftoff) after" not in out, out
+    # The figure breaks each line at the gap: no straight line across it.
+    gapped = read_log(path)
+    model, _ = world_model(World())
+    parts = replay_hops(model, gapped, 1, every=REANCHOR_S)
+    from hopper.logs.replay import Errors
+
+    fig = error_figure([("hop 1", Errors.concat([e for _, e in parts]))], "g.csv")
+    for ax in fig.axes[:2]:
+        x, y = ax.lines[0].get_xdata(), ax.lines[0].get_ydata()
+        k = np.flatnonzero(np.isnan(y))
+        assert k.size == 1 and x[k[0] - 1] < 2.0 and x[k[0] + 1] > 2.5, (x[k[0] - 1 : k[0] + 2], k)

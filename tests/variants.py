@@ -59,3 +59,16 @@ def stronger_motor(folder: Path, factor: float = 1.2) -> Path:
     path = folder / "stronger.xml"
     path.write_text(spec.to_xml(), encoding="utf-8")
     return path
+
+
+def motor_constant(folder: Path, k: float) -> Path:
+    """The packaged model with its wheel motor's k_t times `k`, as hopper.mismatch's motor_torque: the
+    stall torque (gain and force range) x k, the back-EMF slope x k^2; its path."""
+    spec = packaged()
+    motor = spec.actuator("wheel")
+    motor.gainprm = [motor.gainprm[0] * k, *motor.gainprm[1:]]
+    motor.biasprm = [*motor.biasprm[:2], motor.biasprm[2] * k * k, *motor.biasprm[3:]]
+    motor.forcerange = [r * k for r in motor.forcerange]
+    path = folder / f"kt{k:g}.xml"
+    path.write_text(spec.to_xml(), encoding="utf-8")
+    return path

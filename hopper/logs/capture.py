@@ -4,7 +4,8 @@ Each row k is one 1 kHz tick, every column a sample of the robot at time t_k: th
 torso's CoM, pitch and their rates: the truth a motion-capture system gives), the sensors (the
 gyro as the IMU read it, noise and bias included in realistic sensing; the wheel and leg
 encoders; the feet's contact forces) and the commands computed at that tick (the wheel torque as
-asked, before the motor's delay line; the leg torques as sent). The kernel reads the IMU one tick
+asked, before the motor's delay line, for the motor the controller knows, which the log's world
+records; the leg torques as sent). The kernel reads the IMU one tick
 late (MuJoCo's sensors are of the state before the step): the sample it reads at tick k+1 is
 the one of t_k, and is logged in row k.
 """
@@ -74,5 +75,5 @@ def capture(config: SimConfig, hops: int, source: str = "capture") -> Capture:
     if n < 2:
         raise ValueError("the run ended before it could be logged")
     signals = {name: rows[:n, i].copy() for i, name in enumerate(names) if name != "time"}
-    log = Log(rows[:n, 0].copy(), signals, source, world=of_config(config))
+    log = Log(rows[:n, 0].copy(), signals, source, world=of_config(config, sim.robot))
     return Capture(log, len(sim.hops), sim.fallen)

@@ -3,9 +3,11 @@
 `simulate` is pure: a model, a log and a span of its rows in, the simulated signals out (the
 model's own data, never a Simulation). The wheel's commands go through what the robot's drive
 does (the delay line, then the voltage that gives the torque at the wheel speed it measures, as
-hopper.control.wheel.wheel_ctrl inverts the motor its controller knows: by default the packaged
-robot's, hopper.robot.PACKAGED): a motor that is not that one then turns the same commands into
-other torques, as a real one does. `replay_hops` flies each hop
+hopper.control.wheel.wheel_ctrl inverts the motor its controller knows: `drive`, the motor the log's
+commands were made for, hopper.logs.world.World.drive; by default the packaged robot's): the
+model's own motor then turns that voltage into torque, so the robot that made the log replays it
+exactly and a model whose motor is not the robot's turns the same commands into other torques, as
+a real one does. `replay_hops` flies each hop
 of the log from its liftoff; `errors` compares the two (pitch, wheel speed, contact timing).
 
 The legs fly the log's torques alone by default. With `servo`, a joint servo around those torques
@@ -24,6 +26,7 @@ import numpy as np
 
 from hopper.errors import HopperError
 from hopper.layout import LEG_JOINTS, ModelLayout
+from hopper.logs import gaps
 from hopper.logs.schema import STATE, Log
 from hopper.logs.world import DEFAULT_DELAY_TICKS, World
 from hopper.model import build_model, set_terrain, terrain_window
@@ -143,16 +146,25 @@ def simulate(
     servo: bool = False,
 ) -> Trajectory:
     """Fly rows start..stop-1 of `log` open loop on `model` from the log's state at row `start`
-    (with `servo`, the legs also held to the log's angles: LEG_SERVO_KP, LEG_SERVO_KD).
+    (with `servo`, the legs also held to the log's angles: LEG_SERVO_KP, LEG_SERVO_KD), the wheel's
+    commands turned into voltages by inverting `drive`'s motor (the one they were made for).
 
     Row k's simulated values are those of t_k, as the log's are (hopper.logs.capture): pitch, rates
     and positions before the step that applies row k's commands, the feet's forces of its forward pass.
     A state that goes non-finite (a diverging open-loop flight) stops the run: the rest is NaN.
+    Rows that run across a gap in the log are refused (hopper.logs.gaps: cut them there).
     """
     check_replayable(log)
     n = len(log.time)
     if not 0 <= start < stop <= n:
         raise ReplayError(f"{log.source}: rows {start}..{stop} are outside its {n} samples")
+    across = gaps.crossed(log, (start, stop))
+    if across:
+        a, b = across[0]
+        raise ReplayError(
+            f"{log.source}: a replay of {log.time[start]:.3f}..{log.time[stop - 1]:.3f} s reads across a gap "
+            f"({a:.3f}-{b:.3f} s without samples): it flies no commands the log does not hold"
+        )
     data = mujoco.MjData(model) if data is None else data
     lay = ModelLayout.of(model)
     if window is not None:
@@ -284,24 +296,27 @@ def replay_spans(
     delay_ticks: int = DEFAULT_DELAY_TICKS,
     window=None,  # noqa: ANN001 (a terrain.Window)
     servo: bool = False,
+    drive: Robot = PACKAGED,
 ) -> list[tuple[Trajectory, Errors]]:
-    """Replay each (start, stop) span of rows from the log's state at its start (`servo`: simulate's)."""
+    """Replay each (start, stop) span of rows from the log's state at its start (`servo`, `drive`: simulate's)."""
     if not spans:
         raise ReplayError(f"{log.source}: nothing to replay (no hop: no flight of {MIN_FLIGHT_S:g} s or more)")
     data = mujoco.MjData(model)
     out = []
     for a, b in spans:
-        traj = simulate(model, log, a, b, delay_ticks=delay_ticks, data=data, window=window, servo=servo)
+        traj = simulate(model, log, a, b, delay_ticks=delay_ticks, data=data, window=window, servo=servo, drive=drive)
         out.append((traj, errors(log, traj)))
     return out
 
 
 def windows(log: Log, span: tuple[int, int], window_s: float) -> list[tuple[int, int]]:
-    """Rows span[0]..span[1] cut into consecutive windows of about window_s (s)."""
-    a, b = span
+    """Rows span[0]..span[1] cut into consecutive windows of about window_s (s), and at each gap: the
+    window after a gap starts at its far side (hopper.logs.gaps)."""
     step = max(int(round(window_s / log.period)), 2)
-    cuts = list(range(a, b, step))
-    return [(c, min(c + step, b)) for c in cuts if min(c + step, b) - c >= 2]
+    out = []
+    for a, b in gaps.pieces(log, span):
+        out += [(c, min(c + step, b)) for c in range(a, b, step) if min(c + step, b) - c >= 2]
+    return out
 
 
 def replay_hops(
@@ -314,16 +329,22 @@ def replay_hops(
     window=None,  # noqa: ANN001 (a terrain.Window)
     every: float | None = None,
     servo: bool = False,
+    drive: Robot = PACKAGED,
 ) -> list[tuple[Trajectory, Errors]]:
     """Replay hops first..first+count-1 of the log (all from `first` by default), each from its liftoff
     to the next; with `every` (s), each hop in windows of that length, each from the log's state at its
     start (multiple shooting). Whole, an open-loop stance is an inverted pendulum without feedback on
     slipping feet: it drifts off unless the model is the robot to the last digit (REANCHOR_S), or
-    the legs are held to the log's angles (`servo`: simulate's)."""
+    the legs are held to the log's angles (`servo`: simulate's; `drive` too). A hop that holds a gap
+    is left out whole, and re-anchored at the gap's far side with `every` (hopper.logs.gaps.note)."""
     if every is not None and not every > 0.0:
         raise ReplayError(f"a replay re-anchors every positive number of seconds, got {every}")
     spans = hops(log)[first:]
     spans = spans if count is None else spans[:count]
     if every is not None:
         spans = [w for hop in spans for w in windows(log, hop, every)]
-    return replay_spans(model, log, spans, delay_ticks=delay_ticks, window=window, servo=servo)
+    elif spans:
+        spans = [hop for hop in spans if not gaps.crossed(log, hop)]
+        if not spans:
+            raise ReplayError(f"{log.source}: each hop asked holds a gap: a whole hop is not scored across one")
+    return replay_spans(model, log, spans, delay_ticks=delay_ticks, window=window, servo=servo, drive=drive)

@@ -22,6 +22,7 @@ import numpy as np
 
 from hopper.errors import HopperError
 from hopper.layout import LEG_JOINTS
+from hopper.logs import plausible
 from hopper.logs.world import World
 
 
@@ -133,7 +134,8 @@ def find_gaps(time: np.ndarray) -> tuple[tuple[float, float], ...]:
 
 def validate(log: Log) -> None:
     """LogError for a log that breaks the schema: missing or unknown columns, ragged lengths, time
-    not strictly increasing, non-finite values. The message says which column and which sample."""
+    not strictly increasing, non-finite values, a sample rate or a value no robot's log holds
+    (hopper.logs.plausible). The message says which column and which sample."""
     where = log.source
     time = log.time
     if time.ndim != 1 or len(time) < 2:
@@ -148,6 +150,9 @@ def validate(log: Log) -> None:
         raise LogError(
             f"{where}: time goes backwards or repeats at sample {i} ({time[i - 1]:.6f} s then {time[i]:.6f} s)", i
         )
+    rate = plausible.rate_problem(float(np.median(np.diff(time))))
+    if rate is not None:
+        raise LogError(f"{where}: {rate}")
     for name, values in log.signals.items():
         if values.shape != time.shape:
             raise LogError(f"{where}: column {name} has {values.shape[0]} samples, time has {time.shape[0]}")
@@ -155,6 +160,10 @@ def validate(log: Log) -> None:
         if bad.size:
             i = int(bad[0])
             raise LogError(f"{where}: column {name} is not finite at sample {i} (t = {time[i]:.6f} s)", i)
+        i = plausible.beyond(name, values)
+        if i is not None:
+            at = f"sample {i} (t = {time[i]:.6f} s)"
+            raise LogError(f"{where}: {plausible.value_problem(name, COLUMNS[name].unit, values[i], at)}", i)
 
 
 def check_columns(names: Iterable[str], where: str) -> None:

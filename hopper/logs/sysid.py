@@ -28,6 +28,7 @@ from collections.abc import Callable, Sequence
 import mujoco
 import numpy as np
 
+from hopper import robot as robots
 from hopper.errors import HopperError
 from hopper.layout import LEG_JOINTS
 from hopper.logs.replay import Errors, ReplayError, flights, hops, replay_hops, simulate, windows
@@ -207,7 +208,8 @@ class Estimate:
 
 @dataclasses.dataclass(frozen=True)
 class Fit:
-    """What identify found: the estimates, their correlations, and the fit's residuals (RMS, in CHANNELS' units)."""
+    """What identify found: the estimates, their correlations, and the fit's residuals (RMS, in CHANNELS'
+    units) before (the model it started from) and after, both over the last stage's windows."""
 
     estimates: tuple[Estimate, ...]
     correlation: np.ndarray  # (p, p)
@@ -255,7 +257,15 @@ def hop_span(log: Log, first: int, count: int) -> tuple[int, int]:
 class Problem:
     """The residuals of a model against a log over windows, as a function of the fitted parameters."""
 
-    def __init__(self, robot: Robot, log: Log, spans: list[tuple[int, int]], names: Sequence[str], delay_ticks: int):
+    def __init__(
+        self,
+        robot: Robot,
+        log: Log,
+        spans: list[tuple[int, int]],
+        names: Sequence[str],
+        delay_ticks: int,
+        drive: robots.Robot = robots.PACKAGED,  # the motor the log's commands were made for (replay.simulate)
+    ):
         unknown = [n for n in names if n not in PARAMS]
         if unknown:
             raise IdentifyError(f"unknown parameter(s) {', '.join(unknown)}; choose from {', '.join(PARAMS)}")
@@ -265,6 +275,7 @@ class Problem:
         if twice:  # Problem.values keeps the last column: the first has no effect (a zero Jacobian column)
             raise IdentifyError(f"parameter(s) {', '.join(twice)} given more than once")
         self.robot, self.log, self.spans, self.names, self.delay = robot, log, spans, tuple(names), delay_ticks
+        self.drive = drive
         self.data = mujoco.MjData(robot.model)
         n = robot.nominal
         self.nominal = np.array([n[k] for k in self.names])
@@ -286,7 +297,7 @@ class Problem:
         self.robot.set({k: v for k, v in values.items() if k != "gyro_bias"})
         self.evaluations += 1
         parts = [
-            simulate(self.robot.model, self.log, a, b, delay_ticks=self.delay, data=self.data).signals
+            simulate(self.robot.model, self.log, a, b, delay_ticks=self.delay, data=self.data, drive=self.drive).signals
             for a, b in self.spans
         ]
         return {c: np.concatenate([p[c] for p in parts]) for c in CHANNELS if c != "gyro_pitch"}
@@ -403,12 +414,16 @@ def identify(
     delay_ticks: int = DEFAULT_DELAY_TICKS,
     max_evaluations: int = 60,
     progress: Callable[[str], None] | None = None,
+    drive: robots.Robot = robots.PACKAGED,
 ) -> Fit:
     """Fit `names` (PARAMS) of `model` (compiled in the log's world; left at the estimates) to rows
     span[0]..span[1] of `log`: one least-squares fit per window length of `stages` (s), each from
     the last one's estimate (short windows first: their cost is smooth where a contact's slip or
     stick makes a long window's rugged; long ones last, for their sensitivity). `progress`, if
-    given, is told as each stage starts (a fit takes minutes)."""
+    given, is told as each stage starts (a fit takes minutes). The replays' drive inverts `drive`, the
+    motor the log's commands were made for (hopper.logs.world.World.drive), whatever motor the
+    candidate model has: the candidate's motor is then what turns the commands into torque, and
+    motor_torque is its k_t against `model`'s."""
     started = clock.perf_counter()
 
     def announce(what: str) -> None:
@@ -433,7 +448,7 @@ def identify(
         # first, so that friction, on the stances, does not soak up their errors (a torso mass 2 %
         # and a CoM 20 % off once made friction +15 %).
         announce(f"fitting {', '.join(free)} on {len(airborne)} windows in flight first")
-        flying = Problem(robot, log, airborne, free, delay_ticks)
+        flying = Problem(robot, log, airborne, free, delay_ticks, drive)
         start = flying.values(_least_squares(flying, np.zeros(len(free)), max_evaluations).x)
         evaluations += flying.evaluations
     for i, window_s in enumerate(stages):
@@ -441,20 +456,22 @@ def identify(
         if not spans:
             raise IdentifyError(f"{log.source}: rows {span[0]}..{span[1]} hold no window of {window_s:g} s")
         announce(f"stage {i + 1} of {len(stages)}: {len(spans)} windows of {window_s:g} s")
-        problem = Problem(robot, log, spans, names, delay_ticks)
+        problem = Problem(robot, log, spans, names, delay_ticks, drive)
         if i == 0:
-            before = problem.channel_rms(problem.residuals(np.zeros(len(problem.names))))
             pairs = zip(problem.names, problem.nominal, problem.scale, strict=True)
             z = np.array([(start.get(k, n) - n) / c for k, n, c in pairs])
         result = _least_squares(problem, z, max_evaluations)
         if "friction" in problem.names:  # its cost is rugged (slip or stick): a line search, then LM again
-            short = Problem(robot, log, windows(log, span, SCAN_WINDOW_S), names, delay_ticks)
+            short = Problem(robot, log, windows(log, span, SCAN_WINDOW_S), names, delay_ticks, drive)
             z, profile["friction"] = line_search(short, result.x, problem.names.index("friction"))
             evaluations += short.evaluations
             result = _least_squares(problem, z, max_evaluations)
         z = result.x
         if i < len(stages) - 1:
             evaluations += problem.evaluations
+    # Before and after on the same windows, the last stage's: the first stage's short windows hold
+    # less error than its long ones, and a ratio across the two said nothing.
+    before = problem.channel_rms(problem.residuals(np.zeros(len(problem.names))))
     r = problem.residuals(z)
     jac = problem.jacobian(z)
     evaluations += problem.evaluations
@@ -491,9 +508,12 @@ def replay_error(
     delay_ticks: int = DEFAULT_DELAY_TICKS,
     every: float | None = None,
     servo: bool = False,
+    drive: robots.Robot = robots.PACKAGED,
 ) -> Errors:
     """The replay error of hops first..first+count-1, each from its liftoff: whole, or re-anchored on
     the log's state every `every` s, the legs held to the log's angles with `servo`
-    (hopper.logs.replay.replay_hops)."""
-    parts = replay_hops(model, log, count, first=first, delay_ticks=delay_ticks, every=every, servo=servo)
+    (hopper.logs.replay.replay_hops), the commands through `drive`'s motor."""
+    parts = replay_hops(
+        model, log, count, first=first, delay_ticks=delay_ticks, every=every, servo=servo, drive=drive
+    )  # fmt: skip
     return Errors.concat([e for _, e in parts])

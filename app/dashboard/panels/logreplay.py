@@ -27,6 +27,7 @@ from hopper.app.dashboard.terrain_view import LogGround, TerrainView, ground_glb
 
 from hopper.config import SimConfig
 from hopper.errors import HopperError
+from hopper.logs import gaps
 from hopper.logs.io import read_log
 from hopper.logs.replay import (
     HELD,
@@ -78,6 +79,7 @@ class LogReplay:
     simulated_on: np.ndarray
     track: np.ndarray  # (frames, 2): the log's torso CoM x, z (m) at each ghost pose, for the camera
     ground: dict[int, bytes]  # the log's world's terrain tiles under the track: index -> GLB
+    notes: tuple[str, ...] = ()  # a line for each hop that holds a gap (hopper.logs.gaps.note)
 
     @property
     def errors(self) -> Errors:
@@ -103,10 +105,14 @@ def replay_log(path: str, config: SimConfig, every: float | None = None, servo: 
     model, window = world_model(world)
     found = len(hops(recorded))
     parts = replay_hops(
-        model, recorded, MAX_HOPS, window=window, delay_ticks=world.command_delay, every=every, servo=servo
+        model, recorded, MAX_HOPS, window=window, delay_ticks=world.command_delay, every=every, servo=servo,
+        drive=world.drive,
     )  # fmt: skip
-    first, last = parts[0][0], parts[-1][0]
-    rows = slice(first.first, last.first + len(last.time))
+    notes = [gaps.note(recorded, f"hop {i + 1}", hop, every is None) for i, hop in enumerate(hops(recorded)[:MAX_HOPS])]
+    skipped = sum(1 for n in notes if n is not None) if every is None else 0  # a whole hop across a gap is left out
+    first = parts[0][0]
+    # The rows replayed, in order: all from the first liftoff, less what a gap left out (hopper.logs.gaps).
+    rows = np.concatenate([np.arange(tr.first, tr.first + len(tr.time)) for tr, _ in parts])
     s = recorded.signals
     simulated = {k: np.concatenate([tr.signals[k] for tr, _ in parts]) for k in first.signals}
     stride = max(1, round(GHOST_FRAME_S / recorded.period))  # log rows a ghost frame
@@ -114,7 +120,7 @@ def replay_log(path: str, config: SimConfig, every: float | None = None, servo: 
         source=str(path),
         world=f"{world.describe()} ({origin})",
         found=found,
-        shown=min(found, MAX_HOPS),
+        shown=min(found, MAX_HOPS) - skipped,
         every=every,
         servo=servo,
         parts=parts,
@@ -125,6 +131,7 @@ def replay_log(path: str, config: SimConfig, every: float | None = None, servo: 
         simulated_on=contact(simulated["foot_L_force"], simulated["foot_R_force"]),
         track=np.column_stack([s["x"][rows][::stride], s["z"][rows][::stride]]),
         ground=ground_glbs(window.field, float(s["x"][rows].min()), float(s["x"][rows].max())),
+        notes=tuple(n for n in notes if n is not None),
     )
 
 
@@ -148,7 +155,9 @@ def summary_html(done: LogReplay | None) -> str:
         f"<div class='hd-record'><b>{html.escape(done.source)}</b>: {of}, {e.time[0]:.2f}–{e.time[-1]:.2f} s · "
         f"pitch RMS {rms_pitch:.3f}° · wheel speed RMS {rms_wheel:.3f} rad/s · {timing} · "
         f"in {html.escape(done.world)}. "
-        "<b style='color:#ffb03b'>Orange</b>: the log; <b style='color:#5aa9ff'>blue</b>: simulated.</div>"
+        "<b style='color:#ffb03b'>Orange</b>: the log; <b style='color:#5aa9ff'>blue</b>: simulated."
+        + "".join(f"<br>{html.escape(n)}" for n in done.notes)
+        + "</div>"
     )
 
 
