@@ -16,7 +16,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import NoReturn
 
-from hopper.config import GRAVITY_PRESETS, Gains, SimConfig
+from hopper.config import GRAVITY_PRESETS, Gains, InvalidConfig, SimConfig, check_seed
 from hopper.scenarios import SCENARIOS
 from hopper.schedule import KickSchedule, parse
 
@@ -162,14 +162,15 @@ def remove_empty(folders: list[Path]) -> None:
 
 
 def seed(text: str) -> int:
-    """A terrain seed, a non-negative integer (numpy's generators take no negative seed)."""
+    """A seed, in SimConfig's bounds (hopper.config.check_seed), in its words."""
     try:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"invalid int value: {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"seed must be a non-negative integer, got {value}")
-    return value
+    try:
+        return check_seed(value)
+    except InvalidConfig as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def rrd_file(text: str) -> Path:
