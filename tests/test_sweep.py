@@ -8,6 +8,7 @@ import random
 import signal
 import subprocess
 import sys
+import threading
 import tomllib
 from pathlib import Path
 
@@ -198,6 +199,55 @@ def test_chunks_keep_the_order_and_cover_every_episode() -> None:
     episodes = list(parse_spec({"seeds": 5, "kp": [300, 400, 500], "hops": 2}).episodes())
     parts = chunks(episodes, workers=2)
     assert [e for part in parts for e in part] == episodes and len(parts) >= 8
+
+
+# A user's law that flies until its 100th call (the probe's are done), then hangs there deaf to SIGTERM.
+WEDGED = """
+import os, signal, threading
+from pathlib import Path
+
+
+class Wedged:
+    calls = 0
+
+    def __call__(self, obs):
+        self.calls += 1
+        if self.calls == 100:
+            signal.signal(signal.SIGTERM, signal.SIG_IGN)
+            Path(MARK + ".tmp").write_text(str(os.getpid()))
+            os.replace(MARK + ".tmp", MARK)
+            threading.Event().wait()
+        return 450.0 * obs.pitch + 30.0 * obs.rate
+"""
+
+
+def test_closing_a_pool_ends_a_worker_that_ignores_sigterm_in_bounded_time(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Pool.terminate joins its workers without a timeout: a wedged one hung close(), a Ctrl-C included."""
+    import psutil
+
+    from hopper.experiments import executor
+
+    mark = tmp_path / "wedged.pid"
+    (tmp_path / "wedged.py").write_text(WEDGED.replace("MARK", repr(str(mark))))
+    chunk = list(parse_spec({"controller": [f"{tmp_path / 'wedged.py'}:Wedged"], "seeds": 1, "hops": 1}).episodes())
+    monkeypatch.setattr(executor, "STOP_S", 1.0, raising=False)
+    pool = executor.LocalPool(1)
+    pid = None
+    try:
+        pool.pool.apply_async(executor._run_in_process_worker, (chunk,))  # noqa: SLF001
+        assert wait_until(mark.exists, timeout=120), "the worker never reached the wedge"
+        pid = int(mark.read_text())
+        closed = threading.Event()
+        threading.Thread(target=lambda: (pool.close(), closed.set()), daemon=True).start()
+        assert closed.wait(30), "close() still waits on the worker after 30 s"
+    finally:
+        if pid is not None and psutil.pid_exists(pid) and psutil.Process(pid).status() != psutil.STATUS_ZOMBIE:
+            os.kill(pid, signal.SIGKILL)  # the old close() left it wedged
+    assert not psutil.pid_exists(pid), "the worker was not reaped"
+    err = capsys.readouterr().err
+    assert f"local pool: worker {pid} did not stop within 1 s of SIGTERM: killed" in err, err
 
 
 def test_a_sweep_on_a_local_ray_interrupted_half_way_resumes_without_redoing_episodes(tmp_path: Path) -> None:

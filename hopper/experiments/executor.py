@@ -14,6 +14,7 @@ import multiprocessing
 import os
 import signal
 import socket
+import sys
 import threading
 import time
 from collections.abc import Iterable, Iterator
@@ -23,7 +24,7 @@ from hopper.config import MOON_GRAVITY
 from hopper.errors import HopperError
 from hopper.experiments.spec import Episode
 from hopper.experiments.worker import EpisodeResult, Worker
-from hopper.interrupts import children_ignore_ctrl_c, each
+from hopper.interrupts import children_ignore_ctrl_c, each, held
 
 Kind = Literal["auto", "local", "ray"]
 Chunk = list[Episode]
@@ -39,6 +40,9 @@ RAY_MIN_WORK_PER_CORE_S = 120.0
 # Below this much work (s of one core) a job runs in this process: a pool's spawned processes, each
 # importing MuJoCo, took 1.2 s to start here, about what two workers would save on 2.4 s of work.
 POOL_MIN_WORK_S = 2.0
+# s a pool's shutdown may take before its workers are killed (SIGKILL): idle workers end at their
+# sentinel and busy ones at SIGTERM within milliseconds; only one that ignores SIGTERM takes longer.
+STOP_S = 5.0
 CHUNK_CPU_S = 1.0  # s of work per chunk: Ray's per-call cost (~1 ms) is noise, and Ctrl-C loses little
 IN_FLIGHT_PER_WORKER = 2  # chunks queued per Ray actor, so it never waits for the driver
 
@@ -116,15 +120,39 @@ class LocalPool:
     def __init__(self, workers: int) -> None:
         self.workers = workers
         context = multiprocessing.get_context("spawn")  # no fork of a process holding MuJoCo or threads
+        before = set(multiprocessing.active_children())
         with children_ignore_ctrl_c():
             self.pool = context.Pool(workers, initializer=_start_process_worker)
+        # Its workers, all started by Pool(): the children this process gained there (Pool keeps its list private).
+        self.processes = [p for p in multiprocessing.active_children() if p not in before]
 
     def map(self, chunks: Iterable[Chunk]) -> Iterator[list[EpisodeResult]]:
         yield from each(self.pool.imap_unordered(_run_in_process_worker, chunks))
 
     def close(self) -> None:
-        self.pool.terminate()  # at the end the workers are idle; on Ctrl-C nothing they do is wanted
-        self.pool.join()
+        """End the workers: at the end they are idle; on Ctrl-C nothing they do is wanted.
+
+        Pool.terminate sends SIGTERM, then joins each worker without a timeout: a worker that ignores
+        SIGTERM (a user's law that set it so, a library's handler stuck in C) hung it, Ctrl-C included.
+        So it runs in a thread given STOP_S; the workers still alive then are killed, as stderr says.
+        Stop signals wait for the end of this bounded close (hopper.interrupts.held)."""
+        with held():
+            stopper = threading.Thread(target=self.pool.terminate, name="pool terminate", daemon=True)
+            stopper.start()
+            stopper.join(STOP_S)
+            if not stopper.is_alive():
+                return
+            wedged = [p for p in self.processes if p.is_alive()]
+            for process in wedged:
+                process.kill()
+            if wedged:
+                pids = ", ".join(str(p.pid) for p in wedged)
+                print(f"{self.name}: worker{'s' if len(wedged) > 1 else ''} {pids} did not stop within {STOP_S:g} s "
+                      "of SIGTERM: killed", file=sys.stderr)  # fmt: skip
+                stopper.join(STOP_S)
+            if stopper.is_alive():  # e.g. a worker in uninterruptible sleep: nothing more this process can do
+                print(f"{self.name}: its shutdown still hangs (a worker SIGKILL cannot end yet): left behind",
+                      file=sys.stderr)  # fmt: skip
 
 
 # s, the probe of a named Ray cluster before ray.init, TCP connect and handshake together: a head
