@@ -296,6 +296,52 @@ def test_a_sweep_on_a_local_ray_interrupted_half_way_resumes_without_redoing_epi
     assert SweepStore(out, spec).done_ids() == set(ids)
 
 
+@pytest.mark.parametrize(
+    "failure, words",
+    [
+        ("auth", "RPC error: InvalidAuthToken: Authentication token is missing"),
+        ("connection", "Failed to connect to Ray cluster at 127.0.0.1:1"),  # its cause says why
+    ],
+)
+def test_an_executor_that_cannot_start_leaves_no_sweep_folder_and_one_line(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], failure: str, words: str
+) -> None:
+    """ray.init raising past the address probe (here in this process, as Ray 2.60 raises it: an
+    AuthenticationError, a RayError, escaped as a traceback; a ConnectionError whose cause says why) left
+    OUT holding a spec.toml and no episodes, a sweep the next command resumed. A resumed OUT is left as it was."""
+    import ray
+    import ray.exceptions
+    from hopper.app.sim_cli import main
+
+    def refuse(*args: object, **kwargs: object) -> None:
+        if failure == "auth":
+            raise ray.exceptions.AuthenticationError("RPC error: InvalidAuthToken: Authentication token is missing")
+        try:
+            raise RuntimeError("Failed to connect to GCS: Authentication token is missing or incorrect")
+        except RuntimeError as exc:
+            raise ConnectionError("Failed to connect to Ray cluster at 127.0.0.1:1") from exc
+
+    monkeypatch.delenv("RAY_ADDRESS", raising=False)
+    monkeypatch.setattr(ray, "init", refuse)
+    flags = ["--seeds", "2", "--hops", "1", "--executor", "ray"]
+    with pytest.raises(SystemExit) as exit:
+        main(["sweep", "--out", str(tmp_path / "new" / "out"), *flags])
+    err = capsys.readouterr().err
+    hint = "(token authentication? see the README)"
+    assert exit.value.code == 2 and err == f"hopper-sim: error: cannot start or reach a local Ray {hint}: {words}\n"
+    assert not (tmp_path / "new").exists(), "the folders made for the sweep were left behind"
+
+    resumed = tmp_path / "resumed"
+    spec = parse_spec({"seeds": 2, "hops": 1})
+    run_sweep(spec, resumed, lambda todo: InProcess(), progress=False, announce=lambda _: None)
+    for part in [*(resumed / "episodes").glob("*.parquet"), *(resumed / "hops").glob("*.parquet")]:
+        part.unlink()  # its episodes to run again, in a folder this command did not make
+    before = sorted(p.relative_to(resumed) for p in resumed.rglob("*"))
+    with pytest.raises(SystemExit):
+        main(["sweep", "--out", str(resumed), *flags])
+    assert sorted(p.relative_to(resumed) for p in resumed.rglob("*")) == before
+
+
 def test_unreachable_tells_a_closed_loopback_port_from_a_silent_one_and_from_a_grpc_server() -> None:
     import socket
     import threading

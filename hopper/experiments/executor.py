@@ -235,24 +235,28 @@ class RayExecutor:
         # (the CLIs turn SIGTERM into Ctrl-C so that results are written and the exit is 130).
         sigterm = signal.getsignal(signal.SIGTERM) if threading.current_thread() is threading.main_thread() else None
         options = {"include_dashboard": False, "log_to_driver": False, "logging_level": logging.ERROR}
+        where = f"the Ray cluster at {connect}" if connect else "a local Ray"
         try:
             if connect:
                 ray.init(address=connect, **options)
             else:  # "local": a new instance of our own, never one that `ray start` left running here
                 ray.init(address="local", num_cpus=workers or os.cpu_count() or 1, **options)
-        except (ConnectionError, RuntimeError, ValueError) as exc:
-            where = f"the Ray cluster at {connect}" if connect else "a local Ray"
-            auth = " (token authentication? see the README)" if "uthentica" in str(exc) else ""
-            raise ExecutorError(f"cannot start or reach {where}{auth}: {str(exc).splitlines()[0]}") from None
-        if sigterm is not None:
-            signal.signal(signal.SIGTERM, sigterm)
+        except (ConnectionError, RuntimeError, ValueError, ray.exceptions.RayError) as exc:  # AuthenticationError
+            raise ExecutorError(f"cannot start or reach {where}{_auth_hint(exc)}: {_first_line(exc)}") from None
+        finally:
+            if sigterm is not None:
+                signal.signal(signal.SIGTERM, sigterm)
         self.ray = ray
         self.address = connect or "local"
-        cpus = int(ray.cluster_resources().get("CPU", 1))
-        self.workers = max(1, min(workers or cpus, cpus))
-        remote = ray.remote(num_cpus=1)(Worker)
-        self.actors = [remote.remote() for _ in range(self.workers)]
-        ray.get([a.warm.remote() for a in self.actors])  # every actor is up, its model built
+        try:
+            cpus = int(ray.cluster_resources().get("CPU", 1))
+            self.workers = max(1, min(workers or cpus, cpus))
+            remote = ray.remote(num_cpus=1)(Worker)
+            self.actors = [remote.remote() for _ in range(self.workers)]
+            ray.get([a.warm.remote() for a in self.actors])  # every actor is up, its model built
+        except ray.exceptions.RayError as exc:  # e.g. a node whose Python has no hopper (README)
+            ray.shutdown()
+            raise ExecutorError(f"the workers of {where} cannot start: {_first_line(exc)}") from None
         self.startup_s = time.perf_counter() - start
 
     def map(self, chunks: Iterable[Chunk]) -> Iterator[list[EpisodeResult]]:
@@ -275,6 +279,21 @@ class RayExecutor:
 
     def close(self) -> None:
         self.ray.shutdown()  # actors are not detached: they end with this driver
+
+
+def _first_line(exc: BaseException) -> str:
+    """The first line of what `exc` says (of an AuthenticationError, without Ray's paragraph of help)."""
+    return (str(getattr(exc, "message", exc)).strip().splitlines() or [type(exc).__name__])[0]
+
+
+def _auth_hint(exc: BaseException) -> str:
+    """A hint if `exc` or what caused it is Ray's token authentication refusing us: ray.init's
+    ConnectionError says only "Failed to connect", its cause says why."""
+    while exc is not None:
+        if "uthentica" in str(exc):
+            return " (token authentication? see the README)"
+        exc = exc.__cause__ or exc.__context__  # type: ignore[assignment]
+    return ""
 
 
 def choose(kind: Kind, episodes: list[Episode], workers: int | None = None, address: str | None = None) -> Executor:
