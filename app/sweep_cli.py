@@ -308,8 +308,11 @@ def command_sweep(args: argparse.Namespace) -> int:
             run = run_sweep(spec, args.out, lambda todo: choose(args.executor, todo, args.workers, args.address))
         except (SpecMismatch, ExecutorError) as exc:
             fail(str(exc))
-    episodes = SweepStore(args.out, spec).read_episodes()
+    episodes, others = SweepStore(args.out, spec).spec_episodes()
     print(f"{args.out}: {overall_line(episodes)}")
+    if others:
+        print(f"{args.out} also holds {others} rows of episodes this spec does not fly (an older version's, whose "
+              "other controllers flew every gain point): not counted")  # fmt: skip
     for line in axis_lines(episodes, spec.axes()):
         print(line)
     if spec.model is not None and episodes.num_rows:

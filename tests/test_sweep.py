@@ -195,6 +195,30 @@ def test_a_killed_runs_leftovers_are_cleaned_and_another_spec_is_refused(tmp_pat
     assert result.returncode == 2 and "holds another sweep" in result.stderr, result.stderr
 
 
+def test_a_mixed_sweep_written_before_the_gain_axes_were_the_pids_counts_each_episode_once(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before, --controller pid,lqr --kp 300,600 flew the LQR at each kp; resumed now, the LQR flies once at
+    the default gains (its fallback PID's) beside those rows, and the summary counted all three."""
+    from hopper.app.sim_cli import main
+
+    out = tmp_path / "out"
+    spec = parse_spec({"controller": ["pid", "lqr"], "kp": [300, 600], "seeds": 2, "hops": 1})
+    pid = [e for e in spec.episodes() if e.controller == "pid"]
+    old = pid + [dataclasses.replace(e, controller="lqr") for e in pid]  # the old product, as its code wrote it
+    store = SweepStore(out, spec)
+    store.open()
+    store.add([Worker().run(e) for e in old])
+    store.flush()
+    args = ["sweep", "--out", str(out), "--controller", "pid,lqr", "--kp", "300,600", "--seeds", "2", "--hops", "1"]
+    assert main(args) == 0
+    text = capsys.readouterr().out
+    assert f"{out}: 6 episodes, 0 fell" in text, text
+    assert f"{out} also holds 4 rows of episodes this spec does not fly" in text
+    assert "seed: 0: 0/3 fell" in text and "controller: pid: 0/4 fell" in text and "; lqr: 0/2 fell" in text, text
+    assert "this run: 2 episodes on in-process" in text  # the LQR at the default gains, for each seed
+
+
 def test_chunks_keep_the_order_and_cover_every_episode() -> None:
     episodes = list(parse_spec({"seeds": 5, "kp": [300, 400, 500], "hops": 2}).episodes())
     parts = chunks(episodes, workers=2)

@@ -135,6 +135,21 @@ class SweepStore:
             return self.episode_schema.empty_table().select(columns or self.episode_schema.names)
         return ds.dataset(self.episodes_dir, format="parquet").to_table(columns=columns)
 
+    def spec_episodes(self) -> tuple[pa.Table, int]:
+        """The rows of the spec's episodes, each once, and how many other rows OUT holds. A folder
+        written before the gain axes became the PID's alone holds, for another controller, a row per
+        gain point; resumed, it runs that controller once at the default gains beside them: counted
+        too, those rows made its episodes count two or more times."""
+        table = self.read_episodes()
+        wanted = {e.episode_id for e in self.spec.episodes()}
+        seen: set[str] = set()
+        keep = []
+        for i, episode_id in enumerate(table.column("episode_id").to_pylist()):
+            if episode_id in wanted and episode_id not in seen:
+                seen.add(episode_id)
+                keep.append(i)
+        return table.take(keep), table.num_rows - len(keep)
+
     def add(self, results: list[EpisodeResult]) -> None:
         """Queue results; they are written once FLUSH_S has passed since the last part."""
         self._pending.extend(results)
