@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
 import random
@@ -364,6 +365,83 @@ def test_an_executor_that_cannot_start_leaves_no_sweep_folder_and_one_line(
     with pytest.raises(SystemExit):
         main(["sweep", "--out", str(resumed), *flags])
     assert sorted(p.relative_to(resumed) for p in resumed.rglob("*")) == before
+
+
+# hopper-sim, with a thread that signals its main thread (as the kernel may pick any thread) once that
+# runs the function FUNCTION of Ray's FILE (ray/_private/...) at the line holding TEXT or after.
+STOPPED_IN_RAY_INIT = """
+import inspect, importlib, os, signal, sys, threading, time
+
+module = importlib.import_module(os.environ["MODULE"])
+function, text = os.environ["FUNCTION"], os.environ["TEXT"]
+code = inspect.unwrap(getattr(module, function.split(".")[0]))
+if "." in function:
+    code = getattr(code, function.split(".")[1])
+lines, first = inspect.getsourcelines(code)
+at = first + next(i for i, line in enumerate(lines) if text in line)
+
+
+def watch():
+    main = threading.main_thread().ident
+    while True:
+        frame = sys._current_frames().get(main)
+        while frame is not None:
+            if frame.f_code is code.__code__ and frame.f_lineno >= at:
+                signal.pthread_kill(main, getattr(signal, os.environ["STOP_SIGNAL"]))
+                return
+            frame = frame.f_back
+        time.sleep(0.0005)
+
+
+threading.Thread(target=watch, daemon=True).start()
+from hopper.app.sim_cli import main
+
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.parametrize(
+    "signum, where",
+    [
+        # Ctrl-C as ray.init makes its core worker: that worker was out of ray.shutdown's reach, and
+        # the exit crashed in Ray's C++ (SIGSEGV) in about two runs of three.
+        ("SIGINT", ("ray._private.worker", "connect", "ray._raylet.CoreWorker(")),
+        # SIGTERM while ray.init starts the local Ray: its own handler then, it exited 15 (or 1), not 130.
+        ("SIGTERM", ("ray._private.node", "Node.start_ray_processes", "start_raylet")),
+    ],
+    ids=["sigint-making-the-core-worker", "sigterm-starting-ray"],
+)
+def test_a_stop_while_ray_starts_exits_130_in_one_line_and_leaves_nothing(
+    tmp_path: Path, signum: str, where: tuple[str, str, str]
+) -> None:
+    import psutil
+
+    module, function, text = where
+    env = {k: v for k, v in os.environ.items() if k != "RAY_ADDRESS"}  # a local Ray, started by the CLI
+    env |= {"MODULE": module, "FUNCTION": function, "TEXT": text, "STOP_SIGNAL": signum}
+    out = tmp_path / "out"
+    flags = ["sweep", "--out", str(out), "--seeds", "4", "--hops", "400", "--terrain", "flat", "--executor", "ray",
+             "--workers", "2"]  # fmt: skip
+    process = subprocess.Popen([sys.executable, "-c", STOPPED_IN_RAY_INIT, *flags], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True, env=env, start_new_session=True)  # fmt: skip
+    try:
+        _, err = process.communicate(timeout=120)
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+    lines = [line for line in err.splitlines() if line.strip() and "episodes:" not in line]
+    assert process.returncode == 130 and lines == ["hopper-sim: interrupted"], (process.returncode, err[-3000:])
+    assert not out.exists(), "a sweep folder was made before Ray had started"
+
+    def session() -> list[psutil.Process]:  # what the CLI started and is still running, Ray's daemons included
+        alive = []
+        for p in psutil.process_iter():
+            with contextlib.suppress(psutil.Error, OSError):
+                if os.getsid(p.pid) == process.pid and p.status() != psutil.STATUS_ZOMBIE:
+                    alive.append(p)
+        return alive
+
+    assert wait_until(lambda: not session(), timeout=30), [p.cmdline() for p in session()]
 
 
 def test_unreachable_tells_a_closed_loopback_port_from_a_silent_one_and_from_a_grpc_server() -> None:

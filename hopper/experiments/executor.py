@@ -236,13 +236,26 @@ class RayExecutor:
         sigterm = signal.getsignal(signal.SIGTERM) if threading.current_thread() is threading.main_thread() else None
         options = {"include_dashboard": False, "log_to_driver": False, "logging_level": logging.ERROR}
         where = f"the Ray cluster at {connect}" if connect else "a local Ray"
+        # Whatever stops the start-up, Ray is shut down here, not left to the interpreter's exit. A Ctrl-C
+        # waits for ray.init to return (held): one that landed as it made its core worker left that
+        # worker out of ray.shutdown's reach, and the process crashed at exit (SIGSEGV, in Ray's C++).
         try:
-            if connect:
-                ray.init(address=connect, **options)
-            else:  # "local": a new instance of our own, never one that `ray start` left running here
-                ray.init(address="local", num_cpus=workers or os.cpu_count() or 1, **options)
+            with held():
+                if connect:
+                    ray.init(address=connect, **options)
+                else:  # "local": a new instance of our own, never one that `ray start` left running here
+                    ray.init(address="local", num_cpus=workers or os.cpu_count() or 1, **options)
         except (ConnectionError, RuntimeError, ValueError, ray.exceptions.RayError) as exc:  # AuthenticationError
+            _shut_down(ray)
             raise ExecutorError(f"cannot start or reach {where}{_auth_hint(exc)}: {_first_line(exc)}") from None
+        # SIGTERM meets the handler ray.init sets while it runs, which held() cannot defer: it exits 15
+        # (or 1), here a stop as Ctrl-C is. (One as the core worker is made can still crash Ray's exit.)
+        except SystemExit:
+            _shut_down(ray)
+            raise KeyboardInterrupt from None
+        except BaseException:
+            _shut_down(ray)
+            raise
         finally:
             if sigterm is not None:
                 signal.signal(signal.SIGTERM, sigterm)
@@ -254,9 +267,11 @@ class RayExecutor:
             remote = ray.remote(num_cpus=1)(Worker)
             self.actors = [remote.remote() for _ in range(self.workers)]
             ray.get([a.warm.remote() for a in self.actors])  # every actor is up, its model built
-        except ray.exceptions.RayError as exc:  # e.g. a node whose Python has no hopper (README)
-            ray.shutdown()
-            raise ExecutorError(f"the workers of {where} cannot start: {_first_line(exc)}") from None
+        except BaseException as exc:
+            _shut_down(ray)
+            if isinstance(exc, ray.exceptions.RayError):  # e.g. a node whose Python has no hopper (README)
+                raise ExecutorError(f"the workers of {where} cannot start: {_first_line(exc)}") from None
+            raise
         self.startup_s = time.perf_counter() - start
 
     def map(self, chunks: Iterable[Chunk]) -> Iterator[list[EpisodeResult]]:
@@ -278,7 +293,13 @@ class RayExecutor:
             yield ray.get(ref)
 
     def close(self) -> None:
-        self.ray.shutdown()  # actors are not detached: they end with this driver
+        _shut_down(self.ray)  # actors are not detached: they end with this driver
+
+
+def _shut_down(ray: object) -> None:
+    """ray.shutdown(), which takes about a second, not cut short by a second Ctrl-C (it comes after)."""
+    with held():
+        ray.shutdown()  # type: ignore[attr-defined]
 
 
 def _first_line(exc: BaseException) -> str:
