@@ -16,7 +16,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import NoReturn
 
-from hopper.config import GRAVITY_PRESETS, Gains, SimConfig
+from hopper.config import GRAVITY_PRESETS, Gains, InvalidConfig, SimConfig, check_seed
 from hopper.scenarios import SCENARIOS
 from hopper.schedule import KickSchedule, parse
 
@@ -36,17 +36,19 @@ EXIT_STATUSES = (
 class Parser(argparse.ArgumentParser):
     """argparse with errors on one line (no usage dump) and one prefix, subcommands included, and no
     abbreviated flags: `compare --seed 1` would silently mean `--seeds 1`. Every subcommand is built
-    with this class (add_subparsers' parser_class), so allow_abbrev=False reaches each of them."""
+    with this class (add_subparsers' parser_class), so allow_abbrev=False reaches each of them.
+    `name` is the errors' prefix: hopper-sim's unless another program says its own."""
 
-    def __init__(self, *args: object, allow_abbrev: bool = False, **kwargs: object) -> None:
+    def __init__(self, *args: object, allow_abbrev: bool = False, name: str = "hopper-sim", **kwargs: object) -> None:
         super().__init__(*args, allow_abbrev=allow_abbrev, **kwargs)  # type: ignore[arg-type]
+        self.name = name
 
     def error(self, message: str) -> NoReturn:
-        fail(message)
+        fail(message, self.name)
 
 
-def fail(message: str) -> NoReturn:
-    print(f"hopper-sim: error: {message}", file=sys.stderr)
+def fail(message: str, name: str = "hopper-sim") -> NoReturn:
+    print(f"{name}: error: {message}", file=sys.stderr)
     raise SystemExit(EXIT_USAGE)
 
 
@@ -176,14 +178,30 @@ def remove_empty(folders: list[Path]) -> None:
 
 
 def seed(text: str) -> int:
-    """A terrain seed, a non-negative integer (numpy's generators take no negative seed)."""
+    """A seed, in SimConfig's bounds (hopper.config.check_seed), in its words."""
     try:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"invalid int value: {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"seed must be a non-negative integer, got {value}")
-    return value
+    try:
+        return check_seed(value)
+    except InvalidConfig as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def at_least(low: int) -> Callable[[str], int]:
+    """An argparse type: an integer of at least `low` (argparse's int takes 0 and negatives)."""
+
+    def check(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"invalid int value: {text!r}") from None
+        if value < low:
+            raise argparse.ArgumentTypeError(f"must be at least {low}, got {value}")
+        return value
+
+    return check
 
 
 def rrd_file(text: str) -> Path:

@@ -13,9 +13,9 @@ from hopper.app.cli_common import (
     EXIT_OK,
     add_model_flag,
     check_executor,
-    check_out,
     checked_controller,
     fail,
+    made_out,
     model_file,
     writable_file,
 )
@@ -296,19 +296,23 @@ def command_sweep(args: argparse.Namespace) -> int:
         except argparse.ArgumentTypeError as exc:
             fail(f"mjcf: {exc}")
     check_controllers(spec)
-    check_out(args.out)
 
     from hopper.experiments.executor import ExecutorError, choose
     from hopper.experiments.runner import run_sweep, workers
     from hopper.experiments.store import SweepStore
     from hopper.experiments.summary import axis_lines, overall_line
 
-    try:
-        run = run_sweep(spec, args.out, lambda todo: choose(args.executor, todo, args.workers, args.address))
-    except (SpecMismatch, ExecutorError) as exc:
-        fail(str(exc))
-    episodes = SweepStore(args.out, spec).read_episodes()
+    # OUT is written to now; the folders made for it are removed again if the executor cannot start.
+    with made_out(args.out):
+        try:
+            run = run_sweep(spec, args.out, lambda todo: choose(args.executor, todo, args.workers, args.address))
+        except (SpecMismatch, ExecutorError) as exc:
+            fail(str(exc))
+    episodes, others = SweepStore(args.out, spec).spec_episodes()
     print(f"{args.out}: {overall_line(episodes)}")
+    if others:
+        print(f"{args.out} also holds {others} rows of episodes this spec does not fly (an older version's, whose "
+              "other controllers flew every gain point): not counted")  # fmt: skip
     for line in axis_lines(episodes, spec.axes()):
         print(line)
     if spec.model is not None and episodes.num_rows:

@@ -27,6 +27,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from hopper.app.cli_common import Parser, at_least, finite, seed, writable_file
 
 from hopper.config import Gains
 from hopper.controllers.features import NAMES, SIZE
@@ -39,6 +40,8 @@ SENSING = ("ideal", "realistic")  # alternately, by an episode's place in its se
 # Episode seeds of the three sets: disjoint ranges.
 TRAIN_SEEDS, VALIDATION_SEEDS, TEST_SEEDS = (0, 1 << 30), (1 << 30, 1 << 31), (1 << 31, 3 << 30)
 _ENV: FlightAttitudeEnv | None = None
+PROG = "train_policy"  # its errors' prefix
+MAX_TRAINING_SEED = 2**32 - 2  # CMA-ES's seed is --seed + 1, which numpy's legacy generator takes below 2^32
 
 
 def episode_return(weights: Weights, seed: int, sensing: str) -> float:
@@ -88,24 +91,53 @@ def draw(rng: np.random.Generator, bounds: tuple[int, int], n: int) -> list[int]
     return [int(s) for s in rng.integers(*bounds, n)]
 
 
+def training_seed(text: str) -> int:
+    """hopper-sim's seed check, and CMA-ES's bound: it seeds numpy's 32-bit legacy generator with seed + 1."""
+    value = seed(text)
+    if value > MAX_TRAINING_SEED:
+        raise argparse.ArgumentTypeError(
+            f"must be at most {MAX_TRAINING_SEED} (CMA-ES takes seed + 1 < 2^32), got {value}"
+        )
+    return value
+
+
+def positive(text: str) -> float:
+    """A finite number above 0."""
+    value = finite(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be above 0, got {text}")
+    return value
+
+
+def parser() -> Parser:
+    """hopper-sim's parser and number checks (no abbreviated flags, one-line errors, exit 2), checked
+    before any training: a bad --out or --every once failed after it."""
+    p = Parser(prog="python -m hopper.app.train_policy", description=__doc__.splitlines()[0], name=PROG)
+    p.add_argument("--seed", type=training_seed, default=0, help="seeds CMA-ES and the episodes")
+    p.add_argument("--out", type=writable_file, default=Path("policy_weights.json"), help="weights file to write")
+    p.add_argument("--generations", type=at_least(1), default=20)
+    p.add_argument("--episodes", type=at_least(1), default=12, help="training episodes per candidate per generation")
+    p.add_argument("--popsize", type=at_least(2), default=12, help="candidates per generation (CMA-ES needs two)")
+    p.add_argument("--sigma", type=positive, default=0.05, help="CMA-ES initial step (parameters are O(1))")
+    p.add_argument("--hidden", type=at_least(0), default=16, help="hidden units (0: the linear skip path alone)")
+    p.add_argument("--validation", type=at_least(1), default=64, help="validation episodes")
+    p.add_argument(
+        "--every", type=at_least(1), default=4, help="validate the search's mean every this many generations"
+    )
+    p.add_argument(
+        "--test", type=at_least(2), default=150, help="test episodes, flown once by the start and the result (two "
+        "at least: the paired difference's interval needs a spread)"
+    )  # fmt: skip
+    p.add_argument("--workers", type=at_least(1), default=1, help="processes evaluating candidates")
+    return p
+
+
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m hopper.app.train_policy", description=__doc__.splitlines()[0])
-    p.add_argument("--seed", type=int, default=0, help="seeds CMA-ES and the episodes")
-    p.add_argument("--out", type=Path, default=Path("policy_weights.json"), help="weights file to write")
-    p.add_argument("--generations", type=int, default=20)
-    p.add_argument("--episodes", type=int, default=12, help="training episodes per candidate per generation")
-    p.add_argument("--popsize", type=int, default=12)
-    p.add_argument("--sigma", type=float, default=0.05, help="CMA-ES initial step (parameters are O(1))")
-    p.add_argument("--hidden", type=int, default=16)
-    p.add_argument("--validation", type=int, default=64, help="validation episodes")
-    p.add_argument("--every", type=int, default=4, help="validate the search's mean every this many generations")
-    p.add_argument("--test", type=int, default=150, help="test episodes, flown once by the start and the result")
-    p.add_argument("--workers", type=int, default=1, help="processes evaluating candidates")
-    args = p.parse_args(argv)
+    args = parser().parse_args(argv)
     try:
         import cma
     except ImportError:
-        print("train_policy: needs cma: pip install 'hopper-dashboard[rl]'", file=sys.stderr)
+        print(f"{PROG}: needs cma: pip install 'hopper-dashboard[rl]'", file=sys.stderr)
         return 2
     start = time.perf_counter()
     gains = Gains()

@@ -34,6 +34,7 @@ FOOT_RADIUS = 0.04  # m, Table I
 SATURATION_FRACTION = 0.98  # of the torque limit counts as saturated, paper Sec. V-D
 STANDARD_GRAVITY = 9.80665  # m/s^2, the "g" of datasheet units (mg, ug), not any body's gravity
 MAX_MOTOR_DELAY_TICKS = 16  # length of the kernel's wheel-command delay line (hopper.control.memory)
+MAX_SEED = 2**64 - 1  # the IMU's draws are seeded from SimConfig.seed as a uint64 (hopper.control.memory)
 
 # The motors' electrical figures, for their energy (hopper.control.energy); the simulation never reads them.
 # The paper gives neither k_t nor R. Every motor is a maxon EC 45 flat, 43.5 mm, brushless, 70 W, 24 V
@@ -131,6 +132,13 @@ def require_finite(name: str, value: float, low: float = -math.inf, high: float 
     if not isinstance(value, (int, float)) or not math.isfinite(value) or not low <= value <= high:
         u = f" {unit}" if unit else ""
         raise InvalidConfig(f"{name} must be a finite number in [{low:g}, {high:g}]{u}, got {value!r}")
+
+
+def check_seed(seed: int) -> int:
+    """`seed`, or InvalidConfig unless it is an integer in [0, MAX_SEED]."""
+    if not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
+        raise InvalidConfig(f"seed must be a non-negative integer below 2^64, got {seed!r}")
+    return seed
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
@@ -297,7 +305,6 @@ class SimConfig:
             raise InvalidConfig(f"terrain must be 'crater' or 'flat', got {self.terrain!r}")
         if self.sensing not in ("ideal", "realistic"):
             raise InvalidConfig(f"sensing must be 'ideal' or 'realistic', got {self.sensing!r}")
-        if not isinstance(self.seed, int) or self.seed < 0:
-            raise InvalidConfig(f"seed must be a non-negative integer, got {self.seed!r}")
+        check_seed(self.seed)
         require_finite("gravity", self.gravity, 0.05, 30.0)
         require_finite("timestep", self.timestep, 1e-4, 5e-3)

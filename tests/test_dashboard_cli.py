@@ -98,6 +98,19 @@ def test_bad_arguments_give_one_line_and_exit_2(args: list[str], message: str) -
     assert "Traceback" not in result.stderr + result.stdout
 
 
+@pytest.mark.parametrize("seed", ["-3", "x", str(2**64)])
+def test_a_bad_seed_is_refused_as_hopper_sim_refuses_it(seed: str) -> None:
+    """--seed is hopper-sim's check (cli_common.seed): the same line, the same bounds. 2^64 was a
+    traceback (the IMU's seed is a uint64) once the dashboard had begun to build."""
+    dashboard = cli("--seed", seed, "--port", str(free_port()))
+    sim = subprocess.run([sys.executable, "-m", "hopper.app.sim_cli", "run", "--seed", seed],
+                         capture_output=True, text=True, timeout=60, cwd=REPO)  # fmt: skip
+    assert dashboard.returncode == sim.returncode == 2, dashboard.stderr
+    assert sim.stderr.count("\n") == 1 and sim.stderr.startswith("hopper-sim: error: argument --seed: "), sim.stderr
+    assert dashboard.stderr == sim.stderr.replace("hopper-sim", "hopper-dashboard", 1)
+    assert parse(["--seed", str(2**64 - 1)]).seed == 2**64 - 1  # the largest both take
+
+
 def test_help_shows_every_setting_with_its_unit_and_default() -> None:
     result = cli("--help")
     assert result.returncode == 0, result.stderr

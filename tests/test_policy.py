@@ -122,3 +122,32 @@ def test_a_short_training_runs_and_one_seed_gives_the_same_weights(tmp_path: Pat
     meta = json.loads(out.read_text())["meta"]
     assert meta["generations"] == 2 and runs[0].hidden == 16 and meta["test"]["episodes"] == 2
     assert (runs[0].flat() == runs[1].flat()).all()
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--sig", "0.1"], "unrecognized arguments: --sig 0.1"),  # was taken for --sigma
+        (["--seed", "-1"], "argument --seed: seed must be a non-negative integer below 2^64, got -1"),
+        (["--seed", str(2**32 - 1)], "argument --seed: must be at most 4294967294 (CMA-ES takes seed + 1 < 2^32)"),
+        (["--every", "0"], "argument --every: must be at least 1, got 0"),  # ZeroDivisionError, mid-training
+        (["--popsize", "1"], "argument --popsize: must be at least 2, got 1"),
+        (["--test", "1"], "argument --test: must be at least 2, got 1"),  # a NaN interval
+        (["--sigma", "nan"], "argument --sigma: nan is not a finite number"),
+        (["--sigma", "0"], "argument --sigma: must be above 0, got 0"),
+        (["--out", "/proc/weights.json"], "argument --out: cannot write /proc/weights.json"),  # after the training
+    ],
+)
+def test_the_training_refuses_bad_arguments_in_one_line_before_any_work(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], message: str
+) -> None:
+    """hopper-sim's parser and number checks: one line, exit 2, no abbreviation; nothing trained, nothing written."""
+    from hopper.app.train_policy import main
+
+    small = ["--generations", "1", "--episodes", "1", "--popsize", "2", "--validation", "1", "--test", "2"]
+    with pytest.raises(SystemExit) as exit:
+        main([*small, "--out", str(tmp_path / "w.json"), *args])
+    captured = capsys.readouterr()
+    assert exit.value.code == 2 and captured.out == "", captured.out
+    assert captured.err.startswith(f"train_policy: error: {message}") and captured.err.count("\n") == 1, captured.err
+    assert not any(tmp_path.iterdir())

@@ -182,19 +182,24 @@ def test_tune_promises_no_resume_it_never_does() -> None:
     assert f"{promise} the search over" in tune, tune
 
 
-def test_no_parser_of_hopper_sim_takes_an_abbreviated_flag() -> None:
-    """allow_abbrev=False on the top parser and every subcommand's (add_parser does not inherit it)."""
+def test_no_parser_of_any_command_takes_an_abbreviated_flag() -> None:
+    """allow_abbrev=False on hopper-sim's top parser and every subcommand's (add_parser does not inherit
+    it), hopper-dashboard's and the policy training's: each is cli_common.Parser."""
     import argparse
 
-    from hopper.app.sim_cli import parser
+    from hopper.app import sim_cli, train_policy
+    from hopper.app.cli_common import Parser
+    from hopper.app.dashboard import cli as dashboard_cli
 
     def walk(p: argparse.ArgumentParser) -> list[argparse.ArgumentParser]:
         subs = [a for a in p._actions if isinstance(a, argparse._SubParsersAction)]  # noqa: SLF001
         return [p] + [q for a in subs for child in a.choices.values() for q in walk(child)]
 
-    parsers = walk(parser())
-    assert len(parsers) > 15 and {p.prog for p in parsers} >= {"hopper-sim compare", "hopper-sim log check"}
-    assert [p.prog for p in parsers if p.allow_abbrev] == []
+    parsers = [q for module in (sim_cli, dashboard_cli, train_policy) for q in walk(module.parser())]
+    assert len(parsers) > 17 and {p.prog for p in parsers} >= {
+        "hopper-sim compare", "hopper-sim log check", "hopper-dashboard", "python -m hopper.app.train_policy"
+    }  # fmt: skip
+    assert [p.prog for p in parsers if p.allow_abbrev or not isinstance(p, Parser)] == []
 
 
 @pytest.mark.parametrize("command", [["sweep", "--out", "out", "--seeds", "1", "--hops", "1"], ["compare"]])

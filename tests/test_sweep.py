@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
 import random
 import signal
 import subprocess
 import sys
+import threading
 import tomllib
 from pathlib import Path
 
@@ -194,10 +196,83 @@ def test_a_killed_runs_leftovers_are_cleaned_and_another_spec_is_refused(tmp_pat
     assert result.returncode == 2 and "holds another sweep" in result.stderr, result.stderr
 
 
+def test_a_mixed_sweep_written_before_the_gain_axes_were_the_pids_counts_each_episode_once(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before, --controller pid,lqr --kp 300,600 flew the LQR at each kp; resumed now, the LQR flies once at
+    the default gains (its fallback PID's) beside those rows, and the summary counted all three."""
+    from hopper.app.sim_cli import main
+
+    out = tmp_path / "out"
+    spec = parse_spec({"controller": ["pid", "lqr"], "kp": [300, 600], "seeds": 2, "hops": 1})
+    pid = [e for e in spec.episodes() if e.controller == "pid"]
+    old = pid + [dataclasses.replace(e, controller="lqr") for e in pid]  # the old product, as its code wrote it
+    store = SweepStore(out, spec)
+    store.open()
+    store.add([Worker().run(e) for e in old])
+    store.flush()
+    args = ["sweep", "--out", str(out), "--controller", "pid,lqr", "--kp", "300,600", "--seeds", "2", "--hops", "1"]
+    assert main(args) == 0
+    text = capsys.readouterr().out
+    assert f"{out}: 6 episodes, 0 fell" in text, text
+    assert f"{out} also holds 4 rows of episodes this spec does not fly" in text
+    assert "seed: 0: 0/3 fell" in text and "controller: pid: 0/4 fell" in text and "; lqr: 0/2 fell" in text, text
+    assert "this run: 2 episodes on in-process" in text  # the LQR at the default gains, for each seed
+
+
 def test_chunks_keep_the_order_and_cover_every_episode() -> None:
     episodes = list(parse_spec({"seeds": 5, "kp": [300, 400, 500], "hops": 2}).episodes())
     parts = chunks(episodes, workers=2)
     assert [e for part in parts for e in part] == episodes and len(parts) >= 8
+
+
+# A user's law that flies until its 100th call (the probe's are done), then hangs there deaf to SIGTERM.
+WEDGED = """
+import os, signal, threading
+from pathlib import Path
+
+
+class Wedged:
+    calls = 0
+
+    def __call__(self, obs):
+        self.calls += 1
+        if self.calls == 100:
+            signal.signal(signal.SIGTERM, signal.SIG_IGN)
+            Path(MARK + ".tmp").write_text(str(os.getpid()))
+            os.replace(MARK + ".tmp", MARK)
+            threading.Event().wait()
+        return 450.0 * obs.pitch + 30.0 * obs.rate
+"""
+
+
+def test_closing_a_pool_ends_a_worker_that_ignores_sigterm_in_bounded_time(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Pool.terminate joins its workers without a timeout: a wedged one hung close(), a Ctrl-C included."""
+    import psutil
+
+    from hopper.experiments import executor
+
+    mark = tmp_path / "wedged.pid"
+    (tmp_path / "wedged.py").write_text(WEDGED.replace("MARK", repr(str(mark))))
+    chunk = list(parse_spec({"controller": [f"{tmp_path / 'wedged.py'}:Wedged"], "seeds": 1, "hops": 1}).episodes())
+    monkeypatch.setattr(executor, "STOP_S", 1.0, raising=False)
+    pool = executor.LocalPool(1)
+    pid = None
+    try:
+        pool.pool.apply_async(executor._run_in_process_worker, (chunk,))  # noqa: SLF001
+        assert wait_until(mark.exists, timeout=120), "the worker never reached the wedge"
+        pid = int(mark.read_text())
+        closed = threading.Event()
+        threading.Thread(target=lambda: (pool.close(), closed.set()), daemon=True).start()
+        assert closed.wait(30), "close() still waits on the worker after 30 s"
+    finally:
+        if pid is not None and psutil.pid_exists(pid) and psutil.Process(pid).status() != psutil.STATUS_ZOMBIE:
+            os.kill(pid, signal.SIGKILL)  # the old close() left it wedged
+    assert not psutil.pid_exists(pid), "the worker was not reaped"
+    err = capsys.readouterr().err
+    assert f"local pool: worker {pid} did not stop within 1 s of SIGTERM: killed" in err, err
 
 
 def test_a_sweep_on_a_local_ray_interrupted_half_way_resumes_without_redoing_episodes(tmp_path: Path) -> None:
@@ -244,6 +319,129 @@ def test_a_sweep_on_a_local_ray_interrupted_half_way_resumes_without_redoing_epi
         theirs = rows[episode.episode_id]
         assert {k: v for k, v in mine.items() if k != "wall_s"} == {k: v for k, v in theirs.items() if k != "wall_s"}
     assert SweepStore(out, spec).done_ids() == set(ids)
+
+
+@pytest.mark.parametrize(
+    "failure, words",
+    [
+        ("auth", "RPC error: InvalidAuthToken: Authentication token is missing"),
+        ("connection", "Failed to connect to Ray cluster at 127.0.0.1:1"),  # its cause says why
+    ],
+)
+def test_an_executor_that_cannot_start_leaves_no_sweep_folder_and_one_line(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], failure: str, words: str
+) -> None:
+    """ray.init raising past the address probe (here in this process, as Ray 2.60 raises it: an
+    AuthenticationError, a RayError, escaped as a traceback; a ConnectionError whose cause says why) left
+    OUT holding a spec.toml and no episodes, a sweep the next command resumed. A resumed OUT is left as it was."""
+    import ray
+    import ray.exceptions
+    from hopper.app.sim_cli import main
+
+    def refuse(*args: object, **kwargs: object) -> None:
+        if failure == "auth":
+            raise ray.exceptions.AuthenticationError("RPC error: InvalidAuthToken: Authentication token is missing")
+        try:
+            raise RuntimeError("Failed to connect to GCS: Authentication token is missing or incorrect")
+        except RuntimeError as exc:
+            raise ConnectionError("Failed to connect to Ray cluster at 127.0.0.1:1") from exc
+
+    monkeypatch.delenv("RAY_ADDRESS", raising=False)
+    monkeypatch.setattr(ray, "init", refuse)
+    flags = ["--seeds", "2", "--hops", "1", "--executor", "ray"]
+    with pytest.raises(SystemExit) as exit:
+        main(["sweep", "--out", str(tmp_path / "new" / "out"), *flags])
+    err = capsys.readouterr().err
+    hint = "(token authentication? see the README)"
+    assert exit.value.code == 2 and err == f"hopper-sim: error: cannot start or reach a local Ray {hint}: {words}\n"
+    assert not (tmp_path / "new").exists(), "the folders made for the sweep were left behind"
+
+    resumed = tmp_path / "resumed"
+    spec = parse_spec({"seeds": 2, "hops": 1})
+    run_sweep(spec, resumed, lambda todo: InProcess(), progress=False, announce=lambda _: None)
+    for part in [*(resumed / "episodes").glob("*.parquet"), *(resumed / "hops").glob("*.parquet")]:
+        part.unlink()  # its episodes to run again, in a folder this command did not make
+    before = sorted(p.relative_to(resumed) for p in resumed.rglob("*"))
+    with pytest.raises(SystemExit):
+        main(["sweep", "--out", str(resumed), *flags])
+    assert sorted(p.relative_to(resumed) for p in resumed.rglob("*")) == before
+
+
+# hopper-sim, with a thread that signals its main thread (as the kernel may pick any thread) once that
+# runs the function FUNCTION of Ray's FILE (ray/_private/...) at the line holding TEXT or after.
+STOPPED_IN_RAY_INIT = """
+import inspect, importlib, os, signal, sys, threading, time
+
+module = importlib.import_module(os.environ["MODULE"])
+function, text = os.environ["FUNCTION"], os.environ["TEXT"]
+code = inspect.unwrap(getattr(module, function.split(".")[0]))
+if "." in function:
+    code = getattr(code, function.split(".")[1])
+lines, first = inspect.getsourcelines(code)
+at = first + next(i for i, line in enumerate(lines) if text in line)
+
+
+def watch():
+    main = threading.main_thread().ident
+    while True:
+        frame = sys._current_frames().get(main)
+        while frame is not None:
+            if frame.f_code is code.__code__ and frame.f_lineno >= at:
+                signal.pthread_kill(main, getattr(signal, os.environ["STOP_SIGNAL"]))
+                return
+            frame = frame.f_back
+        time.sleep(0.0005)
+
+
+threading.Thread(target=watch, daemon=True).start()
+from hopper.app.sim_cli import main
+
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.parametrize(
+    "signum, where",
+    [
+        # Ctrl-C as ray.init makes its core worker: that worker was out of ray.shutdown's reach, and
+        # the exit crashed in Ray's C++ (SIGSEGV) in about two runs of three.
+        ("SIGINT", ("ray._private.worker", "connect", "ray._raylet.CoreWorker(")),
+        # SIGTERM while ray.init starts the local Ray: its own handler then, it exited 15 (or 1), not 130.
+        ("SIGTERM", ("ray._private.node", "Node.start_ray_processes", "start_raylet")),
+    ],
+    ids=["sigint-making-the-core-worker", "sigterm-starting-ray"],
+)
+def test_a_stop_while_ray_starts_exits_130_in_one_line_and_leaves_nothing(
+    tmp_path: Path, signum: str, where: tuple[str, str, str]
+) -> None:
+    import psutil
+
+    module, function, text = where
+    env = {k: v for k, v in os.environ.items() if k != "RAY_ADDRESS"}  # a local Ray, started by the CLI
+    env |= {"MODULE": module, "FUNCTION": function, "TEXT": text, "STOP_SIGNAL": signum}
+    out = tmp_path / "out"
+    flags = ["sweep", "--out", str(out), "--seeds", "4", "--hops", "400", "--terrain", "flat", "--executor", "ray",
+             "--workers", "2"]  # fmt: skip
+    process = subprocess.Popen([sys.executable, "-c", STOPPED_IN_RAY_INIT, *flags], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True, env=env, start_new_session=True)  # fmt: skip
+    try:
+        _, err = process.communicate(timeout=120)
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+    lines = [line for line in err.splitlines() if line.strip() and "episodes:" not in line]
+    assert process.returncode == 130 and lines == ["hopper-sim: interrupted"], (process.returncode, err[-3000:])
+    assert not out.exists(), "a sweep folder was made before Ray had started"
+
+    def session() -> list[psutil.Process]:  # what the CLI started and is still running, Ray's daemons included
+        alive = []
+        for p in psutil.process_iter():
+            with contextlib.suppress(psutil.Error, OSError):
+                if os.getsid(p.pid) == process.pid and p.status() != psutil.STATUS_ZOMBIE:
+                    alive.append(p)
+        return alive
+
+    assert wait_until(lambda: not session(), timeout=30), [p.cmdline() for p in session()]
 
 
 def test_unreachable_tells_a_closed_loopback_port_from_a_silent_one_and_from_a_grpc_server() -> None:

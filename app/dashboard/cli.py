@@ -18,6 +18,7 @@ from hopper.app.cli_common import (
     add_controller_flags,
     add_model_flag,
     output_closed,
+    seed,
 )
 from hopper.app.dashboard.config import LIGHTING, DashboardConfig, check_sessions_dir
 from hopper.app.dashboard.pacing import MAX
@@ -79,7 +80,7 @@ def parser() -> Parser:
     p = Parser(prog=PROG, description=DashboardConfig.__doc__, epilog=EXIT_STATUSES, formatter_class=Help)
     p.add_argument("--host", default=DEFAULTS.host, help="address to serve on (loopback by default)")
     p.add_argument("--port", type=int, default=DEFAULTS.port, help="TCP port to serve on; refused if in use")
-    p.add_argument("--seed", type=int, default=DEFAULTS.seed, help="terrain seed, a non-negative integer")
+    p.add_argument("--seed", type=seed, default=DEFAULTS.seed, help="terrain seed, a non-negative integer below 2^64")
     p.add_argument(
         "--terrain", type=choice("crater", "flat"), default=DEFAULTS.terrain, metavar="{crater,flat}", help="terrain"
     )

@@ -14,6 +14,7 @@ import multiprocessing
 import os
 import signal
 import socket
+import sys
 import threading
 import time
 from collections.abc import Iterable, Iterator
@@ -23,7 +24,7 @@ from hopper.config import MOON_GRAVITY
 from hopper.errors import HopperError
 from hopper.experiments.spec import Episode
 from hopper.experiments.worker import EpisodeResult, Worker
-from hopper.interrupts import children_ignore_ctrl_c, each
+from hopper.interrupts import children_ignore_ctrl_c, each, held
 
 Kind = Literal["auto", "local", "ray"]
 Chunk = list[Episode]
@@ -39,6 +40,9 @@ RAY_MIN_WORK_PER_CORE_S = 120.0
 # Below this much work (s of one core) a job runs in this process: a pool's spawned processes, each
 # importing MuJoCo, took 1.2 s to start here, about what two workers would save on 2.4 s of work.
 POOL_MIN_WORK_S = 2.0
+# s a pool's shutdown may take before its workers are killed (SIGKILL): idle workers end at their
+# sentinel and busy ones at SIGTERM within milliseconds; only one that ignores SIGTERM takes longer.
+STOP_S = 5.0
 CHUNK_CPU_S = 1.0  # s of work per chunk: Ray's per-call cost (~1 ms) is noise, and Ctrl-C loses little
 IN_FLIGHT_PER_WORKER = 2  # chunks queued per Ray actor, so it never waits for the driver
 
@@ -116,15 +120,39 @@ class LocalPool:
     def __init__(self, workers: int) -> None:
         self.workers = workers
         context = multiprocessing.get_context("spawn")  # no fork of a process holding MuJoCo or threads
+        before = set(multiprocessing.active_children())
         with children_ignore_ctrl_c():
             self.pool = context.Pool(workers, initializer=_start_process_worker)
+        # Its workers, all started by Pool(): the children this process gained there (Pool keeps its list private).
+        self.processes = [p for p in multiprocessing.active_children() if p not in before]
 
     def map(self, chunks: Iterable[Chunk]) -> Iterator[list[EpisodeResult]]:
         yield from each(self.pool.imap_unordered(_run_in_process_worker, chunks))
 
     def close(self) -> None:
-        self.pool.terminate()  # at the end the workers are idle; on Ctrl-C nothing they do is wanted
-        self.pool.join()
+        """End the workers: at the end they are idle; on Ctrl-C nothing they do is wanted.
+
+        Pool.terminate sends SIGTERM, then joins each worker without a timeout: a worker that ignores
+        SIGTERM (a user's law that set it so, a library's handler stuck in C) hung it, Ctrl-C included.
+        So it runs in a thread given STOP_S; the workers still alive then are killed, as stderr says.
+        Stop signals wait for the end of this bounded close (hopper.interrupts.held)."""
+        with held():
+            stopper = threading.Thread(target=self.pool.terminate, name="pool terminate", daemon=True)
+            stopper.start()
+            stopper.join(STOP_S)
+            if not stopper.is_alive():
+                return
+            wedged = [p for p in self.processes if p.is_alive()]
+            for process in wedged:
+                process.kill()
+            if wedged:
+                pids = ", ".join(str(p.pid) for p in wedged)
+                print(f"{self.name}: worker{'s' if len(wedged) > 1 else ''} {pids} did not stop within {STOP_S:g} s "
+                      "of SIGTERM: killed", file=sys.stderr)  # fmt: skip
+                stopper.join(STOP_S)
+            if stopper.is_alive():  # e.g. a worker in uninterruptible sleep: nothing more this process can do
+                print(f"{self.name}: its shutdown still hangs (a worker SIGKILL cannot end yet): left behind",
+                      file=sys.stderr)  # fmt: skip
 
 
 # s, the probe of a named Ray cluster before ray.init, TCP connect and handshake together: a head
@@ -207,24 +235,43 @@ class RayExecutor:
         # (the CLIs turn SIGTERM into Ctrl-C so that results are written and the exit is 130).
         sigterm = signal.getsignal(signal.SIGTERM) if threading.current_thread() is threading.main_thread() else None
         options = {"include_dashboard": False, "log_to_driver": False, "logging_level": logging.ERROR}
+        where = f"the Ray cluster at {connect}" if connect else "a local Ray"
+        # Whatever stops the start-up, Ray is shut down here, not left to the interpreter's exit. A Ctrl-C
+        # waits for ray.init to return (held): one that landed as it made its core worker left that
+        # worker out of ray.shutdown's reach, and the process crashed at exit (SIGSEGV, in Ray's C++).
         try:
-            if connect:
-                ray.init(address=connect, **options)
-            else:  # "local": a new instance of our own, never one that `ray start` left running here
-                ray.init(address="local", num_cpus=workers or os.cpu_count() or 1, **options)
-        except (ConnectionError, RuntimeError, ValueError) as exc:
-            where = f"the Ray cluster at {connect}" if connect else "a local Ray"
-            auth = " (token authentication? see the README)" if "uthentica" in str(exc) else ""
-            raise ExecutorError(f"cannot start or reach {where}{auth}: {str(exc).splitlines()[0]}") from None
-        if sigterm is not None:
-            signal.signal(signal.SIGTERM, sigterm)
+            with held():
+                if connect:
+                    ray.init(address=connect, **options)
+                else:  # "local": a new instance of our own, never one that `ray start` left running here
+                    ray.init(address="local", num_cpus=workers or os.cpu_count() or 1, **options)
+        except (ConnectionError, RuntimeError, ValueError, ray.exceptions.RayError) as exc:  # AuthenticationError
+            _shut_down(ray)
+            raise ExecutorError(f"cannot start or reach {where}{_auth_hint(exc)}: {_first_line(exc)}") from None
+        # SIGTERM meets the handler ray.init sets while it runs, which held() cannot defer: it exits 15
+        # (or 1), here a stop as Ctrl-C is. (One as the core worker is made can still crash Ray's exit.)
+        except SystemExit:
+            _shut_down(ray)
+            raise KeyboardInterrupt from None
+        except BaseException:
+            _shut_down(ray)
+            raise
+        finally:
+            if sigterm is not None:
+                signal.signal(signal.SIGTERM, sigterm)
         self.ray = ray
         self.address = connect or "local"
-        cpus = int(ray.cluster_resources().get("CPU", 1))
-        self.workers = max(1, min(workers or cpus, cpus))
-        remote = ray.remote(num_cpus=1)(Worker)
-        self.actors = [remote.remote() for _ in range(self.workers)]
-        ray.get([a.warm.remote() for a in self.actors])  # every actor is up, its model built
+        try:
+            cpus = int(ray.cluster_resources().get("CPU", 1))
+            self.workers = max(1, min(workers or cpus, cpus))
+            remote = ray.remote(num_cpus=1)(Worker)
+            self.actors = [remote.remote() for _ in range(self.workers)]
+            ray.get([a.warm.remote() for a in self.actors])  # every actor is up, its model built
+        except BaseException as exc:
+            _shut_down(ray)
+            if isinstance(exc, ray.exceptions.RayError):  # e.g. a node whose Python has no hopper (README)
+                raise ExecutorError(f"the workers of {where} cannot start: {_first_line(exc)}") from None
+            raise
         self.startup_s = time.perf_counter() - start
 
     def map(self, chunks: Iterable[Chunk]) -> Iterator[list[EpisodeResult]]:
@@ -246,7 +293,28 @@ class RayExecutor:
             yield ray.get(ref)
 
     def close(self) -> None:
-        self.ray.shutdown()  # actors are not detached: they end with this driver
+        _shut_down(self.ray)  # actors are not detached: they end with this driver
+
+
+def _shut_down(ray: object) -> None:
+    """ray.shutdown(), which takes about a second, not cut short by a second Ctrl-C (it comes after)."""
+    with held():
+        ray.shutdown()  # type: ignore[attr-defined]
+
+
+def _first_line(exc: BaseException) -> str:
+    """The first line of what `exc` says (of an AuthenticationError, without Ray's paragraph of help)."""
+    return (str(getattr(exc, "message", exc)).strip().splitlines() or [type(exc).__name__])[0]
+
+
+def _auth_hint(exc: BaseException) -> str:
+    """A hint if `exc` or what caused it is Ray's token authentication refusing us: ray.init's
+    ConnectionError says only "Failed to connect", its cause says why."""
+    while exc is not None:
+        if "uthentica" in str(exc):
+            return " (token authentication? see the README)"
+        exc = exc.__cause__ or exc.__context__  # type: ignore[assignment]
+    return ""
 
 
 def choose(kind: Kind, episodes: list[Episode], workers: int | None = None, address: str | None = None) -> Executor:

@@ -36,20 +36,28 @@ def run_sweep(
     progress: bool = True,
     announce: Callable[[str], None] = lambda line: print(line, file=sys.stderr),
 ) -> SweepRun:
-    """Run what OUT does not hold yet. Results are written as they come, and on the way out too:
-    an interrupted run (KeyboardInterrupt propagates) keeps every episode it finished."""
+    """Run what OUT does not hold yet. OUT is created once the executor has started; results are
+    written as they come, and on the way out too: an interrupted run (KeyboardInterrupt propagates)
+    keeps every episode it finished."""
     from tqdm import tqdm
 
     start = time.perf_counter()
     store = SweepStore(out, spec)
-    done = store.open()
+    done = store.check()
     todo = pending(spec, done)
     skipped = spec.size - len(todo)
     if skipped:
         announce(f"{out}: {skipped} of {spec.size} episodes already done, {len(todo)} to run")
     if not todo:
         return SweepRun(spec.size, skipped, 0, time.perf_counter() - start, 0.0, 0.0, "none", 0)
+    # The executor first: one that cannot start (Ray's ray.init or its actors) leaves OUT as it was,
+    # not a new sweep folder without episodes that the next command would resume.
     executor = make_executor(todo)
+    try:
+        store.create()
+    except BaseException:
+        executor.close()
+        raise
     ready = time.perf_counter()
     startup = getattr(executor, "startup_s", 0.0)
     why = getattr(executor, "why", "")  # InProcess's: why not the workers asked for

@@ -96,16 +96,12 @@ class SweepStore:
         self._stamp = f"{time.strftime('%Y%m%dT%H%M%S')}-{os.getpid()}"  # parts of this run
         self._parts = 0
 
-    def open(self) -> set[str]:
-        """Create or check OUT (refusing another sweep's), clean up a killed run, return the done ids."""
-        spec_file, text = self.out / "spec.toml", self.spec.to_toml()
-        if spec_file.exists() and spec_file.read_text(encoding="utf-8") != text:
+    def check(self) -> set[str]:
+        """Refuse another sweep's OUT, clean up a killed run's leftovers, return the done ids. Nothing
+        new is written: OUT need not exist yet (run_sweep starts its executor before it creates OUT)."""
+        spec_file = self.out / "spec.toml"
+        if spec_file.exists() and spec_file.read_text(encoding="utf-8") != self.spec.to_toml():
             raise SpecMismatch(f"{self.out} holds another sweep (its spec.toml differs): use another --out")
-        self.out.mkdir(parents=True, exist_ok=True)
-        self.episodes_dir.mkdir(exist_ok=True)
-        self.hops_dir.mkdir(exist_ok=True)
-        if not spec_file.exists():
-            _write_atomically(spec_file, text.encode())
         for folder in (self.episodes_dir, self.hops_dir):
             for temporary in folder.glob(".tmp-*"):
                 temporary.unlink()
@@ -115,6 +111,21 @@ class SweepStore:
                 orphan.unlink()
         return self.done_ids()
 
+    def create(self) -> None:
+        """Make OUT and its datasets' folders and write its spec.toml (after check), if not there yet."""
+        spec_file = self.out / "spec.toml"
+        self.out.mkdir(parents=True, exist_ok=True)
+        self.episodes_dir.mkdir(exist_ok=True)
+        self.hops_dir.mkdir(exist_ok=True)
+        if not spec_file.exists():
+            _write_atomically(spec_file, self.spec.to_toml().encode())
+
+    def open(self) -> set[str]:
+        """check, then create: OUT ready for results; the done ids."""
+        done = self.check()
+        self.create()
+        return done
+
     def done_ids(self) -> set[str]:
         table = self.read_episodes(columns=["episode_id"])
         return set(table.column("episode_id").to_pylist())
@@ -123,6 +134,21 @@ class SweepStore:
         if not any(self.episodes_dir.glob("*.parquet")):
             return self.episode_schema.empty_table().select(columns or self.episode_schema.names)
         return ds.dataset(self.episodes_dir, format="parquet").to_table(columns=columns)
+
+    def spec_episodes(self) -> tuple[pa.Table, int]:
+        """The rows of the spec's episodes, each once, and how many other rows OUT holds. A folder
+        written before the gain axes became the PID's alone holds, for another controller, a row per
+        gain point; resumed, it runs that controller once at the default gains beside them: counted
+        too, those rows made its episodes count two or more times."""
+        table = self.read_episodes()
+        wanted = {e.episode_id for e in self.spec.episodes()}
+        seen: set[str] = set()
+        keep = []
+        for i, episode_id in enumerate(table.column("episode_id").to_pylist()):
+            if episode_id in wanted and episode_id not in seen:
+                seen.add(episode_id)
+                keep.append(i)
+        return table.take(keep), table.num_rows - len(keep)
 
     def add(self, results: list[EpisodeResult]) -> None:
         """Queue results; they are written once FLUSH_S has passed since the last part."""
