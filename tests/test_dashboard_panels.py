@@ -55,9 +55,11 @@ def test_clamp_notices_give_the_range_with_units_and_whole_numbers_as_such(
         "Kd -3 N m s/rad is outside [0, 100] N m s/rad; clamped to 0 N m s/rad",
         "Ki 900 N m/(rad s) is outside [0, 500] N m/(rad s); clamped to 500 N m/(rad s)",
     ]
-    client.set_gui_value("Seed", 3e9)
+    client.set_gui_value("Seed", "20000000000000000000")  # above 2^64 - 1, the seeds hopper-sim takes
     assert client.wait_for(lambda p: bodies(p, "Value clamped")), client.notifications
-    assert bodies(client, "Value clamped") == ["Seed 3000000000 is outside [0, 2147483647]; clamped to 2147483647"]
+    assert bodies(client, "Value clamped") == [
+        "Seed 20000000000000000000 is outside [0, 18446744073709551615]; clamped to 18446744073709551615"
+    ]
 
 
 def test_numbers_in_notices() -> None:
@@ -284,6 +286,8 @@ def test_typed_numbers_are_clamped_with_the_range_and_units() -> None:
         "Ki 900 N m/(rad s) is outside [0, 500] N m/(rad s); clamped to 500 N m/(rad s)",
     )
     assert parse_number("Seed", "1e3", 0, 2**31 - 1, integer=True) == (1000, None)
+    # Digits are read exactly: as a float, 2^64 - 2 would be 2^64 and clamped.
+    assert parse_number("Seed", "18446744073709551614", 0, 2**64 - 1, integer=True) == (2**64 - 2, None)
     with pytest.raises(Refused, match="whole number"):
         parse_number("Seed", "12.5", 0, 2**31 - 1, integer=True)
 

@@ -39,7 +39,7 @@ class Refused(HopperError, ValueError):
 
 def format_number(value: float) -> str:
     """A number as people write it: whole numbers in full (2147483647, not 2.14748e+09), others to 6 digits."""
-    if math.isfinite(value) and value == int(value) and abs(value) < 1e15:
+    if isinstance(value, int) or (math.isfinite(value) and value == int(value) and abs(value) < 1e15):
         return str(int(value))
     return f"{value:g}"
 
@@ -135,7 +135,9 @@ def parse_number(
     if not _NUMBER.fullmatch(typed):
         hint = "; use a point for decimals" if "," in typed else ""
         raise Refused(f"{name}: {typed!r} is not a number{hint}")
-    value = float(typed)
+    # A whole number typed as digits is read exactly: a float holds integers only to 2^53, and
+    # seeds go to 2^64 - 1.
+    value = int(typed) if integer and typed.lstrip("+-").isdigit() else float(typed)
     if not math.isfinite(value):
         raise Refused(f"{name}: {typed!r} is too large")
     if integer and value != int(value):

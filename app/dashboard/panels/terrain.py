@@ -11,10 +11,8 @@ from hopper.app.dashboard.panels.entry import NumberEntry
 from hopper.app.size_cli import legs_cap
 
 from hopper.commands import SetGravity, SetTerrain
-from hopper.config import GRAVITY_PRESETS, MOON_GRAVITY, GaitParams
+from hopper.config import GRAVITY_PRESETS, MAX_SEED, MOON_GRAVITY, GaitParams
 from hopper.robot import PACKAGED, Robot
-
-MAX_SEED = 2**31 - 1
 
 
 def _preset_name(gravity: float) -> str:
