@@ -22,17 +22,19 @@ import argparse
 import dataclasses
 import math
 import multiprocessing
+import multiprocessing.pool
 import sys
 import time
 from pathlib import Path
+from types import ModuleType
 
 import numpy as np
-from hopper.app.cli_common import Parser, at_least, finite, seed, writable_file
+from hopper.app.cli_common import EXIT_INTERRUPTED, Parser, at_least, finite, seed, writable_file
 
 from hopper.config import Gains
 from hopper.controllers.features import NAMES, SIZE
 from hopper.gym_env import FlightAttitudeEnv
-from hopper.interrupts import each
+from hopper.interrupts import children_ignore_ctrl_c, each, stop_like_ctrl_c
 from hopper.laws.policy import Weights
 
 EPISODE = {"gravity": (0.2, 10.0), "flights": 2, "kick_probability": 0.5, "randomise": True}
@@ -133,12 +135,30 @@ def parser() -> Parser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """0 trained and written, 2 bad arguments or no cma, 130 interrupted (Ctrl-C or SIGTERM: nothing written)."""
     args = parser().parse_args(argv)
     try:
         import cma
     except ImportError:
         print(f"{PROG}: needs cma: pip install 'hopper-dashboard[rl]'", file=sys.stderr)
         return 2
+    stop_like_ctrl_c()
+    pool = None
+    if args.workers > 1:
+        with children_ignore_ctrl_c():  # a terminal's Ctrl-C is the main process's to handle
+            pool = multiprocessing.get_context("spawn").Pool(args.workers)
+    try:
+        return train(args, cma, pool)
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    finally:
+        if pool:
+            pool.terminate()
+
+
+def train(args: argparse.Namespace, cma: ModuleType, pool: multiprocessing.pool.Pool | None) -> int:
+    """The search, the test and the weights written; `pool` evaluates the candidates if given."""
     start = time.perf_counter()
     gains = Gains()
     x0 = Weights.pid(gains.kp, gains.kd, gains.ki, args.hidden, seed=args.seed).flat()
@@ -146,7 +166,6 @@ def main(argv: list[str] | None = None) -> int:
     es = cma.CMAEvolutionStrategy(x0, args.sigma, options)
     rng = np.random.default_rng(args.seed)
     validation, test = draw(rng, VALIDATION_SEEDS, args.validation), draw(rng, TEST_SEEDS, args.test)
-    pool = multiprocessing.get_context("spawn").Pool(args.workers) if args.workers > 1 else None
     run = (lambda f, jobs: list(each(pool.imap(f, jobs)))) if pool else (lambda f, jobs: list(map(f, jobs)))
     best_score, best, best_gen = fitness((x0, args.hidden, validation)), x0, 0
     print(f"PID start: validation return {-best_score:.4f}", flush=True)
@@ -165,8 +184,6 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{line}  {time.perf_counter() - start:6.0f} s", flush=True)
     # The test set, once: start and result on the same episodes, one process per side if there are two.
     start_returns, trained_returns = run(returns, [(x0, args.hidden, test), (best, args.hidden, test)])
-    if pool:
-        pool.close()
     judged = paired(start_returns, trained_returns)
     elapsed = time.perf_counter() - start
     lo, hi = judged["ci95"]

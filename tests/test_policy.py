@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import json
 import os
+import signal
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -122,6 +125,34 @@ def test_a_short_training_runs_and_one_seed_gives_the_same_weights(tmp_path: Pat
     meta = json.loads(out.read_text())["meta"]
     assert meta["generations"] == 2 and runs[0].hidden == 16 and meta["test"]["episodes"] == 2
     assert (runs[0].flat() == runs[1].flat()).all()
+
+
+@pytest.mark.integration
+def test_ctrl_c_during_training_exits_130_in_one_line_and_writes_nothing(tmp_path: Path) -> None:
+    """A terminal's Ctrl-C reaches the workers too: they printed KeyboardInterrupt tracebacks, and so
+    did the trainer itself."""
+    if os.environ.get("CI") != "true":  # under CI the [test] extra installs cma: never skip there
+        pytest.importorskip("cma", reason="the [rl] extra (cma) is not installed")
+    out = tmp_path / "w.json"
+    small = ["--generations", "1000", "--episodes", "2", "--popsize", "4", "--validation", "2", "--test", "2"]
+    process = subprocess.Popen(
+        [sys.executable, "-m", "hopper.app.train_policy", *small, "--workers", "2", "--out", str(out)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,  # its own process group, as a terminal's Ctrl-C reaches every process of it
+    )
+    try:
+        first = process.stdout.readline()  # the start's validation: the workers are up, the search begins
+        assert first.startswith("PID start"), first + process.stderr.read()
+        os.killpg(process.pid, signal.SIGINT)
+        _, err = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+    assert process.returncode == 130, err
+    assert err == "train_policy: interrupted\n", err
+    assert not out.exists()
 
 
 @pytest.mark.parametrize(
