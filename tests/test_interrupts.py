@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import os
 import signal
+import subprocess
 import sys
 import threading
 from collections.abc import Iterator
@@ -153,3 +155,22 @@ def test_wait_says_whether_the_event_came_within_the_timeout() -> None:
     assert interrupts.wait(event, 0.3) is False
     event.set()
     assert interrupts.wait(event, 0.0) is True and interrupts.wait(event) is True
+
+
+def test_importing_the_simulation_starts_no_process() -> None:
+    """`import mujoco` loads glfw, which probes its library in a Python subprocess: a pool worker
+    stopped while importing left the probe to print a BrokenPipeError into a command's stderr after
+    a clean Ctrl-C (train_policy's Ctrl-C test, 4 of 40 under load). Nothing here renders through
+    MuJoCo's OpenGL, so hopper turns it off unless MUJOCO_GL says otherwise."""
+    probe = (
+        "import subprocess\n"
+        "started = []\n"
+        "popen = subprocess.Popen\n"
+        "subprocess.Popen = lambda *a, **k: started.append(a) or popen(*a, **k)\n"
+        "import hopper.sim, hopper.app.episode\n"
+        "print(len(started))\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"}
+    result = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, env=env, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "0", result.stdout
