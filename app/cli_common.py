@@ -293,8 +293,9 @@ def add_controller_flags(p: argparse.ArgumentParser) -> None:
         "--controller",
         default="pid",
         metavar="SPEC",
-        help="the flight's wheel law: pid (default), lqr, mpc, FILE.py:Class, package.module:Class, an entry "
-        "point of the hopper.controllers group, or tcp://127.0.0.1:PORT (README: Bring your own controller)",
+        help="the flight's wheel law: pid (default), lqr, mpc, policy, policy:WEIGHTS.json (trained weights), "
+        "FILE.py:Class, package.module:Class, an entry point of the hopper.controllers group, or "
+        "tcp://127.0.0.1:PORT (README: Bring your own controller, Learned control)",
     )
     p.add_argument(
         "--controller-param",

@@ -144,7 +144,8 @@ def parser() -> Parser:
         "--controllers",
         default="pid,lqr,mpc,policy",
         metavar="SPECS",
-        help="comma-separated: pid, lqr, mpc, policy, FILE.py:Class, module:Class, tcp://... (default: the built-ins)",
+        help="comma-separated: pid, lqr, mpc, policy, policy:WEIGHTS.json, FILE.py:Class, module:Class, tcp://... "
+        "(default: the built-ins)",
     )
     league.add_argument("--quick", action="store_true", help="a few episodes of each group (what the tests run)")
     league.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")

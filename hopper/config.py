@@ -16,6 +16,7 @@ GRAVITY_PRESETS: dict[str, float] = {  # m/s^2, PHYSICS.md
     "ceres": 0.28,
     "earth": 9.81,
 }
+GRAVITY_LIMITS = (0.05, 30.0)  # m/s^2, the gravities a simulation accepts (every front end checks against these)
 TIMESTEP = 0.001  # s, 1 kHz physics and control, paper Table I
 
 # The packaged robot's constants (they mirror models/hopper.xml). What flies reads them from the model
@@ -306,5 +307,5 @@ class SimConfig:
         if self.sensing not in ("ideal", "realistic"):
             raise InvalidConfig(f"sensing must be 'ideal' or 'realistic', got {self.sensing!r}")
         check_seed(self.seed)
-        require_finite("gravity", self.gravity, 0.05, 30.0)
+        require_finite("gravity", self.gravity, *GRAVITY_LIMITS, "m/s^2")
         require_finite("timestep", self.timestep, 1e-4, 5e-3)

@@ -10,7 +10,10 @@ is asked); the first tick of each flight gets 0 N m.
 
 Observation: hopper.controllers.features (9 float32, normalised; FIELDS documents each), the last
 the integral of pitch since liftoff that the paper's PID keeps, integrated on the agent's actions.
-Action: (1,) float32 in [-1, 1], the wheel torque / 29.5 N m (the motor's envelope clamps it).
+Action: (1,) float32 in [-1, 1], the wheel torque / 29.5 N m (the motor's envelope clamps it). A
+finite action outside [-1, 1] is clipped to it, as gymnasium's continuous-control envs (Pendulum,
+LunarLander, MountainCarContinuous) do and as the motor would saturate; one that is not a single
+finite number (NaN, inf, another shape) raises InvalidAction before anything is simulated.
 Reward, per step: -(pitch / 2 deg)^2 * dt * W_PITCH - a^2 * dt * W_TORQUE - W_ENERGY * (electrical
 J); at each touchdown -min((pitch / 1 deg)^2 + (rate / 20 deg/s)^2, 25) (true pitch and rate);
 a fall ends the episode with FALL_PENALTY.
@@ -27,18 +30,23 @@ import numpy as np
 from gymnasium import spaces
 
 from hopper.config import (
+    GRAVITY_LIMITS,
     GRAVITY_PRESETS,
     MOTOR_RESISTANCE,
     MOTOR_TORQUE_CONSTANT,
     WHEEL_GEAR,
     WHEEL_TORQUE_LIMIT,
+    GaitParams,
+    InvalidConfig,
     SensingParams,
     SimConfig,
 )
 from hopper.control import EV_FALL, EV_LIFTOFF, EV_TOUCHDOWN
-from hopper.control.gait import momentum_capacity
+from hopper.control.gait import held_gravity, momentum_capacity
 from hopper.controllers.api import Observation
 from hopper.controllers.features import HIGH, LOW, SIZE, PitchIntegral, features
+from hopper.disturbances import DISTURBANCE_LIMITS
+from hopper.errors import HopperError
 from hopper.sim import Simulation
 
 ENV_ID = "hopper/FlightAttitude-v0"
@@ -55,6 +63,17 @@ MISMATCH_RANGES = {
     "friction": (0.6, 1.2),
 }
 GYRO_BIAS_RANGE = (0.0, 1.0)  # deg/s turn-on bias, drawn when `randomise` (realistic sensing)
+SEED_DRAW_LIMIT = 2**63  # terrain seeds are drawn as numpy int64: the largest `high` it takes
+
+
+class InvalidAction(HopperError, ValueError):
+    """An action that is not one finite number; nothing was simulated."""
+
+
+def max_kick_fraction() -> float:
+    """The largest kick_fraction whose kicks the simulation takes: its pitch_kick limit (N m s) over
+    the wheel's momentum capacity (N m s)."""
+    return DISTURBANCE_LIMITS["pitch_kick"][0] / momentum_capacity()
 
 
 class EnvLaw:
@@ -85,12 +104,84 @@ class EnvOptions:
     sensing: Literal["ideal", "realistic"] = "ideal"
     flights: int = 1  # flights an episode lasts
     kick_probability: float = 0.0  # per flight: a pitch kick at a random moment, 0.1-0.8 of the predicted flight
-    kick_fraction: float = 0.5  # the largest kick, x the wheel's momentum capacity (1.51 N m s)
+    kick_fraction: float = 0.5  # the largest kick, x the wheel's momentum capacity (1.60 N m s)
     randomise: bool = False  # mismatch factors (MISMATCH_RANGES) and the gyro's turn-on bias
 
     def __post_init__(self) -> None:
-        if self.flights < 1 or not 0.0 <= self.kick_probability <= 1.0:
-            raise ValueError("flights must be >= 1 and kick_probability in [0, 1]")
+        # Every option is checked here, not when an episode first meets it (a kick mid-episode, a
+        # gravity drawn at reset): one line naming the option, its value and what is accepted.
+        object.__setattr__(self, "gravity", _gravity(self.gravity))
+        SimConfig(terrain=self.terrain, sensing=self.sensing)  # the simulation's own words for these
+        object.__setattr__(self, "terrain_seeds", _seeds(self.terrain_seeds))
+        if not _integer(self.flights) or self.flights < 1:
+            raise InvalidConfig(f"flights must be an integer >= 1, got {self.flights!r}")
+        _number("kick_probability", self.kick_probability, 0.0, 1.0, "")
+        _number("kick_fraction", self.kick_fraction, 0.0, max_kick_fraction(),
+                f" x the wheel's momentum capacity (its kicks stay within the simulation's "
+                f"{DISTURBANCE_LIMITS['pitch_kick'][0]:g} {DISTURBANCE_LIMITS['pitch_kick'][1]})")  # fmt: skip
+        if not isinstance(self.randomise, (bool, np.bool_)):
+            raise InvalidConfig(f"randomise must be True or False, got {self.randomise!r}")
+
+    @classmethod
+    def of(cls, base: EnvOptions | None, overrides: dict[str, Any]) -> EnvOptions:
+        """`base` (None: the defaults) with `overrides`; InvalidConfig names an unknown option."""
+        names = [f.name for f in dataclasses.fields(cls)]
+        unknown = sorted(str(k) for k in overrides if k not in names)
+        if unknown:
+            raise InvalidConfig(f"unknown option {', '.join(unknown)}; the options: {', '.join(names)}")
+        return dataclasses.replace(base, **overrides) if base is not None else cls(**overrides)
+
+
+def _integer(value: object) -> bool:
+    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+
+
+def _within(value: object, low: float, high: float) -> bool:
+    """A finite number (not a bool) in [low, high]."""
+    number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+    return number and math.isfinite(value) and low <= value <= high  # type: ignore[operator, arg-type]
+
+
+def _number(name: str, value: object, low: float, high: float, unit: str) -> float:
+    if not _within(value, low, high):
+        raise InvalidConfig(f"{name} must be a finite number in [{low:g}, {high:g}]{unit}, got {value!r}")
+    return float(value)  # type: ignore[arg-type]
+
+
+def gravity_limits() -> tuple[float, float, str]:
+    """(low, high, why) m/s^2: the gravities a Simulation of the packaged robot accepts: the config's
+    GRAVITY_LIMITS, and below the one its legs cannot hold it at (hopper.control.gait.derive refuses)."""
+    low, high = GRAVITY_LIMITS
+    held = math.nextafter(held_gravity(GaitParams()), 0.0)
+    return (low, held, " (above, the legs cannot hold the robot)") if held < high else (low, high, "")
+
+
+def _gravity(value: object) -> float | tuple[float, float]:
+    """A gravity (m/s^2) or a (low, high) range of them, inside gravity_limits()."""
+    low, high, why = gravity_limits()
+    if not isinstance(value, (tuple, list)):
+        return _number("gravity", value, low, high, " m/s^2" + why)
+    if not (len(value) == 2 and all(_within(v, low, high) for v in value)):
+        raise InvalidConfig(
+            f"gravity range must be (low, high), each a finite number in [{low:g}, {high:g}] m/s^2{why}, got {value!r}"
+        )
+    if value[0] > value[1]:
+        raise InvalidConfig(f"gravity range must be (low, high) with low <= high, got {value!r}")
+    return float(value[0]), float(value[1])
+
+
+def _seeds(value: object) -> tuple[int, int]:
+    """A [low, high) range of terrain seeds the simulation takes and numpy can draw."""
+    if not (isinstance(value, (tuple, list)) and len(value) == 2 and all(_integer(v) for v in value)):
+        raise InvalidConfig(f"terrain_seeds must be a (low, high) pair of integers, got {value!r}")
+    low, high = int(value[0]), int(value[1])
+    if not 0 <= low < high <= SEED_DRAW_LIMIT:
+        raise InvalidConfig(
+            f"terrain_seeds must be (low, high) with 0 <= low < high <= 2^63 (drawn in [low, high)), got {value!r}"
+        )
+    for seed in (low, high - 1):
+        SimConfig(seed=seed)  # the simulation's own bound on a seed
+    return low, high
 
 
 class FlightAttitudeEnv(gym.Env):
@@ -99,7 +190,7 @@ class FlightAttitudeEnv(gym.Env):
     metadata = {"render_modes": []}
 
     def __init__(self, **options: Any) -> None:
-        self.options = EnvOptions(**options)
+        self.options = EnvOptions.of(None, options)
         self.observation_space = spaces.Box(LOW, HIGH, (SIZE,), np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
         self.sim: Simulation | None = None
@@ -108,7 +199,7 @@ class FlightAttitudeEnv(gym.Env):
     # -- gymnasium ------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
         super().reset(seed=seed)
-        o = dataclasses.replace(self.options, **(options or {}))
+        o = EnvOptions.of(self.options, options or {})
         self._episode = o
         config = self._draw_config(o)
         if self.sim is None:
@@ -124,7 +215,9 @@ class FlightAttitudeEnv(gym.Env):
         return obs, info
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
-        a = float(np.clip(np.asarray(action, dtype=float).reshape(-1)[0], -1.0, 1.0))
+        if self.sim is None:
+            raise gym.error.ResetNeeded("call reset() before step()")
+        a = _action(action)
         low, high = self.law.obs.torque_bounds
         tau = min(max(a * WHEEL_TORQUE_LIMIT, low), high)
         self.law.torque = a * WHEEL_TORQUE_LIMIT
@@ -141,8 +234,8 @@ class FlightAttitudeEnv(gym.Env):
     def _draw_config(self, o: EnvOptions) -> SimConfig:
         rng = self.np_random
         g = o.gravity
-        if isinstance(g, (tuple, list)):
-            g = float(math.exp(rng.uniform(math.log(g[0]), math.log(g[1]))))
+        if isinstance(g, tuple):  # clipped: exp(log(low)) may fall an ulp outside the range
+            g = min(max(float(math.exp(rng.uniform(math.log(g[0]), math.log(g[1])))), g[0]), g[1])
         mismatch, sensor = (), SensingParams()
         if o.randomise:
             mismatch = tuple((k, float(rng.uniform(*r))) for k, r in MISMATCH_RANGES.items())
@@ -187,7 +280,8 @@ class FlightAttitudeEnv(gym.Env):
         o, rng = self._episode, self.np_random
         kick, at, size = rng.uniform() < o.kick_probability, rng.uniform(0.1, 0.8), rng.uniform(-1.0, 1.0)
         self._kick_at = float(at) if kick else math.inf  # fraction of the predicted flight
-        self._kick_size = float(size) * o.kick_fraction * momentum_capacity()  # N m s
+        limit = DISTURBANCE_LIMITS["pitch_kick"][0]  # kick_fraction <= limit / capacity, but for rounding
+        self._kick_size = min(max(float(size) * o.kick_fraction * momentum_capacity(), -limit), limit)  # N m s
 
     def _landing(self) -> float:
         s = self.sim.state()
@@ -205,6 +299,22 @@ class FlightAttitudeEnv(gym.Env):
         if hops and hops[-1].completed:
             info["landing_error_deg"] = hops[-1].landing_error_deg  # signed, deg, the last touchdown's
         return info
+
+
+def _action(action: object) -> float:
+    """The action as a float in [-1, 1]; InvalidAction if it is not one finite number."""
+    try:
+        if action is None:  # numpy reads it as NaN
+            raise TypeError
+        a = np.asarray(action, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidAction(f"action must be one finite number in [-1, 1], got {action!r:.60}") from None
+    if a.size != 1:
+        raise InvalidAction(f"action must be one number in [-1, 1] (shape (1,)), got shape {a.shape}")
+    value = float(a.reshape(-1)[0])
+    if not math.isfinite(value):
+        raise InvalidAction(f"action must be a finite number in [-1, 1], got {value}")
+    return min(max(value, -1.0), 1.0)  # outside: clipped, as the motor saturates
 
 
 def make_vector(n: int, **options: Any) -> gym.vector.SyncVectorEnv:

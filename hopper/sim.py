@@ -18,6 +18,7 @@ import numpy as np
 
 from hopper.ballistics import Ground, predict
 from hopper.config import (
+    GRAVITY_LIMITS,
     Gains,
     InvalidConfig,
     SimConfig,
@@ -613,7 +614,7 @@ class Simulation:
         self._emit(SensingChanged(sensing))
 
     def set_gravity(self, gravity: float) -> None:
-        require_finite("gravity", gravity, 0.05, 30.0, "m/s^2")
+        require_finite("gravity", gravity, *GRAVITY_LIMITS, "m/s^2")
         self._reconfigure(gravity=gravity)
         self.model.opt.gravity[2] = -gravity
         self.law.configure(ControllerContext(self.config, self.model))

@@ -96,6 +96,11 @@ def leg_force_limit(height: float, robot: Robot = PACKAGED) -> float:
     return 2.0 * robot.leg_torque_limit / (robot.thigh * bend)
 
 
+def held_gravity(gait: GaitParams, robot: Robot = PACKAGED) -> float:
+    """The gravity (m/s^2) at which the legs, crouched, just hold the robot: `derive` refuses it and above."""
+    return leg_force_limit(gait.crouch_height, robot) / robot.mass
+
+
 def momentum_capacity(robot: Robot = PACKAGED) -> float:
     """The wheel's momentum capacity, N m s: (I_w + armature) * no-load speed (PHYSICS.md)."""
     return robot.momentum_capacity
@@ -159,7 +164,7 @@ def derive(gravity: float, gait: GaitParams, robot: Robot = PACKAGED) -> Gait:
     r = math.sqrt(g / z) / math.sqrt(MOON_GRAVITY / z)  # w0 / w0_moon = sqrt(g / g_moon)
     # Net upward acceleration the legs can give, and the hop a landing can absorb with it over the
     # stroke from the flight length down to the crouch (v^2 = 2 a d, v^2 = 2 g h).
-    strength = leg_force_limit(gait.crouch_height, robot) / robot.mass - g
+    strength = held_gravity(gait, robot) - g
     if strength <= 0.0:
         raise ValueError(f"the legs cannot hold the robot at {g:g} m/s^2 (crouched, {robot.leg_torque_limit:g} N m)")
     stroke = gait.flight_length - gait.crouch_height

@@ -2,11 +2,16 @@
 
 A spec is one of:
 - a built-in name: `pid` (the paper's, the default), `lqr`, `mpc`, `policy`;
+- `policy:FILE`: the learned law flying the weights in FILE (hopper.laws.policy; `policy` alone: the
+  shipped ones). A built-in whose class has `from_file(path)` takes a file this way; the name before
+  the colon is the built-in's, never a module's;
 - `tcp://127.0.0.1:PORT`: a controller in another process (hopper.laws.remote's protocol);
 - `path/to/file.py:ClassName` or `package.module:ClassName`;
 - the name of an entry point in the `hopper.controllers` group (an installed package's).
 
-The built-ins load through the same path as a user's class: by their `module:Class` string.
+The built-ins load through the same path as a user's class: by their `module:Class` string. A spec
+is a string that travels to worker processes, Ray and saved files: every path in it is made
+absolute where it is parsed (`canonical`), so that a process started elsewhere finds the same file.
 """
 
 from __future__ import annotations
@@ -37,15 +42,35 @@ def canonical(spec: str) -> str:
     spec = spec.strip()
     if not spec:
         raise ControllerError("empty controller spec; " + _choices())
+    builtin, file = file_argument(spec)
+    if file is not None and file.strip():  # none: refused by load_class, as a bad spec is
+        return f"{builtin}:{Path(file.strip()).expanduser().resolve()}"
     path, sep, name = spec.rpartition(":")
     if sep and path.endswith(".py") and not spec.startswith(REMOTE_PREFIX):
         return f"{Path(path).expanduser().resolve()}:{name}"
     return spec
 
 
+def file_argument(spec: str) -> tuple[str, str | None]:
+    """(built-in, FILE) for a spec `built-in:FILE` (`policy:weights.json`), else (spec, None)."""
+    name, sep, file = spec.partition(":")
+    return (name, file) if sep and name in BUILTIN else (spec, None)
+
+
 def load_class(spec: str) -> type:
-    """The controller class a spec names, or ControllerError saying what was wrong and what is allowed."""
+    """The controller class a spec names, or ControllerError saying what was wrong and what is allowed.
+    A `built-in:FILE` spec's file is read and checked too (`from_file`): refused here, before any work."""
     spec = canonical(spec)
+    builtin, file = file_argument(spec)
+    if file is not None:
+        if not file.strip():
+            raise ControllerError(f"{spec!r} names no file: give {builtin}:FILE")
+        cls = load_class(builtin)
+        from_file = getattr(cls, "from_file", None)
+        if from_file is None:
+            raise ControllerError(f"{builtin} takes no file after a colon (policy:FILE does: its weights)")
+        from_file(file)  # ControllerError in one line: missing, damaged, another layout
+        return cls
     if spec.startswith(REMOTE_PREFIX):
         spec = "hopper.laws.remote:RemoteController"
     target = BUILTIN.get(spec) or _entry_point(spec) or spec
@@ -96,7 +121,7 @@ def build(spec: str, values: Mapping[str, float] | Iterable[tuple[str, float]] =
         names = ", ".join(params) or "none"
         raise ControllerError(f"{cls.__name__} has no parameter {', '.join(unknown)} (its parameters: {names})")
     try:
-        controller = cls(spec) if spec.startswith(REMOTE_PREFIX) else cls()
+        controller = _construct(cls, spec)
     except ControllerError:
         raise
     except Exception as exc:
@@ -107,9 +132,17 @@ def build(spec: str, values: Mapping[str, float] | Iterable[tuple[str, float]] =
     return controller
 
 
+def _construct(cls: type, spec: str) -> object:
+    """The instance: from the spec's file, with the remote's address, or with no argument."""
+    file = file_argument(spec)[1]
+    if file is not None:
+        return cls.from_file(file)  # type: ignore[attr-defined]
+    return cls(spec) if spec.startswith(REMOTE_PREFIX) else cls()
+
+
 def _choices() -> str:
     names = [*BUILTIN, *(ep.name for ep in _entry_points())]
-    return f"choose {', '.join(names)}, FILE.py:Class, package.module:Class or tcp://127.0.0.1:PORT"
+    return f"choose {', '.join(names)}, policy:FILE, FILE.py:Class, package.module:Class or tcp://127.0.0.1:PORT"
 
 
 def _entry_points() -> list[importlib.metadata.EntryPoint]:

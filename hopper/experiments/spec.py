@@ -41,7 +41,16 @@ from typing import Any
 
 import numpy as np
 
-from hopper.config import GAIN_RANGES, GRAVITY_PRESETS, Gains, GaitParams, InvalidConfig, SimConfig, require_finite
+from hopper.config import (
+    GAIN_RANGES,
+    GRAVITY_LIMITS,
+    GRAVITY_PRESETS,
+    Gains,
+    GaitParams,
+    InvalidConfig,
+    SimConfig,
+    require_finite,
+)
 from hopper.control.phases import Phase
 from hopper.controllers import ControllerError, load_class, with_controller
 from hopper.controllers.loading import canonical, declared_params
@@ -412,7 +421,7 @@ def _gravity(value: Any) -> float:
         return GRAVITY_PRESETS[value.lower()]
     g = _number("gravity", value)
     try:
-        require_finite("gravity", g, 0.05, 30.0, "m/s^2")
+        require_finite("gravity", g, *GRAVITY_LIMITS, "m/s^2")
     except InvalidConfig as exc:
         raise SpecError(str(exc)) from None
     return g

@@ -85,6 +85,8 @@ class Weights:
 def load_weights(path: str | Path | None = None) -> Weights:
     """Weights from `path` (default: the shipped file), or ControllerError in one line saying why."""
     where = str(path) if path is not None else f"hopper.laws/{WEIGHTS_FILE}"
+    if path is not None and not Path(path).is_file():
+        raise ControllerError(f"policy weights {where}: no such file")
     try:
         file = Path(path) if path is not None else resources.files("hopper.laws").joinpath(WEIGHTS_FILE)
         doc = json.loads(file.read_text())
@@ -112,14 +114,21 @@ def load_weights(path: str | Path | None = None) -> Weights:
 
 
 class Policy:
-    """The shipped learned law (`--controller policy`), about 10 us a call. Its one state is the
-    pitch integral, reset at each liftoff and integrated unless the command saturates, as PaperPID's."""
+    """The shipped learned law (`--controller policy`), about 10 us a call; `--controller policy:FILE`
+    flies FILE's weights (`from_file`). Its one state is the pitch integral, reset at each liftoff
+    and integrated unless the command saturates, as PaperPID's."""
 
     weights_path: str | None = None  # a subclass may point at other weights; None: the shipped file
 
     def __init__(self, weights: Weights | None = None) -> None:
         self.weights = weights if weights is not None else load_weights(self.weights_path)
         self.integral = PitchIntegral()
+
+    @classmethod
+    def from_file(cls, path: str | Path) -> Policy:
+        """The law flying the weights in `path` (hopper.controllers.loading's `policy:FILE`), or
+        ControllerError in one line: missing, unreadable, damaged, or trained for another layout."""
+        return cls(load_weights(path))
 
     def reset(self, obs: Observation) -> None:
         self.integral.reset()
