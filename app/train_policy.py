@@ -195,7 +195,7 @@ def train(args: argparse.Namespace, cma: ModuleType, pool: multiprocessing.pool.
             "validation_return": -best_score, "test": judged, "start": {"pid": dataclasses.asdict(gains)},
             "train_s": round(elapsed, 1), "episode": dict(EPISODE)}  # fmt: skip
     Weights.unflat(best, args.hidden).save(args.out, meta)
-    print(f"wrote {args.out}")
+    print(f"wrote {args.out}; fly it: hopper-sim run --controller policy:{args.out}")
     return 0
 
 
