@@ -196,6 +196,21 @@ def test_a_killed_runs_leftovers_are_cleaned_and_another_spec_is_refused(tmp_pat
     assert result.returncode == 2 and "holds another sweep" in result.stderr, result.stderr
 
 
+def test_two_stores_of_one_process_within_a_second_keep_each_others_parts(tmp_path: Path) -> None:
+    """Parts were named by the second and the pid: a second store of one process within the same
+    second (a resume right after a first run, in one Python session) overwrote the first's part 1."""
+    spec = parse_spec({"kp": [300, 600], "seeds": 1, "hops": 1})
+    first, second = spec.episodes()
+    for episode in (first, second):
+        store = SweepStore(tmp_path, spec)
+        store.open()
+        store.add([Worker().run(episode)])
+        store.flush()
+    assert sorted(SweepStore(tmp_path, spec).read_episodes().column("episode_id").to_pylist()) == sorted(
+        [first.episode_id, second.episode_id]
+    )
+
+
 def test_a_mixed_sweep_written_before_the_gain_axes_were_the_pids_counts_each_episode_once(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import secrets
 import time
 import typing
 from pathlib import Path
@@ -93,7 +94,9 @@ class SweepStore:
         self.episode_schema, self.hop_schema = schemas(spec)
         self._pending: list[EpisodeResult] = []
         self._last_flush = time.monotonic()
-        self._stamp = f"{time.strftime('%Y%m%dT%H%M%S')}-{os.getpid()}"  # parts of this run
+        # Parts of this run. The second and the pid alone named two stores of one process alike within
+        # a second, and the second's part 1 overwrote the first's (a resumed sweep lost its rows).
+        self._stamp = f"{time.strftime('%Y%m%dT%H%M%S')}-{os.getpid()}-{secrets.token_hex(4)}"
         self._parts = 0
 
     def check(self) -> set[str]:
