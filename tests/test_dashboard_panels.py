@@ -250,6 +250,31 @@ def test_a_param_value_the_controller_refuses_is_one_line_and_the_slider_and_box
         probe.close()
 
 
+def test_a_controllers_params_are_flown_again_when_it_is_chosen_again(start: Any) -> None:
+    """MPC's pitch_tol set to 7, then LQR, then MPC: it came back at its default 5, where the PID's
+    gains survive a switch (the Gains panel keeps them)."""
+    d = start()
+    probe = ProbeClient(d.url)
+    try:
+        assert wait_until(lambda: d.roles.operator is not None)
+        panel = d.layout.controller
+        probe.set_gui_value("Controller", "mpc")
+        assert wait_until(lambda: "pitch_tol" in panel.entries, timeout=60), "MPC's params were never shown"
+        box = panel.entries["pitch_tol"].handle
+        assert probe.wait_for(lambda p: compat.element_id(box) in p.gui), "the page never got the box"
+        probe.send({"type": "GuiUpdateMessage", "uuid": compat.element_id(box), "updates": {"value": "7"}})
+        assert wait_until(lambda: d.sim.law.spec == "mpc" and d.sim.law.values["pitch_tol"] == 7.0, timeout=60)
+        for spec in ("lqr", "mpc"):
+            probe.set_gui_value("Controller", spec)
+            assert wait_until(lambda spec=spec: d.sim.law.spec == spec, timeout=60), spec
+        assert d.sim.law.values["pitch_tol"] == 7.0
+        assert wait_until(
+            lambda: panel.entries.get("pitch_tol") is not None and panel.entries["pitch_tol"].value == 7.0
+        )
+    finally:
+        probe.close()
+
+
 # -- typed numbers ---------------------------------------------------------------------------------
 @pytest.mark.parametrize(
     "text, value",
@@ -517,6 +542,14 @@ def test_a_rewound_trail_ends_at_the_moment_shown_until_the_run_goes_on_from_the
         assert trail.points == regrown and shows_the_path(), sorted(drawn())
         trail.rewind(len(path) * step, *regrown[-1])
         assert trail.points == regrown  # the path it left is gone
+        # A moment older than the path's oldest point (History reaches 40 s back, the trail 15): nothing
+        # drawn there, and the path is there again at a later moment (it was forgotten).
+        trail.rewind(-1.0, *regrown[0])
+        trail.publish()
+        assert trail.points == [] and probe.wait_for(lambda p: drawn_to() == -1.0, timeout=20)
+        trail.rewind(cut * step, *regrown[cut])
+        trail.publish()
+        assert trail.points == regrown[: cut + 1] and shows_the_path(), sorted(drawn())
         trail.rewind(cut * step, 50.0, 0.3)  # a moment the path does not lead to (a keyframe from elsewhere)
         trail.publish()
         assert trail.points == [] and probe.wait_for(lambda p: drawn_to() == -1.0, timeout=20)
@@ -538,12 +571,18 @@ def test_a_history_further_back_than_it_reaches_is_clamped_with_a_notice(
     client.set_gui_value("Back (s)", -100.0)
     assert client.wait_for(lambda p: len(bodies(p, "Back clamped")) == 2), client.notifications
     body = bodies(client, "Back clamped")[1]
-    assert body.startswith("Back: the history holds ") and body.endswith(" s; showing its oldest moment")
-    held = float(body.removeprefix("Back: the history holds ").split(" s;")[0])
+    # The slider's -100 is its -40 first (no page sends past a slider's end), then the history's span.
+    assert body.startswith("Back 40 s: the history holds ") and body.endswith(" s; showing its oldest moment")
+    held = float(body.removeprefix("Back 40 s: the history holds ").split(" s;")[0])
     replay = dashboard.layout.replay
     assert wait_until(lambda: replay.scrubbed is not None)
     assert replay.scrub.value == pytest.approx(-held, abs=0.051)  # the box shows it (to the line's 0.1 s)
     assert f"({held:.1f} s back of " in replay.scrub_info.content
+    # Typed, one notice, with what was typed: the box clamped to 40 s first, then the history to 39.9.
+    client.set_gui_value("s back", "1000")
+    assert client.wait_for(lambda p: len(bodies(p, "Back clamped")) == 3), client.notifications
+    assert bodies(client, "Back clamped")[2].startswith("Back 1000 s: the history holds ")
+    assert not bodies(client, "Value clamped"), client.notifications
 
 
 def test_back_is_typed_in_seconds_ago_and_the_log_tells_each_restore_and_resume(

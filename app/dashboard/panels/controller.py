@@ -56,6 +56,9 @@ class ControllerPanel:
     entries: dict[str, NumberEntry] = dataclasses.field(default_factory=dict)  # the typed boxes, by param
     flying: str = "pid"
     _built: tuple[str, tuple[Param, ...]] | None = None  # (spec, params) the handles were built for
+    # Each controller's params as last flown this session: switching back flies them again, as the
+    # PID keeps its gains (the Gains panel's), rather than the law's defaults.
+    remembered: dict[str, dict[str, float]] = dataclasses.field(default_factory=dict)
     _style: viser.GuiHtmlHandle | None = None  # hides the sliders' own boxes
     # Values sent and not yet back (each applied one is a ControllerChanged): while more are on their
     # way (a drag sends many), the older ones coming back must not move the slider under the pointer.
@@ -69,6 +72,8 @@ class ControllerPanel:
         """
         with self._lock:
             self.flying = law.spec
+            if law.params:
+                self.remembered[law.spec] = dict(law.values)
             if law.spec not in self.choice.options:
                 self.choice.options = (*self.choice.options, law.spec)
             self.choice.value = law.spec
@@ -203,7 +208,8 @@ def build_controller_panel(
     def on_choice(event: viser.GuiEvent) -> None:
         if event.client is None or panel.choice.value == panel.flying:
             return
-        ctx.submit(SetController(panel.choice.value))
+        spec = panel.choice.value
+        ctx.submit(SetController(spec, tuple(panel.remembered.get(spec, {}).items())))
 
     panel.choice.on_update(on_choice)
     return panel

@@ -17,7 +17,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Protocol
 
 import viser
-from hopper.app.dashboard.feedback import checked, guarded, notify
+from hopper.app.dashboard.feedback import checked, format_number, guarded, notify
 from hopper.app.dashboard.panels import PanelContext
 from hopper.app.dashboard.panels.entry import NumberEntry, hide_slider_boxes
 from hopper.app.dashboard.plots import ReflyPlots
@@ -163,7 +163,8 @@ class ReplayPanel:
         the history's oldest if it holds less; slider and box show the moment shown."""
         span = self.host.history.span
         if seconds > span:  # further back than the history reaches: its oldest moment
-            seconds, message = span, f"Back: the history holds {span:.1f} s; showing its oldest moment"
+            asked, seconds = seconds, span
+            message = f"Back {format_number(asked)} s: the history holds {span:.1f} s; showing its oldest moment"
         if message:
             notify(client, "Back clamped", message, "warning")
         self._show_back(seconds)
@@ -278,9 +279,8 @@ def build_replay_panel(
             "Back (s)", -RING_SPAN_S, 0.0, SCRUB_STEP_S, 0.0, marks=marks, hint="Pause and show the robot this long ago"
         )
         hint = f"Type how many seconds back, 0 to {RING_SPAN_S:g}; applied after a pause"
-        back = NumberEntry(
-            gui.add_text("s back", "", hint=hint), "Back", 0.0, RING_SPAN_S, "s", value=0.0, magnitude=True
-        )
+        # No top of its own: go_back clamps to what the history holds, in one notice (two said 40 and 39.9).
+        back = NumberEntry(gui.add_text("s back", "", hint=hint), "Back", 0.0, math.inf, "s", value=0.0, magnitude=True)
         hide_slider_boxes(gui, [scrub])
         scrub_info = gui.add_html(_scrub_html(None, 0.0, 0.0))
         resume_here = gui.add_button("Resume from here", icon=viser.Icon.PLAYER_PLAY, color="green")
@@ -307,7 +307,7 @@ def build_replay_panel(
         panel.go_back(0.0 - value, event.client, message)
 
     scrub.on_update(on_scrub)
-    back.on_apply = panel.go_back  # (seconds, client): out of [0, RING_SPAN_S] the box clamps and says so
+    back.on_apply = panel.go_back  # (seconds, client): beyond the history, go_back clamps and says so
     resume_here.on_click(guarded(lambda _: panel.resume()))
 
     @guarded
