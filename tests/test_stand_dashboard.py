@@ -111,6 +111,11 @@ def test_a_chirp_injected_live_on_the_stand_is_measured_and_drawn(dashboard: Das
     assert sim.injection is None  # nothing was played
 
     client.set_gui_value("To (Hz)", "200")
+    client.set_gui_value("From (Hz)", "250")  # said in the boxes' names, not ChirpSpec's f_min and f_max
+    client.set_gui_value("Inject", True)
+    said = "From (250 Hz) must be below To (200 Hz)"
+    assert client.wait_for(lambda p: said in [n["body"] for n in p.notifications]), client.notifications
+    client.set_gui_value("From (Hz)", "1")
     client.set_gui_value("Length (s)", "3")
     asked = sim.time  # s of simulation: the injection starts after the press and before the test sees it
     client.set_gui_value("Inject", True)
@@ -129,6 +134,8 @@ def test_a_chirp_injected_live_on_the_stand_is_measured_and_drawn(dashboard: Das
     client.set_gui_value("Reset robot", True)  # a reset ends it, and says so
     assert client.wait_for(lambda p: "Injection stopped" in titles(p)), titles(client)
     assert "reset" in client.notifications[-1]["body"]
+    status = dashboard.layout.stand.inject.status.content
+    assert "stopped after " in status and " of 3 s: " in status, status  # seconds, as the chirp's length
 
 
 def test_the_chirp_boxes_clamp_to_what_a_chirp_takes_and_say_which_limit(

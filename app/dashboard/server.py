@@ -22,6 +22,7 @@ from hopper.app.dashboard.layout import Layout, build_layout
 from hopper.app.dashboard.loop_commands import Pause, Restore, SetMode, SetSpeed, StayFallen, Steps
 from hopper.app.dashboard.pacing import Pacer, chart_scale
 from hopper.app.dashboard.panels import PanelContext
+from hopper.app.dashboard.panels.stand import MODES as MODE_LABELS
 from hopper.app.dashboard.panels.status import Status
 from hopper.app.dashboard.physics import PhysicsView, bind_drag
 from hopper.app.dashboard.plots import PLOT_SAMPLE_S, PLOT_WINDOW_S
@@ -295,7 +296,8 @@ class Dashboard:
             return
         old.apply_pending()  # what came in meanwhile acts on the old one; the next goes to the new
         if isinstance(old, StandSimulation):
-            old.stop_injection(f"the mode changed to {mode}")  # it would play into the old one's memory
+            label = next(k for k, v in MODE_LABELS.items() if v == mode)  # as the Mode menu says it
+            old.stop_injection(f"the mode changed to {label}")  # it would play into the old one's memory
         new.listeners[:] = old.listeners
         new.run_index = old.run_index  # one session, one numbering: the event log's "run N" goes on
         self.sim, self.mode, self._held = new, mode, None

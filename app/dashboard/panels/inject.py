@@ -21,7 +21,7 @@ import math
 from concurrent.futures import ThreadPoolExecutor
 
 import viser
-from hopper.app.dashboard.feedback import guarded, notify
+from hopper.app.dashboard.feedback import format_number, guarded, notify
 from hopper.app.dashboard.panels import PanelContext, measured
 from hopper.app.dashboard.panels.entry import NumberEntry
 
@@ -86,6 +86,10 @@ class InjectPanel:
         if None in values:
             return None  # the entry has said why
         f_min, f_max, amplitude, length = values
+        if f_min >= f_max:  # ChirpSpec says it in its own terms (f_min, f_max): here, the boxes'
+            notify(client, "Chirp refused", f"From ({format_number(f_min)} Hz) must be below To "
+                   f"({format_number(f_max)} Hz)", "warning")  # fmt: skip
+            return None
         at = AT[str(self.at.value)]
         if at == "reference":  # the box's limit in deg, back in rad: never past ChirpSpec's by a rounding
             amplitude = min(math.radians(amplitude), chirp_limits(at)["amplitude"].high)
@@ -113,8 +117,9 @@ class InjectPanel:
     def _played(self, injection: Injection, spec: ChirpSpec, client: viser.ClientHandle | None) -> None:
         """On the loop's thread: hand the records to the worker (or say why there are none)."""
         if injection.stopped:
+            played_s = injection.played * injection.length_s / len(injection.d)
             self.status.content = (
-                f"<div class='hd-measured hd-bad'>stopped after {injection.played} of {len(injection.d)} ticks: "
+                f"<div class='hd-measured hd-bad'>stopped after {played_s:.1f} of {injection.length_s:g} s: "
                 f"{html.escape(injection.stopped)}</div>"
             )
             notify(client, "Injection stopped", injection.stopped, "warning")
