@@ -91,7 +91,10 @@ def test_dashboard_in_a_real_browser(browser, tmp_path: Path) -> None:
 
         def drawn() -> bool:
             nonlocal colours
-            scene.screenshot(path=str(shot))
+            # The page's pixels in the canvas's box: an element's screenshot first waits for two
+            # animation frames with the same box, which a loaded software-WebGL page took over 10 s
+            # to give (the screenshot's timeout, before the poll's own).
+            page.screenshot(path=str(shot), clip=scene.bounding_box())
             colours = distinct_colours(shot)
             return colours >= MIN_CANVAS_COLOURS
 
