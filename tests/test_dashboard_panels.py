@@ -264,6 +264,8 @@ def test_a_controllers_params_are_flown_again_when_it_is_chosen_again(start: Any
         assert probe.wait_for(lambda p: compat.element_id(box) in p.gui), "the page never got the box"
         probe.send({"type": "GuiUpdateMessage", "uuid": compat.element_id(box), "updates": {"value": "7"}})
         assert wait_until(lambda: d.sim.law.spec == "mpc" and d.sim.law.values["pitch_tol"] == 7.0, timeout=60)
+        # The panel learns it from the simulation's ControllerChanged, on the loop's thread, after the law has it.
+        assert wait_until(lambda: panel.remembered.get("mpc", {}).get("pitch_tol") == 7.0, timeout=60)
         for spec in ("lqr", "mpc"):
             probe.set_gui_value("Controller", spec)
             assert wait_until(lambda spec=spec: d.sim.law.spec == spec, timeout=60), spec
