@@ -284,12 +284,11 @@ class Trail:
         not the robot's: it is forgotten."""
         path = self._path + self._ahead
         n = bisect.bisect_right(path, time, key=lambda p: p[0])  # the points up to `time`
-        if n == 0 and path:  # before the path's oldest point (the history reaches further back):
+        if n == 0:  # before the path's oldest point (the history reaches further back than the trail):
             self._path, self._ahead = [], path  # nothing to show there, the path kept for a later moment
-            self._next_time = time
-            self._dirty = True
+            self._next_time, self._dirty = time, True
             return
-        if n == 0 or math.hypot(path[n - 1][1] - x, path[n - 1][2] - z) > TRAIL_JOIN_M:
+        if math.hypot(path[n - 1][1] - x, path[n - 1][2] - z) > TRAIL_JOIN_M:
             self.clear()
             self._next_time = time
             return
