@@ -277,6 +277,52 @@ def test_a_controllers_params_are_flown_again_when_it_is_chosen_again(start: Any
         probe.close()
 
 
+def test_the_flying_law_shown_again_does_not_undo_a_pick_on_its_way(start: Any) -> None:
+    """A param applied to LQR comes back as ControllerChanged(lqr); shown after the operator's pick of
+    MPC had set the selector and before that pick's callback ran, it put LQR back in the selector, the
+    callback read LQR, took it for no change and MPC never flew (CI failed so, once in about 30 runs)."""
+    d = start()
+    probe = ProbeClient(d.url)
+    try:
+        assert wait_until(lambda: d.roles.operator is not None)
+        panel = d.layout.controller
+        probe.set_gui_value("Controller", "lqr")
+        assert wait_until(lambda: panel.flying == "lqr", timeout=60), "LQR never flew"
+        lqr = d.sim.law
+        with panel._lock:  # the panel shows no other law meanwhile: LQR is the one in flight for it
+            probe.set_gui_value("Controller", "mpc")
+            assert wait_until(lambda: panel.choice.value == "mpc"), "the pick never reached the selector"
+            panel.show(lqr)  # the loop shows LQR's values again: a param applied meanwhile
+            assert panel.choice.value == "mpc", "showing the law in flight undid the pick"
+        assert wait_until(lambda: d.sim.law.spec == "mpc" and panel.flying == "mpc", timeout=60), "the pick was lost"
+        assert panel.choice.value == "mpc"
+    finally:
+        probe.close()
+
+
+def test_a_controller_that_cannot_fly_is_refused_and_the_selector_shows_what_flies(start: Any, tmp_path: Path) -> None:
+    broken = tmp_path / "broken.py"
+    broken.write_text(
+        "class Broken:\n"
+        "    def __init__(self):\n"
+        "        raise RuntimeError('no wheel model for this robot')\n"
+        "    def __call__(self, obs):\n"
+        "        return 0.0\n"
+    )
+    spec = f"{broken}:Broken"
+    d = start(controller_choice=(spec,))
+    probe = ProbeClient(d.url)
+    try:
+        assert wait_until(lambda: d.roles.operator is not None)
+        choice = probe.set_gui_value("Controller", spec)
+        assert probe.wait_for(lambda p: bodies(p, "Command failed")), probe.notifications
+        assert "no wheel model for this robot" in bodies(probe, "Command failed")[0]
+        assert probe.wait_for(lambda p: (choice, {"value": "pid"}) in p.gui_log), "the selector still shows Broken"
+        assert d.layout.controller.choice.value == "pid" and d.sim.law.spec == "pid"
+    finally:
+        probe.close()
+
+
 # -- typed numbers ---------------------------------------------------------------------------------
 @pytest.mark.parametrize(
     "text, value",

@@ -509,7 +509,7 @@ class Dashboard:
         elif kind == EventKind.COMMAND_FAILED:
             notify_all(self.server, "Command failed", payload.describe(), "error")
             if payload.command == "SetController":  # the selector shows what flies again
-                layout.controller.show(self.sim.law)
+                layout.controller.refused(self.sim.law)
             elif payload.command == "SetGravity":  # so does the Gravity control
                 layout.terrain.show_gravity(self.sim.config.gravity)
         elif kind == EventKind.CONTROLLER_FAILED:

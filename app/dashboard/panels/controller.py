@@ -71,12 +71,16 @@ class ControllerPanel:
         The same controller with other values (a param changed) keeps its handles and shows the values.
         """
         with self._lock:
+            if law.spec not in self.choice.options:
+                self.choice.options = (*self.choice.options, law.spec)
+            # Only a change of law moves the selector: the same law shown again (a param applied)
+            # must not undo an operator's pick whose callback has not run yet, which then read the
+            # old law back from the selector and was dropped as no change.
+            if law.spec != self.flying:
+                self.choice.value = law.spec
             self.flying = law.spec
             if law.params:
                 self.remembered[law.spec] = dict(law.values)
-            if law.spec not in self.choice.options:
-                self.choice.options = (*self.choice.options, law.spec)
-            self.choice.value = law.spec
             compiled = " · compiled into the kernel" if law.compiled else ""
             failed = f"<div class='hd-bad'>{html.escape(fault)}</div>" if fault else ""
             short = html.escape(law.spec.rpartition("/")[2])  # a file spec by its file's name; the path on hover
@@ -103,6 +107,12 @@ class ControllerPanel:
                     self._add(p, values[p.name])
                 self._style = hide_slider_boxes(self.gui, list(self.sliders.values()))
             self.params.visible = bool(law.params)
+
+    def refused(self, law: FlightLaw) -> None:
+        """Show the law that still flies in the selector, after a pick the simulation refused."""
+        with self._lock:
+            self.choice.value = law.spec
+            self.show(law)
 
     def resync(self, law: FlightLaw) -> None:
         """Show the values in use again, after the simulation refused one (CommandFailed)."""
