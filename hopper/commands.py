@@ -155,8 +155,9 @@ class Inject:
     signal: np.ndarray  # one sample a tick: N m at "input", rad at "reference"
     at: Literal["input", "reference"]
     done: Callable[[Injection], None]
+    what: str = ""  # for the event log: "a 20 s logarithmic chirp, 0.5-40 Hz, 2 N m"
 
     def apply(self, sim: Simulation) -> None:
         if not isinstance(sim, StandSimulation):
             raise InvalidConfig("an injection needs the stand: choose a stand mode first")
-        sim.inject(self.signal, self.at, self.done)
+        sim.inject(self.signal, self.at, self.done, self.what)

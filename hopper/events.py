@@ -36,6 +36,7 @@ class EventKind(enum.StrEnum):
     CONTROLLER_FAILED = "controller_failed"
     RESTORE = "restore"
     RESUME = "resume"
+    INJECTION = "injection"
 
 
 def _hop_text(hop: HopMetrics) -> str:
@@ -280,6 +281,26 @@ class Resumed:
         return "resumed from the moment restored"
 
 
+@dataclasses.dataclass(frozen=True)
+class Injected:
+    """A signal played into the stand's loop (hopper.stand.Injection): one event as it starts, one as
+    it ends."""
+
+    kind: ClassVar[EventKind] = EventKind.INJECTION
+    what: str  # "a 20 s logarithmic chirp, 0.5-40 Hz, 2 N m"
+    at: Literal["input", "reference"]  # added to the wheel torque, or to the pitch reference
+    played_s: float | None = None  # None as it starts; then the seconds it played
+    stopped: str = ""  # why it ended before its last sample ("" if it did not)
+
+    def describe(self) -> str:
+        where = "the wheel torque" if self.at == "input" else "the pitch reference"
+        if self.played_s is None:
+            return f"injecting {self.what} at {where}"
+        if self.stopped:
+            return f"injection stopped after {self.played_s:.1f} s: {self.stopped}"
+        return f"injection played: {self.what} at {where}"
+
+
 OperatorReason = Literal["first", "handed over", "disconnected", "idle"]
 
 
@@ -309,7 +330,7 @@ Payload = (
     | TerrainChanged
     | Disturbance | Dragged
     | DisturbanceArmed | Diverged | CommandFailed | Recording | OperatorChanged | ScheduleChanged
-    | ControllerChanged | ControllerFailed | Restored | Resumed
+    | ControllerChanged | ControllerFailed | Restored | Resumed | Injected
 )  # fmt: skip
 
 

@@ -20,6 +20,7 @@ import mujoco
 import numpy as np
 
 from hopper.config import THIGH_LENGTH, InvalidConfig, SimConfig, require_finite
+from hopper.events import Injected
 from hopper.layout import LEG_JOINTS
 from hopper.model import Derive
 from hopper.sim import Simulation
@@ -129,11 +130,16 @@ class StandSimulation(Simulation):
         super().restore(snap)
 
     def inject(
-        self, d: np.ndarray, at: Literal["input", "reference"], done: Callable[[Injection], None] | None = None
+        self,
+        d: np.ndarray,
+        at: Literal["input", "reference"],
+        done: Callable[[Injection], None] | None = None,
+        what: str = "",
     ) -> Injection:
         """Play `d` (one sample a tick: N m at the wheel torque at "input", rad at the pitch reference
         at "reference") from the next tick, as the loop runs (Injection); refused while another plays.
-        A reset, a restore or stop_injection ends it early."""
+        A reset, a restore or stop_injection ends it early. An Injected event says `what` it is (by
+        default its length and peak) as it starts and as it ends."""
         if self.injection is not None and self.injection.playing:
             played = self.injection
             raise InvalidConfig(
@@ -143,7 +149,18 @@ class StandSimulation(Simulation):
         limit, unit = (self.robot.wheel_torque_limit, "N m") if at == "input" else (REFERENCE_LIMIT, "rad")
         if d.ndim != 1 or not len(d) or not np.isfinite(d).all() or np.abs(d).max() > limit:
             raise InvalidConfig(f"an injection is a non-empty series of finite samples within +-{limit:.3g} {unit}")
-        self.injection = Injection(self, d, at, done, start=self.snapshot(with_hops=False))
+        if not what:
+            peak = float(np.abs(d).max())
+            size = f"{peak:.3g} N m" if at == "input" else f"{math.degrees(peak):.3g} deg"
+            what = f"a {len(d) * self.model.opt.timestep:g} s signal, peak {size}"
+
+        def ended(injection: Injection) -> None:
+            self.emit(Injected(what, at, injection.played * self.model.opt.timestep, injection.stopped))
+            if done is not None:
+                done(injection)
+
+        self.injection = Injection(self, d, at, ended, start=self.snapshot(with_hops=False))
+        self.emit(Injected(what, at))
         return self.injection
 
     def stop_injection(self, why: str) -> None:

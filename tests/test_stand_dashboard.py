@@ -14,6 +14,7 @@ from hopper.app.dashboard.probe import ProbeClient
 from hopper.app.dashboard.server import Dashboard
 from net import wait_until
 
+from hopper.analysis.bench import STAND_AMPLITUDE
 from hopper.analysis.frequency import MAX_LENGTH_S, REFERENCE_LIMIT
 from hopper.commands import Reset
 from hopper.config import WHEEL_TORQUE_LIMIT
@@ -128,6 +129,9 @@ def test_a_chirp_injected_live_on_the_stand_is_measured_and_drawn(dashboard: Das
     assert "crossover" in client.notifications[-1]["body"]
     assert dashboard.layout.stand.inject.bode.visible
     assert dashboard.sim is sim and sim.time > started + 3.0  # the loop ran on through it
+    log = "\n".join(dashboard.layout.events.lines)  # what was injected, as it began and as it ended
+    chirp = f"a 3 s logarithmic chirp, 1-200 Hz, {STAND_AMPLITUDE:.3g} N m at the wheel torque"
+    assert f"injecting {chirp}" in log and f"injection played: {chirp}" in log, log
 
     client.set_gui_value("Inject", True)
     assert wait_until(lambda: sim.injection is not injection and sim.injection.playing)
@@ -136,6 +140,10 @@ def test_a_chirp_injected_live_on_the_stand_is_measured_and_drawn(dashboard: Das
     assert "reset" in client.notifications[-1]["body"]
     status = dashboard.layout.stand.inject.status.content
     assert "stopped after " in status and " of 3 s: " in status, status  # seconds, as the chirp's length
+    stopped = "injection stopped after "
+    assert wait_until(lambda: any(stopped in line for line in dashboard.layout.events.lines)), (
+        dashboard.layout.events.lines
+    )
 
 
 def test_the_chirp_boxes_clamp_to_what_a_chirp_takes_and_say_which_limit(

@@ -4,8 +4,11 @@ listeners); it ends on a reset, a restore or a mode change, and is refused where
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
+from rerun.chunk import RrdReader
 
 from hopper.analysis.bench import compare_stand, measure_stand
 from hopper.analysis.frequency import ChirpSpec, excitation
@@ -14,6 +17,7 @@ from hopper.config import SimConfig
 from hopper.events import EventKind
 from hopper.sim import Simulation
 from hopper.stand import Injection, StandSimulation, record
+from hopper.telemetry.recorder import Telemetry
 
 pytestmark = pytest.mark.unit
 
@@ -90,3 +94,33 @@ def test_an_injection_is_refused_off_the_stand_over_another_or_out_of_range():
         with pytest.raises(Exception, match="non-empty series of finite samples"):
             sim.inject(bad, "input")
     assert not sim.injection.playing
+
+
+def test_an_injection_is_an_event_as_it_starts_and_as_it_ends(tmp_path: Path):
+    """The event log and recordings show what was injected, and how it ended (they showed nothing)."""
+    sim = stand()
+    ended: list[Injection] = []
+    d = excitation(ChirpSpec(f_min=20.0, f_max=100.0, amplitude=0.4, length=0.2))
+    with Telemetry(sim, path=tmp_path / "stand.rrd"):
+        sim.inject(d, "input", ended.append)
+        while not ended:
+            sim.step()
+        sim.inject(excitation(SPEC), "reference", ended.append, what="a 3 s logarithmic chirp, 2-200 Hz, 1 deg")
+        for _ in range(500):
+            sim.step()
+        sim.reset()
+    lines = [
+        "injecting a 0.2 s signal, peak 0.4 N m at the wheel torque",
+        "injection played: a 0.2 s signal, peak 0.4 N m at the wheel torque",
+        "injecting a 3 s logarithmic chirp, 2-200 Hz, 1 deg at the pitch reference",
+        "injection stopped after 0.5 s: the stand was reset (user)",
+    ]
+    assert [e.describe() for e in sim.events if e.kind == EventKind.INJECTION] == lines
+    assert len(ended) == 2, "each injection's own done still heard its end"
+    recorded = [
+        row[0]
+        for chunk in RrdReader(tmp_path / "stand.rrd").stream()
+        if chunk.entity_path == "/events"
+        for row in chunk.to_record_batch().column("TextLog:text").to_pylist()
+    ]
+    assert [text for text in recorded if text.startswith("injection: ")] == [f"injection: {line}" for line in lines]

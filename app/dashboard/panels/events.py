@@ -33,6 +33,7 @@ SHOWN = frozenset(
         EventKind.CONTROLLER_FAILED,
         EventKind.RESTORE,
         EventKind.RESUME,
+        EventKind.INJECTION,
     }
 )
 QUIET_RESETS = ("start", "terrain", "diverged")  # the event that caused them is shown already

@@ -48,6 +48,16 @@ def amplitude_limit(at: str) -> Limit:
     return limit._replace(high=round(math.degrees(limit.high), 9), unit="deg")
 
 
+def describe(spec: ChirpSpec) -> str:
+    """The chirp in the event log's words: "a 20 s logarithmic chirp, 0.5-40 Hz, 2 N m"."""
+    size = f"{spec.amplitude:.3g} N m" if spec.at == "input" else f"{math.degrees(spec.amplitude):.3g} deg"
+    band = f"{spec.f_min:g}-{spec.f_max:g} Hz, {size}"
+    if spec.kind == "stepped":
+        return f"{spec.length:g} s of stepped sines, {band}"
+    words = {"log": "logarithmic", "linear": "linear"}[spec.kind]
+    return f"a {spec.length:g} s {words} chirp, {band}"
+
+
 def bound(entry: NumberEntry, limit: Limit) -> None:
     """Give a box the range it clamps (or refuses) typed numbers to."""
     entry.low, entry.high, entry.unit = limit.low, limit.high, limit.unit
@@ -112,7 +122,11 @@ class InjectPanel:
             f"<div class='hd-measured hd-dim'>injecting a {spec.length:g} s {html.escape(spec.kind)} chirp, "
             f"{spec.f_min:g}-{spec.f_max:g} Hz, at {where}…</div>"
         )
-        self.ctx.submit(Inject(excitation(spec), spec.at, lambda injection: self._played(injection, spec, client)))
+
+        def done(injection: Injection) -> None:
+            self._played(injection, spec, client)
+
+        self.ctx.submit(Inject(excitation(spec), spec.at, done, what=describe(spec)))
 
     def _played(self, injection: Injection, spec: ChirpSpec, client: viser.ClientHandle | None) -> None:
         """On the loop's thread: hand the records to the worker (or say why there are none)."""
