@@ -267,20 +267,22 @@ def command_stand(args: argparse.Namespace) -> int:
 
 def _kick(sim, magnitude: float) -> dict[str, float]:  # noqa: ANN001 (hopper.stand.StandSimulation)
     """A pitch kick on the stand (N m s): prints the pitch's peak and return, and gives them for the
-    JSON (peak in deg, times in s from the kick)."""
+    JSON (peak in deg, times in s from the kick), with the pitch after it, tick by tick (deg)."""
     try:
         sim.disturb("pitch_kick", magnitude)
     except ValueError as exc:
         fail(str(exc))
     start, peak, peak_t = sim.time, 0.0, 0.0
-    pitch = []
+    before = sim.state().pitch  # the kick acts in the next step: the trace starts from here
+    pitch, t = [], []
     for _ in range(round(KICK_WATCH_S / sim.model.opt.timestep)):
         sim.step()
         p = sim.state().pitch
-        pitch.append(abs(p))
+        pitch.append(p)
+        t.append(sim.time - start)
         if abs(p) > peak:
             peak, peak_t = abs(p), sim.time - start
-    back = next((i for i in range(len(pitch) - 1, -1, -1) if pitch[i] > 0.1 * peak), 0) + 1
+    back = next((i for i in range(len(pitch) - 1, -1, -1) if abs(pitch[i]) > 0.1 * peak), 0) + 1
     back_s = back * sim.model.opt.timestep
     print(
         f"kick {magnitude:g} N m s on the stand: peak pitch {math.degrees(peak):.3f} deg at {peak_t * 1e3:.0f} ms, "
@@ -292,6 +294,8 @@ def _kick(sim, magnitude: float) -> dict[str, float]:  # noqa: ANN001 (hopper.st
         "peak_s": peak_t,
         "back_within_10pct_s": back_s,
         "watched_s": KICK_WATCH_S,
+        "t": [0.0, *t],
+        "pitch_deg": [math.degrees(p) for p in (before, *pitch)],
     }
 
 

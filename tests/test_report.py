@@ -405,3 +405,24 @@ def test_a_flag_only_runs_use_is_refused_where_it_would_be_ignored(make, flags, 
     assert code == 2 and out == "" and not (tmp_path / "r").exists()
     said = f"{flags[0]} is for a run or compare JSON; {what} has no runs to draw or simulate: drop it"
     assert err == f"hopper-sim: error: {said}\n", err
+
+
+def test_a_stand_documents_kick_is_drawn_and_tabled_and_an_older_one_without_its_trace_is_tabled():
+    """`report stand.json` showed no trace of a --kick: neither its figure nor its numbers."""
+    from hopper.report import style
+    from hopper.report.frequency import frequency_report
+
+    t = np.arange(0, 1001) * 1e-3
+    pitch = 0.8 * (t / 0.034) * np.exp(1 - t / 0.034)  # deg: a peak of 0.8 deg at 34 ms
+    kick = {"magnitude_nms": 0.5, "peak_pitch_deg": 0.8, "peak_s": 0.034, "back_within_10pct_s": 0.16,
+            "watched_s": 1.0, "t": t.tolist(), "pitch_deg": pitch.tolist()}  # fmt: skip
+    for document, figures in (({"kick": kick}, ["kick"]), ({"kick": {k: kick[k] for k in list(kick)[:5]}}, [])):
+        report = frequency_report(document, "stand")
+        assert [f.name for f in report.figures] == figures
+        (table,) = report.tables
+        assert [row[2:4] for row in table.rows] == [["peak pitch (deg)", 0.8], ["peak at (ms)", 34.0],
+                                                    ["back within 10 % from (ms)", 160.0]]  # fmt: skip
+        for named in report.figures:
+            (ax,) = named.figure.axes
+            assert ax.lines[0].get_ydata().max() == pytest.approx(0.8) and ax.get_xlabel() == "time since the kick (ms)"
+            style.close(named.figure)

@@ -8,6 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from rrd import verify
 
@@ -46,6 +47,9 @@ def test_stand_measures_steps_and_writes_what_the_report_draws(tmp_path: Path):
     kick = document["kick"]  # as printed, in the JSON too
     assert kick["magnitude_nms"] == 0.5 and 0.0 < kick["peak_s"] < kick["back_within_10pct_s"] <= kick["watched_s"]
     assert f"kick 0.5 N m s on the stand: peak pitch {kick['peak_pitch_deg']:.3f} deg" in done.stdout
+    t, pitch = np.asarray(kick["t"]), np.abs(kick["pitch_deg"])  # the trace the report draws, from the kick
+    assert t[0] == 0.0 and t[-1] == pytest.approx(kick["watched_s"]) and len(pitch) == len(t)
+    assert pitch.max() == kick["peak_pitch_deg"] and t[pitch.argmax()] == pytest.approx(kick["peak_s"])
     assert m["where"] == "stand (legs locked)" and m["controller"] == "PaperPID"
     measured, predicted = m["measured_margins"], m["predicted_margins"]
     assert measured["crossover_hz"] == pytest.approx(predicted["crossover_hz"], rel=0.05)
@@ -54,7 +58,8 @@ def test_stand_measures_steps_and_writes_what_the_report_draws(tmp_path: Path):
     assert verify(rrd) and rrd.stat().st_size > 100_000  # the run, its injected signal too (test_stand)
     report = hopper_sim("report", str(out), "--out", str(tmp_path / "report"))
     assert report.returncode == 0, report.stderr
-    assert {p.name for p in (tmp_path / "report").iterdir()} >= {"bode_1.png", "step.png", "report.html"}
+    assert {p.name for p in (tmp_path / "report").iterdir()} >= {"bode_1.png", "step.png", "kick.png", "report.html"}
+    assert "back within 10 % from (ms)" in (tmp_path / "report" / "report.html").read_text()
 
 
 def test_a_short_chirp_measures_its_whole_band_and_does_not_report_one_segments_coherence(tmp_path: Path):

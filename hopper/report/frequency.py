@@ -90,6 +90,25 @@ def step(step_data: dict[str, Any]) -> Figure:
     return fig
 
 
+def kick(kick_data: dict[str, Any]) -> Figure:
+    """The pitch (deg) after a pitch kick on the stand against time (ms), its peak and the 10 % band
+    it is back within from the time the document gives."""
+    t = np.asarray(kick_data["t"], float) * 1e3
+    peak, back = kick_data["peak_pitch_deg"], kick_data["back_within_10pct_s"] * 1e3
+    fig, (ax,) = style.new_figure(1, 2.8, f"Pitch kick on the stand, {kick_data['magnitude_nms']:g} N m s")
+    ax.plot(t, kick_data["pitch_deg"], color=MEASURED, lw=1.6, label="measured")
+    ax.axhspan(-0.1 * peak, 0.1 * peak, color="#888888", alpha=0.15, lw=0, label="within 10 % of the peak")
+    ax.axvline(back, color="#888888", lw=0.8, ls="--")
+    ax.axhline(0.0, color="#888888", lw=0.8)
+    ax.annotate(f"peak {peak:.3g} deg at {kick_data['peak_s'] * 1e3:.0f} ms; back within 10 % from {back:.0f} ms",
+                (0.99, 0.94), xycoords="axes fraction", ha="right", va="top", fontsize=8,
+                bbox={"facecolor": "white", "edgecolor": "#cccccc", "boxstyle": "round,pad=0.3"})  # fmt: skip
+    ax.set_xlabel("time since the kick (ms)")
+    ax.set_ylabel("pitch (deg)")
+    style.legend_above(ax)
+    return fig
+
+
 def frequency_report(document: dict[str, Any], title: str) -> Report:
     """The document's Bode plots and step response, with a table of measured against predicted."""
     figures, rows = [], []
@@ -110,6 +129,15 @@ def frequency_report(document: dict[str, Any], title: str) -> Report:
         for key, label in (("rise_s", "rise (s)"), ("overshoot_pct", "overshoot (%)"), ("settling_s", "settling (s)")):
             predicted = (s.get("predicted_metrics") or {}).get(key, "-")
             rows.append(["stand", "step", label, s["measured_metrics"][key], predicted])
+    if document.get("kick"):
+        k = document["kick"]
+        if k.get("t"):  # older documents hold the figures only
+            caption = "measured on the stand: the kick's angular momentum added to the torso at t = 0"
+            figures.append(Named("kick", "Kick response", caption, kick(k)))
+        what = f"kick {k['magnitude_nms']:g} N m s"
+        rows.append(["stand", what, "peak pitch (deg)", k["peak_pitch_deg"], "-"])
+        rows.append(["stand", what, "peak at (ms)", k["peak_s"] * 1e3, "-"])
+        rows.append(["stand", what, "back within 10 % from (ms)", k["back_within_10pct_s"] * 1e3, "-"])
     header = ["where", "controller", "figure", "measured", "predicted"]
     table = page.Section("Measured against predicted", header=header, rows=rows)
     subtitle = f"hopper-sim stand, version {document.get('version', '?')}"
