@@ -309,3 +309,50 @@ class SimConfig:
         check_seed(self.seed)
         require_finite("gravity", self.gravity, *GRAVITY_LIMITS, "m/s^2")
         require_finite("timestep", self.timestep, 1e-4, 5e-3)
+
+
+# The unit of each number of a SimConfig, by its dotted name as a report's settings table shows it
+# ("" for a pure number); tests/test_report.py checks that every number of SimConfig has one.
+SETTING_UNITS: dict[str, str] = {
+    "gravity": "m/s^2",
+    "timestep": "s",
+    "gains.kp": "N m/rad",
+    "gains.ki": "N m/(rad s)",
+    "gains.kd": "N m s/rad",
+    **{f"gait.{name}": "m" for name in ("apex_height", "stand_height", "crouch_height", "push_length")},
+    **{f"gait.{name}": "m" for name in ("flight_length", "tuck_length", "foot_spread", "crouch_lean")},
+    "gait.forward_speed": "m/s",
+    "gait.stance_time": "s",
+    "gait.friction": "",
+    "gait.sweep_angle": "deg",
+    "gait.sweep_time": "s",
+    "gait.sweep_return_time": "s",
+    "gait.sweep_stiffness": "x the swing servo's natural frequency",
+    **{f"craters.{name}": "m" for name in ("length", "width", "x0", "cell", "tile", "diameter_range")},
+    **{f"craters.{name}": "m" for name in ("roughness", "roughness_scale", "clear_radius")},
+    "craters.density": "craters/m^2",
+    "craters.depth_ratio_range": "depth/diameter",
+    "craters.rim_ratio_range": "rim height/diameter",
+    "sensor.gyro_noise_density": "deg/s/sqrt(Hz)",
+    "sensor.gyro_bias_walk": "deg/s/sqrt(s)",
+    "sensor.gyro_turn_on_bias": "deg/s",
+    "sensor.gyro_bias_fixed": "deg/s",
+    "sensor.accel_bias_fixed_x": "mg",
+    "sensor.accel_bias_fixed_z": "mg",
+    "sensor.accel_noise_density": "ug/sqrt(Hz)",
+    "sensor.accel_bias": "mg",
+    "sensor.calibration_time": "s",
+    "sensor.tilt_wn": "rad/s",
+    "sensor.tilt_zeta": "",
+    "sensor.motor_delay_ticks": "ticks",
+}
+
+
+def unit_of(key: str) -> str:
+    """The unit of a setting by its dotted name ('gains.kp'), or by its last part where that names
+    one setting only (a sweep's 'values.kp', a recording's 'kp'); '' if none is known."""
+    if key in SETTING_UNITS:
+        return SETTING_UNITS[key]
+    leaf = key.rpartition(".")[2]
+    units = {unit for name, unit in SETTING_UNITS.items() if name.rpartition(".")[2] == leaf}
+    return units.pop() if len(units) == 1 else ""

@@ -426,3 +426,21 @@ def test_a_stand_documents_kick_is_drawn_and_tabled_and_an_older_one_without_its
             (ax,) = named.figure.axes
             assert ax.lines[0].get_ydata().max() == pytest.approx(0.8) and ax.get_xlabel() == "time since the kick (ms)"
             style.close(named.figure)
+
+
+def test_every_number_of_a_config_has_its_unit_in_the_reports_settings_table():
+    """The settings table gave 1.625 and 450 with no unit."""
+    import dataclasses
+
+    from hopper.config import SETTING_UNITS, SimConfig, unit_of
+    from hopper.report import page
+
+    numbers = [k for k, v in page.flatten(dataclasses.asdict(SimConfig())) if isinstance(v, int | float | tuple | list)]
+    numbers = [k for k in numbers if k not in ("seed", "wheel", "controller_params", "mismatch")]  # no units
+    assert sorted(numbers) == sorted(SETTING_UNITS), "a number of SimConfig without a unit, or a unit of none"
+    # By its last part where that names one setting: a sweep's axes, a recording's gains.
+    assert (unit_of("values.kp"), unit_of("kp"), unit_of("values.gravity"), unit_of("hops")) == (
+        "N m/rad", "N m/rad", "m/s^2", ""
+    )  # fmt: skip
+    html = page.render("t", "s", {"gravity": 1.625, "gains": {"kp": 450.0}, "seed": 3}, [])
+    assert "<td>1.625</td><td>m/s^2</td>" in html and "<td>450</td><td>N m/rad</td>" in html

@@ -8,6 +8,8 @@ import html
 from collections.abc import Sequence
 from typing import Any
 
+from hopper.config import unit_of
+
 CSS = """
 body { font-family: system-ui, sans-serif; max-width: 1000px; margin: 1.5em auto; padding: 0 1em; color: #222; }
 h1 { font-size: 1.4em; } h2 { font-size: 1.15em; margin-top: 1.6em; border-bottom: 1px solid #ddd; }
@@ -72,7 +74,7 @@ def render(title: str, subtitle: str, settings: dict[str, Any], sections: Sequen
         f"<h1>{html.escape(title)}</h1>",
         f'<p class="note">{html.escape(subtitle)}</p>',
         "<h2>Settings</h2>",
-        _table(("setting", "value"), flatten(settings), first_is_key=True),
+        _table(("setting", "value", "unit"), [(k, v, unit_of(k)) for k, v in flatten(settings)], first_is_key=True),
     ]
     for s in sections:
         parts.append(f"<h2>{html.escape(s.title)}</h2>")
