@@ -236,8 +236,7 @@ def command_capture(args: argparse.Namespace) -> int:
 
 
 def error_line(label: str, e: Errors) -> str:
-    td = e.touchdown[np.isfinite(e.touchdown)]
-    timing = f"{1e3 * np.abs(td).mean():.0f} ms mean |touchdown error| over {td.size}" if td.size else "no touchdown"
+    timing = e.timing()
     return (
         f"{label}: pitch RMS {math.degrees(e.rms('pitch')):.3f} deg, wheel speed RMS {e.rms('wheel_speed'):.3f} rad/s, "
         f"{timing}"

@@ -14,6 +14,7 @@ from hopper.logs.replay import (
     REANCHOR_S,
     Errors,
     ReplayError,
+    Trajectory,
     World,
     errors,
     flights,
@@ -203,3 +204,18 @@ def test_a_replay_never_flies_across_a_gap(log: Log) -> None:
     )
     with pytest.raises(ReplayError, match="each hop asked holds a gap"):
         replay_hops(model, holed, 1)
+
+
+def test_a_touchdown_the_replay_missed_is_counted_missed_not_matched_a_hop_away(log: Log) -> None:
+    """Each logged touchdown took the nearest simulated one anywhere: a replay that stayed in the air
+    through a stance matched that touchdown with the next hop's, and read over a second late."""
+    (a1, b1), (a2, b2), (_, b3) = flights(log)
+    k = slice(a1, len(log.time))
+    signals = {name: log.signals[name][k].copy() for name in ("pitch", "wheel_speed", "foot_L_force", "foot_R_force")}
+    for foot in ("foot_L_force", "foot_R_force"):
+        signals[foot][b1 - a1 : a2 - a1] = 0.0  # the first stance missed: one long flight to the second touchdown
+    e = errors(log, Trajectory(a1, log.time[k].copy(), signals))
+    assert np.isnan(e.touchdown[0]) and e.touchdown[1:].tolist() == [0.0, 0.0], e.touchdown
+    assert e.timing() == "0 ms mean |touchdown error| over 2 (1 missed)"
+    assert log.time[b2] - log.time[b1] > 1.0  # what the old matching read for the first
+    assert Errors.concat([e, e]).timing().endswith("over 4 (2 missed)") and b3 > b2

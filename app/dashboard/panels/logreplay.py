@@ -144,8 +144,7 @@ def summary_html(done: LogReplay | None) -> str:
             "Errors chart on the left.</div>"
         )
     e = done.errors
-    td = e.touchdown[np.isfinite(e.touchdown)]
-    timing = f"{1e3 * np.abs(td).mean():.0f} ms mean |touchdown error| over {td.size}" if td.size else "no touchdown"
+    timing = e.timing()
     rms_pitch, rms_wheel = math.degrees(e.rms("pitch")), e.rms("wheel_speed")
     shown = done.shown
     of = f"{shown} of {done.found} hops" if shown < done.found else f"{shown} hop(s)"
