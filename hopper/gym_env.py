@@ -42,11 +42,12 @@ from hopper.config import (
     SimConfig,
 )
 from hopper.control import EV_FALL, EV_LIFTOFF, EV_TOUCHDOWN
-from hopper.control.gait import held_gravity, momentum_capacity
+from hopper.control.gait import derive, held_gravity, momentum_capacity
 from hopper.controllers.api import Observation
 from hopper.controllers.features import HIGH, LOW, SIZE, PitchIntegral, features
 from hopper.disturbances import DISTURBANCE_LIMITS
 from hopper.errors import HopperError
+from hopper.robot import PACKAGED
 from hopper.sim import Simulation
 
 ENV_ID = "hopper/FlightAttitude-v0"
@@ -68,6 +69,23 @@ SEED_DRAW_LIMIT = 2**63  # terrain seeds are drawn as numpy int64: the largest `
 
 class InvalidAction(HopperError, ValueError):
     """An action that is not one finite number; nothing was simulated."""
+
+
+class NoFlight(HopperError, RuntimeError):
+    """reset() saw the robot fall before its first flight: the gait could not fly it there."""
+
+
+def legs_cap(gravity: float) -> str:
+    """Why the packaged robot may fall before it flies at `gravity` (m/s^2): its legs cap the hop below
+    the gait's apex there (hopper.control.gait.derive); "" when they do not."""
+    gait = GaitParams()
+    apex = derive(gravity, gait).apex
+    if apex >= gait.apex_height - 1e-9:
+        return ""
+    return (
+        f"at {gravity:g} m/s^2 the robot's {PACKAGED.leg_torque_limit:g} N m legs cap the hop at {apex:.2f} m of the "
+        f"{gait.apex_height:g} m asked: expect falls on the ground, some before the first flight"
+    )
 
 
 def max_kick_fraction() -> float:
@@ -210,8 +228,12 @@ class FlightAttitudeEnv(gym.Env):
         self.flights, self.kicks = 0, 0
         self._kick_at = math.inf
         obs, _, terminated, truncated, info = self._advance()
-        if terminated or truncated:  # fell before its first flight: only a broken gait does that
-            raise RuntimeError(f"episode ended before a flight: {info}")
+        if terminated or truncated:  # no flight to act in: the gait could not fly the robot there
+            what = "fell" if info.get("fell") else "reached the time limit"
+            cap = legs_cap(config.gravity)
+            where = f"(terrain seed {config.seed}, {info['time']:.2f} s)"
+            why = f": {cap}" if cap else f" at {config.gravity:g} m/s^2"
+            raise NoFlight(f"the robot {what} before its first flight {where}{why}")
         return obs, info
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-from hopper.config import GRAVITY_LIMITS, GaitParams, InvalidConfig
+from hopper.config import GRAVITY_LIMITS, GRAVITY_PRESETS, GaitParams, InvalidConfig
 from hopper.control.gait import derive, momentum_capacity
 from hopper.controllers.features import NAMES, SCALES, SIZE
 from hopper.disturbances import DISTURBANCE_LIMITS
@@ -16,7 +16,9 @@ from hopper.gym_env import (
     FALL_PENALTY,
     FlightAttitudeEnv,
     InvalidAction,
+    NoFlight,
     gravity_limits,
+    legs_cap,
     make_vector,
     max_kick_fraction,
 )
@@ -223,3 +225,17 @@ def test_the_last_feature_is_the_pitch_integral_since_liftoff() -> None:
         integral += raw.pitch * raw.dt
         done = terminated or truncated
     assert liftoffs == 1 and integral != 0.0
+
+
+def test_a_reset_without_a_flight_says_why_in_one_line() -> None:
+    """At 16.5 m/s^2 the paper's 30 N m legs lift the robot 0.02 m and it falls in its first push:
+    reset() raised RuntimeError("episode ended before a flight: {'flights': 0, ...}")."""
+    env = FlightAttitudeEnv(gravity=16.5)
+    said = (
+        r"^the robot fell before its first flight \(terrain seed \d+, 1\.\d\d s\): at 16\.5 m/s\^2 the robot's 30 N m "
+    )
+    with pytest.raises(NoFlight, match=said + r"legs cap the hop at 0\.02 m of the 0\.25 m asked"):
+        env.reset(seed=0)
+    assert isinstance(NoFlight("x"), RuntimeError)  # as it was: `except RuntimeError` still catches it
+    assert legs_cap(GRAVITY_PRESETS["mars"]) == ""  # the legs lift the gait's apex there
+    assert derive(GRAVITY_PRESETS["mars"], GaitParams()).apex == GaitParams().apex_height
