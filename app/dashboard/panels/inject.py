@@ -118,15 +118,13 @@ class InjectPanel:
         if spec is None:
             return
         where = "the wheel torque" if spec.at == "input" else "the pitch reference"
-        self.status.content = (
-            f"<div class='hd-measured hd-dim'>injecting a {spec.length:g} s {html.escape(spec.kind)} chirp, "
-            f"{spec.f_min:g}-{spec.f_max:g} Hz, at {where}…</div>"
-        )
+        what = describe(spec)  # the event log's words too
+        self.status.content = f"<div class='hd-measured hd-dim'>injecting {html.escape(what)} at {where}…</div>"
 
         def done(injection: Injection) -> None:
             self._played(injection, spec, client)
 
-        self.ctx.submit(Inject(excitation(spec), spec.at, done, what=describe(spec)))
+        self.ctx.submit(Inject(excitation(spec), spec.at, done, what=what))
 
     def _played(self, injection: Injection, spec: ChirpSpec, client: viser.ClientHandle | None) -> None:
         """On the loop's thread: hand the records to the worker (or say why there are none)."""
