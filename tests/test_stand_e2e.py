@@ -51,7 +51,6 @@ def _inject_a_chirp(page, dashboard: Dashboard, sim: StandSimulation, tmp_path: 
     image.scroll_into_view_if_needed()
     image.wait_for(state="visible")
     page.screenshot(path=str(tmp_path / "injected.png"))
-    Path("/tmp/stand-injected-shot.png").write_bytes((tmp_path / "injected.png").read_bytes())
 
 
 def test_the_world_tab_puts_the_robot_on_the_stand_and_back(browser, start, tmp_path: Path) -> None:  # noqa: F811
@@ -82,7 +81,6 @@ def test_the_world_tab_puts_the_robot_on_the_stand_and_back(browser, start, tmp_
         assert wait_until(lambda: abs(sim.state().pitch - math.radians(12.0)) < math.radians(0.5))
         page.get_by_role("tab", name="World").click()
         page.screenshot(path=str(tmp_path / "stand.png"))
-        Path("/tmp/standview-shot.png").write_bytes((tmp_path / "stand.png").read_bytes())
 
         _inject_a_chirp(page, dashboard, sim, tmp_path)
 
