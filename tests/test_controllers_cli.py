@@ -73,6 +73,7 @@ def test_compare_stress_sweep_and_league_fly_it(example: Path) -> None:
     assert report.returncode == 0, report.stderr
     page = (example / "report" / "report.html").read_text()
     assert (example / "report" / "league.png").stat().st_size > 10_000 and SPEC in page and "energy (J/hop)" in page
+    assert "<td>compiled (in the ~1 us kernel tick)</td>" in page  # the table said 0 us/call
 
 
 @pytest.mark.parametrize(

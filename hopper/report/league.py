@@ -25,9 +25,21 @@ COLUMNS = (  # row key, heading
 )  # fmt: skip
 
 
+COMPILED = "compiled (in the ~1 us kernel tick)"  # a compute of 0: no Python call to time (the league's rule)
+
+
 def name(spec: str) -> str:
     """A controller's spec as a bar's label: a file spec by its file's name."""
     return spec.rpartition("/")[2]
+
+
+def cell(row: dict[str, Any], key: str) -> Any:
+    """A row's value for the table: the controller by its name, a compute of 0 as compiled."""
+    if key == "controller":
+        return name(row[key])
+    if key == "compute_us" and row[key] == 0:
+        return COMPILED
+    return row[key]
 
 
 def bars(rows: list[dict[str, Any]]) -> Figure:
@@ -43,8 +55,8 @@ def bars(rows: list[dict[str, Any]]) -> Figure:
         ax.set_title(better, fontsize=7, loc="right")
         for i, (v, r) in enumerate(zip(raw, rows, strict=True)):
             text = f"{v:.3g}" if math.isfinite(v) else "n/a"
-            if key == "compute_us" and r["controller"] == "pid":
-                text = "compiled (in the ~1 us kernel tick)"
+            if key == "compute_us" and r[key] == 0:
+                text = COMPILED
             ax.annotate(text, (i, values[i]), ha="center", va="bottom", fontsize=7)
     axes[-1].set_xticks(range(len(rows)), labels, rotation=0, fontsize=8)
     return fig
@@ -56,7 +68,7 @@ def league_report(document: dict[str, Any], title: str) -> Report:
     table = page.Section(
         "The league",
         header=[h for _, h in COLUMNS],
-        rows=[[name(r[k]) if k == "controller" else r[k] for k, _ in COLUMNS] for r in rows],
+        rows=[[cell(r, k) for k, _ in COLUMNS] for r in rows],
         note="; ".join(f"{name(r['controller'])}: {r['worst']}" for r in rows if r["worst"]) or "no failures",
     )
     episodes = rows[0]["episodes"] if rows else 0
