@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import base64
+import dataclasses
 import io
 import json
 import math
@@ -444,3 +445,19 @@ def test_every_number_of_a_config_has_its_unit_in_the_reports_settings_table():
     )  # fmt: skip
     html = page.render("t", "s", {"gravity": 1.625, "gains": {"kp": 450.0}, "seed": 3}, [])
     assert "<td>1.625</td><td>m/s^2</td>" in html and "<td>450</td><td>N m/rad</td>" in html
+
+
+def test_the_papers_bands_are_drawn_for_the_papers_scenario_only(run_json: Path) -> None:
+    """A default-scenario run at 0.23 deg was drawn under the paper's 15-20 deg band: its scale, not the run's."""
+    from hopper.scenarios import scenario
+
+    run = run_from_result(json.loads(run_json.read_text()), "run JSON")
+    as_paper = dataclasses.replace(run, settings={**run.settings, "gait": dataclasses.asdict(scenario("paper").gait)})
+    for shown, bands in ((run, 0), (as_paper, 2)):
+        report = build.run_report([shown], [], "t", "s")
+        (named,) = [n for n in report.figures if n.name == "hop_metrics"]
+        drawn = [p for ax in named.figure.axes for p in ax.patches if p.get_label().startswith("paper, wheel on")]
+        assert len(drawn) == bands, named.name
+        assert ("drawn for its own scenario only" in named.caption) == (bands == 0)
+        for n in report.figures:
+            build.style.close(n.figure)

@@ -52,6 +52,13 @@ def run_report(on: Sequence[Run], off: Sequence[Run], title: str, subtitle: str)
     per-hop metrics and saturation over every run given."""
     shown = on[0] if on else off[0]
     twin = next((r for r in off if r.seed == shown.seed), None) if shown.wheel else None
+    paper = with_scenario(shown.settings)["scenario"] == "paper"
+    bands = (
+        "green bands: the paper's ranges with the wheel on. "
+        if paper
+        else f"the paper's ranges with the wheel on ({run_figures.paper_bands()}) are drawn for its own scenario "
+        "only (`--scenario paper`): this run's flights are others. "
+    )
     figures = [
         Named("translation", "Forward and vertical translation", "Torso CoM over the hop sequence; flights shaded.",
               run_figures.translation(shown)),
@@ -64,9 +71,9 @@ def run_report(on: Sequence[Run], off: Sequence[Run], title: str, subtitle: str)
               "saturation threshold (dotted); drawn from the trace (100 Hz), so the saturation metric, taken every "
               "1 ms tick, may count pulses the curve does not show.", run_figures.wheel_torque(shown)),
         Named("hop_metrics", "Per-hop peak pitch and RMS pitch rate, wheel on vs off",
-              "Peak |pitch| and RMS pitch rate over each flight; green bands: the paper's ranges with the wheel "
-              "on. Hatched: the flight ended in a fall (its peak is the 60 deg fall limit).",
-              run_figures.hop_metrics([r for r in on], [r for r in off])),
+              f"Peak |pitch| and RMS pitch rate over each flight; {bands}Hatched: the flight ended in a fall (its "
+              "peak is the 60 deg fall limit).",
+              run_figures.hop_metrics([r for r in on], [r for r in off], paper)),
     ]  # fmt: skip
     if on:
         figures.append(Named("saturation", "Saturation time per hop",

@@ -127,18 +127,26 @@ def _bars(ax, runs: Sequence[Run], key: str, offset: float, color: str, label: s
                         textcoords="offset points", xytext=(0, 2), fontsize=7)  # fmt: skip
 
 
-def hop_metrics(on: Sequence[Run], off: Sequence[Run] = ()) -> Figure:
-    """Per-hop peak mid-air pitch and RMS pitch rate, wheel on vs off, with the paper's ranges
-    (paper Fig. 5). With several runs (seeds), bars are medians and whiskers the range."""
+def paper_bands() -> str:
+    """The paper's per-hop ranges with the wheel on, in words."""
+    (p0, p1), (r0, r1) = PAPER_PEAK_DEG, PAPER_RMS_DEG_S
+    return f"peak pitch {p0:g} to {p1:g} deg, RMS pitch rate {r0:g} to {r1:g} deg/s"
+
+
+def hop_metrics(on: Sequence[Run], off: Sequence[Run] = (), paper: bool = True) -> Figure:
+    """Per-hop peak mid-air pitch and RMS pitch rate, wheel on vs off, with the paper's ranges when the
+    runs fly the `paper`'s scenario (paper Fig. 5; in another, its flights are other flights, and its
+    band would set the scale). With several runs (seeds), bars are medians and whiskers the range."""
     n = len(on) or len(off)
     what = f"over {n} seeds" if n > 1 else (on or off)[0].label.split(",")[0]
     states = "wheel on vs off" if on and off else ("wheel on" if on else "wheel off")
     fig, (ax_p, ax_r) = style.new_figure(2, height=2.5, title=f"Per-hop flight metrics, {states} ({what})")
-    for ax, key, unit, paper in (
+    for ax, key, unit, band in (
         (ax_p, "peak_pitch_deg", "peak mid-air pitch (deg)", PAPER_PEAK_DEG),
         (ax_r, "rms_pitch_rate_deg_s", "RMS pitch rate in flight (deg/s)", PAPER_RMS_DEG_S),
     ):
-        ax.axhspan(*paper, color=style.PAPER, alpha=0.15, label=f"paper, wheel on: {paper[0]:g} to {paper[1]:g}")
+        if paper:
+            ax.axhspan(*band, color=style.PAPER, alpha=0.15, label=f"paper, wheel on: {band[0]:g} to {band[1]:g}")
         _bars(ax, on, key, -0.2 if off else 0.0, style.WHEEL_ON, "wheel on")
         if off:
             _bars(ax, off, key, 0.2, style.WHEEL_OFF, "wheel off (zero torque, free to spin)")
