@@ -324,7 +324,10 @@ def test_a_seed_not_in_the_file_is_refused_before_any_simulation(run_json: Path,
     [
         (lambda d: d / "missing.json", "does not exist"),
         (lambda d: _write(d / "x.txt", "hello"), "expected a .json, .rrd, .parquet or a sweep directory"),
-        (lambda d: _write(d / "x.json", '{"a": 1}'), "not a hopper-sim run or compare result"),
+        (
+            lambda d: _write(d / "x.json", '{"a": 1}'),
+            "a run or compare result (no 'settings' and 'hops', nor 'runs'), a league or a stand document",
+        ),
         (lambda d: _write(d / "x.json", "{not json"), "x.json: Expecting property name"),
         (
             lambda d: _write(d / "x.json", '{"settings": {}, "hops": "abc", "fell": false}'),

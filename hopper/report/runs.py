@@ -122,7 +122,10 @@ def kind_of(document: dict[str, Any]) -> str:
         return "compare"
     if "settings" in document and "hops" in document:
         return "run"
-    raise ValueError("not a hopper-sim run or compare result (no 'settings' and 'hops', nor 'runs')")
+    raise ValueError(
+        "not a JSON that hopper-sim report draws: a run or compare result (no 'settings' and 'hops', nor 'runs'), "
+        "a league or a stand document (no 'kind')"
+    )
 
 
 def pair_runs(runs: list[Run]) -> list[tuple[Run | None, Run | None]]:
