@@ -120,7 +120,7 @@ def table(stats: list[GroupStats]) -> page.Section:
         figures = [" / ".join("failed" if math.isinf(v) else f"{v:.3g}" for v in g.quantiles[m]) for m in METRICS]
         rows.append([g.label, g.episodes, g.successes, 100 * g.probability, f"{100 * low:.1f} - {100 * high:.1f}",
                      *figures])  # fmt: skip
-    note = (f"Success: every hop done, no fall, no controller fault, every landing within {LANDING_LIMIT_DEG:g} deg. "
+    note = (f"Success: {SUCCESS_RULE}. "
             "Quantiles over episodes (one robot each); a failed episode's landing error counts as beyond any bound "
             "('failed').")  # fmt: skip
     return page.Section("Monte Carlo over the sampled robots", header=header, rows=rows, note=note)
