@@ -168,6 +168,10 @@ def _json_report(path: Path, args: argparse.Namespace):  # noqa: ANN202 (hopper.
     title = f"Hopper run report: {path.name}"
     seeds = sorted({r.seed for r in runs})
     subtitle = f"{source}: {len(on)} run(s) with the wheel on, {len(off)} with it off; seeds {seeds}"
+    faulted = [r for r in runs if r.fault]
+    if faulted:
+        subtitle += (f"; the controller failed in {len(faulted)} of them and the PID flew on from there "
+                     f"(failed runs): {faulted[0].fault}")  # fmt: skip
     return run_report(on, off, title, subtitle)
 
 

@@ -399,6 +399,7 @@ def command_compare(args: argparse.Namespace) -> int:
         results.append({
             "settings": settings(episode.config(), episode.hops_target), "seed": episode.seed,
             "wheel": episode.wheel, "fell": r.fell, "sim_time_s": r.sim_time_s, "wall_time_s": r.wall_s,
+            "fault": r.controller_fault,  # why the PID flew on from mid-run, "" if it did not (run's controller.fault)
             "hops": [hop.as_dict() for hop in r.hops],
             **({"trace": r.trace} if r.trace is not None else {}),  # as run's: what report draws
         })  # fmt: skip
@@ -414,7 +415,8 @@ def command_compare(args: argparse.Namespace) -> int:
         rows.append({"seed": on["seed"], "peak_on_deg": peak_on, "peak_off_deg": peak_off, "reduction_pct": reduction})
 
         def hops(r: dict[str, Any]) -> str:
-            return f"{sum(h['completed'] for h in r['hops'])}{' fell' if r['fell'] else ''}"
+            ended = (" fell" if r["fell"] else "") + (" fault" if r["fault"] else "")
+            return f"{sum(h['completed'] for h in r['hops'])}{ended}"
 
         print(
             f"{on['seed']:>4} {hops(on):>9} {peak_on:9.2f} {hops(off):>10} {peak_off:9.2f} {reduction:9.1f}%"
@@ -425,10 +427,15 @@ def command_compare(args: argparse.Namespace) -> int:
         f"median reduction of the peak mid-air pitch deviation, wheel on vs off: {median:.1f}% "
         f"(over {len(reductions)} seeds; wheel off = zero torque, wheel free to spin)"
     )
+    faulted = [r for r in results if r["fault"]]
     if args.json:
-        args.json.write_text(
-            json.dumps({"median_peak_reduction_pct": median, "seeds": rows, "runs": results}, indent=2)
-        )
+        doc = {"median_peak_reduction_pct": median, "controller_faults": len(faulted), "seeds": rows, "runs": results}
+        args.json.write_text(json.dumps(doc, indent=2))
+    if faulted:  # the PID flew the rest of those runs: their figures are not the controller's (run's exit 4)
+        which = ", ".join(f"seed {r['seed']} wheel {'on' if r['wheel'] else 'off'}" for r in faulted)
+        print(f"hopper-sim: error: controller {flown.controller} failed in {len(faulted)} of {len(results)} runs "
+              f"({which}) and the PID flew on from there: {faulted[0]['fault']}", file=sys.stderr)  # fmt: skip
+        return EXIT_CONTROLLER
     return EXIT_OK  # falls with the wheel off are the expected result here, not a failure
 
 

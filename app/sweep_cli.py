@@ -10,6 +10,7 @@ from typing import Any
 
 from hopper.app.cli_common import (
     CLOSED_STDOUT_STATUS,
+    EXIT_CONTROLLER,
     EXIT_OK,
     add_model_flag,
     check_executor,
@@ -21,7 +22,8 @@ from hopper.app.cli_common import (
 )
 
 SWEEP_EPILOG = (
-    "exit status: 0 finished (falls are results), 2 bad spec or arguments, 130 interrupted "
+    "exit status: 0 finished (falls are results), 2 bad spec or arguments, 4 finished, but a controller failed "
+    "mid-episode and the PID flew on (it says which and why; those episodes count as failed), 130 interrupted "
     f"(Ctrl-C or SIGTERM): run the same command again and it skips the finished episodes; {CLOSED_STDOUT_STATUS}."
 )
 # tune keeps no folder: an interrupted search is not resumed (and writes no --json).
@@ -300,7 +302,7 @@ def command_sweep(args: argparse.Namespace) -> int:
     from hopper.experiments.executor import ExecutorError, choose
     from hopper.experiments.runner import run_sweep, workers
     from hopper.experiments.store import SweepStore
-    from hopper.experiments.summary import axis_lines, overall_line
+    from hopper.experiments.summary import axis_lines, detail_lines, overall_line
 
     # OUT is written to now; the folders made for it are removed again if the executor cannot start.
     with made_out(args.out):
@@ -313,7 +315,7 @@ def command_sweep(args: argparse.Namespace) -> int:
     if others:
         print(f"{args.out} also holds {others} rows of episodes this spec does not fly (an older version's, whose "
               "other controllers flew every gain point): not counted")  # fmt: skip
-    for line in axis_lines(episodes, spec.axes()):
+    for line in axis_lines(episodes, spec.axes()) + detail_lines(episodes):
         print(line)
     if spec.model is not None and episodes.num_rows:
         from hopper.experiments.montecarlo import summary_lines
@@ -323,12 +325,33 @@ def command_sweep(args: argparse.Namespace) -> int:
     startup = f" (start-up {run.startup_s:.1f} s, episodes {run.work_s:.1f} s)" if run.startup_s else ""
     if run.ran == 0 and run.skipped == run.total:
         print(f"this run: nothing left to run, all {run.total} episodes were already done")
+    else:
+        print(
+            f"this run: {run.ran} episodes on {run.executor} ({workers(run.workers)}) in {run.wall_s:.1f} s"
+            f"{startup}; {run.skipped} were already done"
+        )
+    return controllers_status(episodes)
+
+
+def controllers_status(episodes: Any) -> int:  # noqa: ANN401 (a pyarrow Table)
+    """EXIT_CONTROLLER, saying which controller failed and why on stderr (as `run` does), if any
+    episode's controller faulted and the PID flew on; EXIT_OK otherwise (falls are results)."""
+    import numpy as np
+
+    from hopper.experiments.outcome import faults
+
+    causes = faults(episodes)
+    if not (causes != "").any():
         return EXIT_OK
-    print(
-        f"this run: {run.ran} episodes on {run.executor} ({workers(run.workers)}) in {run.wall_s:.1f} s{startup}; "
-        f"{run.skipped} were already done"
-    )
-    return EXIT_OK
+    names = np.array(episodes.column("controller").to_pylist(), dtype=object)
+    parts = []
+    for name in dict.fromkeys(names[causes != ""]):  # each faulting controller, its first cause
+        mine = names == name
+        hit = mine & (causes != "")
+        parts.append(f"controller {name} failed in {hit.sum()} of {mine.sum()} episodes: {causes[hit][0]}")
+    why = "; ".join(parts)
+    print(f"hopper-sim: error: {why} (the PID flew on; counted failed)", file=sys.stderr)
+    return EXIT_CONTROLLER
 
 
 def command_tune(args: argparse.Namespace) -> int:

@@ -17,6 +17,23 @@ from hopper.control import Phase
 from hopper.metrics import RAD_S_TO_RPM
 from hopper.sim import Simulation
 
+# A controller file (write it as flaky.py): a PD that faults (NaN) from its second flight on, so an
+# episode of 2 hops or more ends with the built-in PID flying in its place.
+FLAKY = """
+from hopper.controllers import Param
+
+
+class Flaky:
+    \"\"\"A PD that returns NaN from its second flight on.\"\"\"
+
+    params = (Param("kp", 450.0, (0.0, 2000.0), "N m/rad"), Param("kd", 30.0, (0.0, 100.0), "N m s/rad"))
+
+    def reset(self, obs):
+        self.flights = getattr(self, "flights", 0) + 1
+
+    def __call__(self, obs):
+        return float("nan") if getattr(self, "flights", 0) >= 2 else self.kp * obs.pitch + self.kd * obs.rate
+"""
 KICK_DELAY_S = 0.2  # s after the first liftoff: a pitch kick in flight, what the wheel must take
 
 

@@ -254,6 +254,66 @@ def test_success_against_disturbance_gives_each_kind_its_own_panel_and_unit(tmp_
     build.style.close(named.figure)
 
 
+def drawn_episodes(fault: list[str], applied: list[bool] | None = None, size: list[float] | None = None):  # noqa: ANN201
+    """Episodes of two robots drawn (friction, mass_torso) per controller, every hop done and landed well:
+    only `fault` (a controller fault's cause, "" for none) and `applied` (the disturbance happened) differ."""
+    import pyarrow as pa
+
+    n = len(fault)
+    size = size or [0.0] * n
+    return pa.table({
+        "episode_id": [f"e{i}" for i in range(n)], "kp": [450.0] * n, "ki": [50.0] * n, "kd": [30.0] * n,
+        "gravity": [1.625] * n, "wheel": [True] * n,
+        "disturbance": [f"pitch_kick {s:+g} N m s at flight +5 s of hop 2" if s else "" for s in size],
+        "disturbance_size": size, "controller": ["pid" if i % 2 == 0 else "flaky.py:Flaky" for i in range(n)],
+        "sample": [i // 2 % 2 for i in range(n)], "model_friction": [0.6 + 0.1 * (i // 2 % 2) for i in range(n)],
+        "model_mass_torso": [1.9 + 0.1 * (i // 2 % 2) for i in range(n)], "hops_target": [3] * n,
+        "hops_completed": [3] * n, "fell": [False] * n, "worst_landing_deg": [0.5 + 0.1 * i for i in range(n)],
+        "peak_pitch_deg": [1.0] * n, "momentum_used_pct": [50.0] * n, "energy_j_per_hop": [60.0] * n,
+        "controller_fault": fault, **({"disturbance_applied": applied} if applied is not None else {}),
+    })  # fmt: skip
+
+
+def test_a_faulted_episode_fails_in_every_part_of_the_sweep_report_saying_why(tmp_path: Path) -> None:
+    """The Monte Carlo table counted a controller fault as a failure, the per-value table as a success,
+    the landing quantiles took the PID's landings after the fault, and the heading said nothing varied."""
+    from hopper.experiments.montecarlo import group_stats, success
+
+    cause = "Flaky returned nan N m, not a finite torque"
+    table = drawn_episodes(["", cause, "", cause])
+    sweep = Sweep(table, None, None, tmp_path)
+    assert sweep.success().tolist() == success(table).tolist() == [True, False, True, False]  # one rule
+    flaky = next(g for g in group_stats(table) if g.label.startswith("flaky"))
+    assert flaky.successes == 0 and all(math.isinf(q) for q in flaky.quantiles["worst_landing_deg"])
+    report = sweep_report(sweep, "t")
+    for named in report.figures:
+        build.style.close(named.figure)
+    assert report.subtitle.startswith("4 episodes, 0 fell, 2 with a controller fault (failed); varied: controller, ")
+    assert "2 model parameters drawn for 2 robots (friction, mass_torso)" in report.subtitle
+    (values,) = [t for t in report.tables if t.title == "Per setting value"]
+    rows = {r[1]: r for r in values.rows if r[0] == "controller"}
+    assert rows["flaky.py:Flaky"][3] == 0.0 and rows["flaky.py:Flaky"][6] == 2 and rows["pid"][3] == 100.0
+    assert "4 episodes, 2 successful" in values.note and cause in values.note
+    (mc,) = [t for t in report.tables if t.title.startswith("Monte Carlo")]
+    assert [r[2] for r in mc.rows] == [2, 0]
+
+
+def test_episodes_whose_disturbance_never_came_are_left_out_of_success_against_it(tmp_path: Path) -> None:
+    """A kick due after its flight ended never touched the robot: it is no survivor of that kick size."""
+    table = drawn_episodes(["", "", "", ""], applied=[True, True, False, True], size=[0.0, 0.0, 1.0, 2.0])
+    report = sweep_report(Sweep(table, None, None, tmp_path), "t")
+    (named,) = [f for f in report.figures if f.name == "success_vs_disturbance_size"]
+    points = named.figure.axes[0].lines[0].get_xydata().tolist()
+    assert points == [[0.0, 100.0], [2.0, 100.0]], "the 1 N m s kick never happened: no point for it"
+    assert "Left out: 1 episodes whose disturbance was not applied" in named.caption
+    for f in report.figures:
+        build.style.close(f.figure)
+    older = Sweep(drawn_episodes(["", "", "", ""], size=[0.0, 0.0, 1.0, 2.0]), None, None, tmp_path)
+    (named,) = [f for f in sweep_report(older, "t").figures if f.name == "success_vs_disturbance_size"]
+    assert [x for x, _ in named.figure.axes[0].lines[0].get_xydata().tolist()] == [0.0, 1.0, 2.0]  # as applied
+    build.style.close(named.figure)
+
+
 def test_a_gain_cell_whose_robots_never_landed_says_so_instead_of_a_perfect_zero(tmp_path: Path, capsys) -> None:  # noqa: ANN001
     """With the wheel off the robot falls in its first flight: the store writes 0 deg for an episode
     without a landing, which the map drew as the best colour ("0.00°") and the table as 0."""

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 from rrd import verify
+from sweep_data import FLAKY
 
 pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)
 
@@ -103,6 +104,26 @@ def test_compare_reports_the_median_reduction(tmp_path) -> None:
     ]
     assert all(r["settings"]["hops"] == 1 and "gait" in r["settings"] for r in data["runs"])
     assert "median reduction" in result.stdout
+
+
+def test_compare_with_a_faulting_controller_exits_4_saying_why_and_its_report_says_so_too(tmp_path: Path) -> None:
+    (tmp_path / "flaky.py").write_text(FLAKY)
+    out = tmp_path / "compare.json"
+    flags = ("--controller", "flaky.py:Flaky", "--seeds", "1", "--hops", "2", "--workers", "1", "--json", str(out))
+    result = hopper_sim("compare", *flags, cwd=tmp_path)
+    assert result.returncode == 4, result  # as run's: the PID flew the rest, not the controller asked for
+    cause = "Flaky returned nan N m"
+    error = result.stderr.strip().splitlines()[-1]
+    assert error.startswith("hopper-sim: error: controller ") and cause in error and "seed 0 wheel on" in error
+    assert " 2 fault " in result.stdout, result.stdout  # the wheel-on run's hops, marked
+    data = json.loads(out.read_text())
+    on = next(r for r in data["runs"] if r["wheel"])
+    assert cause in on["fault"] and data["controller_faults"] == 1
+    report = hopper_sim("report", str(out), "--out", str(tmp_path / "fig"), cwd=tmp_path)
+    assert report.returncode == 0, report.stderr
+    page = (tmp_path / "fig" / "report.html").read_text()
+    assert "Controller faults" in page and "the controller failed in 1 of them" in page and cause in page
+    assert "2 fault" in page  # the per-seed table's hops
 
 
 @pytest.mark.parametrize(
@@ -247,7 +268,7 @@ def test_help_documents_the_exit_statuses() -> None:
             "exit status: 0 success, 1 the robot fell (run), a case failed (stress) or a kick under the physical "
             "limit fell (envelope), 2 bad arguments (a controller that cannot fly included), 3 the run stopped "
             "short of the hops asked without a fall (run; it says why), 4 the controller failed mid-run and the "
-            "PID flew on (run; it says why), 130"
+            "PID flew on (run, and compare or sweep once finished; it says why), 130"
         )
         assert expected in text, text
         assert "141 the reader of its output went away (e.g. | head): it stops quietly" in text, text

@@ -18,6 +18,7 @@ import pyarrow as pa
 import pyarrow.dataset as ds
 import pytest
 from net import free_port, wait_until
+from sweep_data import FLAKY
 
 from hopper.config import GRAVITY_PRESETS, SimConfig
 from hopper.control.phases import Phase
@@ -75,6 +76,13 @@ def test_a_spec_expands_its_axes_and_reads_back_resolved() -> None:
         ({"disturbance": [{"kind": "pitch_kick", "size": 9.0, "phase": "stance", "delay": 0}]}, "size must be"),
         ({"disturbance": [{"kind": "pitch_kick", "size": 1.0, "phase": "nap", "delay": 0}]}, "phase 'nap'"),
         ({"kd": [20, 20]}, "kd: a value is repeated"),
+        (
+            {
+                "hops": [2, 5],
+                "disturbance": [{"kind": "pitch_kick", "size": 1.0, "phase": "flight", "delay": 0.1, "hop": 5}],
+            },
+            "hop 5 never comes in an episode of 2 hops",
+        ),  # fmt: skip
     ],
 )
 def test_bad_specs_are_refused_with_the_reason(data: dict, message: str) -> None:
@@ -91,6 +99,7 @@ def test_bad_specs_are_refused_with_the_reason(data: dict, message: str) -> None
         (["--out", "file.txt", "--seeds", "1"], "is not a folder"),
         (["--out", "file.txt/runs/quick", "--seeds", "1"], "file.txt is not a folder"),
         (["--out", "/proc/hopper/runs", "--seeds", "1"], "cannot write to /proc/hopper/runs"),  # even as root
+        (["--out", "o", "--hops", "2", "--disturbance", "pitch_kick:5:flight:0.1:5"], "hop 5 never comes"),
     ],
 )
 def test_the_cli_refuses_a_bad_spec_in_one_line_before_any_work(tmp_path: Path, args: list[str], message: str) -> None:
@@ -496,3 +505,30 @@ def test_a_ray_address_where_nothing_listens_fails_in_one_line_not_minutes_of_re
                         "--address", f"127.0.0.1:{port}", timeout=60)  # fmt: skip
     assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr
     assert f"cannot reach the Ray cluster at 127.0.0.1:{port}: connection refused" in result.stderr
+
+
+def test_a_sweep_counts_a_controller_fault_as_a_failure_and_says_why(tmp_path: Path) -> None:
+    (tmp_path / "flaky.py").write_text(FLAKY)
+    out = tmp_path / "runs"
+    flags = ["--controller", "pid,flaky.py:Flaky", "--seeds", "1", "--hops", "2", "--executor", "local"]
+    result = hopper_sim("sweep", "--out", str(out), *flags, "--workers", "1", cwd=tmp_path)
+    assert result.returncode == 4, result  # as run's: the PID flew the rest of the faulted episode
+    cause = "Flaky returned nan N m"
+    assert "2 episodes, 0 fell (0.0 %), 1 controller fault," in result.stdout, result.stdout
+    assert "Flaky: 0/1 fell, 1 controller fault" in result.stdout and cause in result.stdout, result.stdout
+    assert result.stderr.strip().splitlines()[-1].startswith("hopper-sim: error: controller ")
+    assert f"Flaky failed in 1 of 1 episodes: {cause}" in result.stderr, result.stderr
+    again = hopper_sim("sweep", "--out", str(out), *flags, cwd=tmp_path)  # nothing left to run: the same verdict
+    assert again.returncode == 4 and "nothing left to run" in again.stdout, again
+
+
+def test_a_disturbance_that_never_came_is_recorded_and_not_counted_a_survivor(tmp_path: Path) -> None:
+    out = tmp_path / "late"  # a kick 5 s into the flight of hop 2: the flight is over long before
+    flags = ["--seeds", "1", "--hops", "2", "--disturbance", "none", "--disturbance", "pitch_kick:1:flight:5.0:2"]
+    result = hopper_sim("sweep", "--out", str(out), *flags, "--executor", "local", "--workers", "1")
+    assert result.returncode == 0, result
+    rows = ds.dataset(out / "episodes").to_table().to_pylist()
+    applied = {row["disturbance_size"]: row["disturbance_applied"] for row in rows}
+    assert applied == {0.0: True, 1.0: False}
+    assert "1 of 2 episodes' disturbance was not applied" in result.stdout, result.stdout
+    assert "1 not disturbed" in result.stdout.splitlines()[0], result.stdout

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pyarrow as pa
 import pytest
 
-from hopper.experiments.summary import axis_lines, overall_line
+from hopper.experiments.summary import axis_lines, detail_lines, overall_line
 
 pytestmark = pytest.mark.unit
 
@@ -39,3 +39,25 @@ def test_episodes_without_a_landing_do_not_lower_or_replace_the_worst() -> None:
     assert "worst landing 0.31 deg" in overall_line(table)
     table = episodes([True, False], [0, 0], [0.0, 0.0], [True, True])
     assert "worst landing none (no hop completed)" in overall_line(table)
+
+
+def test_a_controller_fault_and_a_disturbance_never_applied_are_counted_and_said() -> None:
+    """A faulted episode flew its last hops on the PID, so it did not fall: the summary said `0 fell`
+    and nothing more; a kick that never came said nothing at all."""
+    table = episodes([True] * 4, [3] * 4, [0.1] * 4, [False] * 4).append_column(
+        "controller", pa.array(["pid", "flaky.py:Flaky", "pid", "flaky.py:Flaky"])
+    )
+    table = table.append_column("hops_target", pa.array([3] * 4))
+    table = table.append_column(
+        "controller_fault", pa.array(["", "Flaky returned nan N m", "", "Flaky returned nan N m"])
+    )
+    table = table.append_column("disturbance_applied", pa.array([True, True, False, True]))
+    assert overall_line(table).startswith("4 episodes, 0 fell (0.0 %), 2 controller faults, 1 not disturbed, ")
+    (line,) = axis_lines(table, {"controller": ("pid", "flaky.py:Flaky")})
+    assert "pid: 0/2 fell, 1 not disturbed, land" in line and "flaky.py:Flaky: 0/2 fell, 2 controller faults," in line
+    faults, missed = detail_lines(table)
+    assert faults.startswith("2 of 4 episodes had a controller fault and count as failed")
+    assert "flaky.py:Flaky (2 episodes): Flaky returned nan N m" in faults
+    assert missed.startswith("1 of 4 episodes' disturbance was not applied")
+    older = episodes([True], [3], [0.1], [False])  # a folder of before either column: as it read then
+    assert overall_line(older).startswith("1 episodes, 0 fell (0.0 %), worst landing") and detail_lines(older) == []

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 import pyarrow as pa
 
+from hopper.experiments.outcome import failed, success
 from hopper.experiments.stress import LANDING_LIMIT_DEG
 from hopper.experiments.uncertainty import MODEL_PREFIX
 
@@ -62,19 +63,10 @@ def _column(table: pa.Table, name: str) -> np.ndarray:
     return table.column(name).to_numpy(zero_copy_only=False)
 
 
-def success(table: pa.Table) -> np.ndarray:
-    """Per episode (bool): all hops done, no fall, no controller fault, every landing within 3.5 deg."""
-    landing = np.nan_to_num(_column(table, "worst_landing_deg").astype(float), nan=np.inf)
-    done = _column(table, "hops_completed") >= _column(table, "hops_target")
-    fault = _column(table, "controller_fault").astype(str) != "" if "controller_fault" in table.column_names else False
-    return done & ~_column(table, "fell").astype(bool) & ~fault & (landing <= LANDING_LIMIT_DEG)
-
-
 def landing_or_inf(table: pa.Table) -> np.ndarray:
-    """Each episode's worst landing error (deg), inf where it failed short of its hops or fell."""
-    landing = _column(table, "worst_landing_deg").astype(float)
-    done = _column(table, "hops_completed") >= _column(table, "hops_target")
-    return np.where(done & ~_column(table, "fell").astype(bool), landing, np.inf)
+    """Each episode's worst landing error (deg), inf where it failed (short of its hops, a fall or a
+    controller fault: hopper.experiments.outcome.failed)."""
+    return np.where(failed(table), np.inf, _column(table, "worst_landing_deg").astype(float))
 
 
 def group_columns(table: pa.Table) -> list[str]:

@@ -321,6 +321,11 @@ def parse_spec(data: dict[str, Any]) -> SweepSpec:
         if len(set(values)) != len(values):
             raise SpecError(f"{name}: a value is repeated")
     spec = SweepSpec(**axes)
+    late = [d for d in spec.disturbance if d is not None and d.hop > min(spec.hops)]
+    if late:  # its hop never comes in the shorter episodes: a robot never disturbed is no survivor of it
+        d = late[0]
+        raise SpecError(f"disturbance {d.kind}: hop {d.hop} never comes in an episode of {min(spec.hops)} hops: "
+                        f"give a hop from 1 to {min(spec.hops)}, or more hops")  # fmt: skip
     if spec.size > MAX_EPISODES:
         raise SpecError(f"{spec.size} episodes is more than {MAX_EPISODES}")
     return spec

@@ -55,6 +55,9 @@ RESULT_COLUMNS: list[tuple[str, pa.DataType]] = [
     ("wall_s", pa.float64()),
     ("controller_fault", pa.string()),  # why the controller was replaced by the PID mid-episode, "" if it was not
     ("energy_j_per_hop", pa.float64()),  # J, mean electrical energy per hop, wheel and legs (worker.energy_per_hop)
+    # False where the disturbance never happened (its hop or phase never came); True without one. An
+    # older folder has no such column: hopper.experiments.outcome.applied reads it as applied.
+    ("disturbance_applied", pa.bool_()),
 ]
 _ARROW_TYPES = {int: pa.int64(), float: pa.float64(), bool: pa.bool_()}
 HOP_FIELDS: list[tuple[str, pa.DataType]] = [

@@ -7,6 +7,7 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.compute as pc
 
+from hopper.experiments import outcome
 from hopper.experiments.spec import GAINS
 from hopper.experiments.store import worst_landing
 
@@ -29,7 +30,8 @@ def axis_lines(episodes: pa.Table, axes: dict[str, tuple[Any, ...]]) -> list[str
             falls = pc.sum(rows.column("fell")).as_py() or 0
             momentum = pc.max(rows.column("momentum_used_pct")).as_py()
             label = _label(value)
-            parts.append(f"{label}: {falls}/{rows.num_rows} fell, land {_landing(rows)}, wheel {momentum:.0f} %")
+            parts.append(f"{label}: {falls}/{rows.num_rows} fell{_failed_otherwise(rows)}, land {_landing(rows)}, "
+                         f"wheel {momentum:.0f} %")  # fmt: skip
         unit = ", ".join(([UNITS[name]] if name in UNITS else []) + (["pid episodes"] if pool is not episodes else []))
         lines.append(f"{name}{f' ({unit})' if unit else ''}: " + "; ".join(parts))
     return lines
@@ -51,7 +53,22 @@ def overall_line(episodes: pa.Table) -> str:
     falls = pc.sum(episodes.column("fell")).as_py() or 0
     sim = pc.sum(episodes.column("sim_time_s")).as_py()
     landing = _landing(episodes)
-    return f"{n} episodes, {falls} fell ({100 * falls / n:.1f} %), worst landing {landing}, {sim:.0f} s simulated"
+    return (f"{n} episodes, {falls} fell ({100 * falls / n:.1f} %){_failed_otherwise(episodes)}, worst landing "
+            f"{landing}, {sim:.0f} s simulated")  # fmt: skip
+
+
+def _failed_otherwise(rows: pa.Table) -> str:
+    """ ", k controller faults" and ", k not disturbed" where there are any (outcome's rule): a fault is a
+    failure whatever the PID did after it, an episode whose disturbance never came no survivor of it."""
+    faults, missed = int(outcome.faulted(rows).sum()), int((~outcome.applied(rows)).sum())
+    return (f", {faults} controller fault{'s' if faults != 1 else ''}" if faults else "") + (
+        f", {missed} not disturbed" if missed else ""
+    )
+
+
+def detail_lines(episodes: pa.Table) -> list[str]:
+    """The controller faults' causes and the disturbances not applied, a line each where there are any."""
+    return [line for line in (outcome.fault_line(episodes), outcome.not_applied_line(episodes)) if line]
 
 
 def _landing(rows: pa.Table) -> str:

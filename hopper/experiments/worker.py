@@ -53,6 +53,7 @@ class EpisodeResult:
             "wall_s": self.wall_s,
             "controller_fault": self.controller_fault,
             "energy_j_per_hop": energy_per_hop(self),
+            "disturbance_applied": self.applied,
         }
 
     def hop_rows(self) -> list[dict[str, Any]]:
@@ -94,7 +95,8 @@ class Worker:
         try:
             sim = self._prepare(episode.config())
         except ControllerError as exc:  # the episode fails with its cause; the batch goes on
-            return EpisodeResult(episode, (), False, 0.0, time.perf_counter() - start, 0.0, 0.0, False, str(exc))
+            wall = time.perf_counter() - start  # an undisturbed episode's disturbance counts as applied
+            return EpisodeResult(episode, (), False, 0.0, wall, 0.0, 0.0, episode.disturbance is None, str(exc))
         hops, schedule = episode.hops_target, episode.disturbance
         # A listener every tick costs ~10 % of the episode's wall time (no compiled bursts): only if asked.
         recorder = TraceRecorder(sim.config.timestep) if episode.trace else None

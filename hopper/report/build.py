@@ -82,6 +82,9 @@ def run_report(on: Sequence[Run], off: Sequence[Run], title: str, subtitle: str)
     tables = [hop_table(shown)]
     if on and off:
         tables.append(seed_table(on, off))
+    faulted = [r for r in (*on, *off) if r.fault]
+    if faulted:  # first: every figure after the fault shows the PID's flights, not the controller's
+        tables.insert(0, fault_section(faulted, len(on) + len(off)))
     return Report(title, subtitle, with_scenario(shown.settings), figures, tables)
 
 
@@ -95,6 +98,15 @@ def with_scenario(settings: dict[str, Any]) -> dict[str, Any]:
     except (TypeError, ValueError):  # a gait of another version
         name = None
     return {"scenario": name or "a gait of its own", **settings}
+
+
+def fault_section(faulted: Sequence[Run], runs: int) -> page.Section:
+    """The runs whose controller failed mid-run, each with its cause."""
+    controller = faulted[0].settings.get("controller", "the controller")
+    rows = [[r.label, r.fault] for r in faulted]
+    note = (f"{controller} failed in {len(faulted)} of {runs} runs and the built-in PID flew on from the fault: "
+            "their later flights are the PID's, not the controller's; such a run counts as failed.")  # fmt: skip
+    return page.Section("Controller faults", header=["run", "cause"], rows=rows, note=note)
 
 
 def hop_table(run: Run) -> page.Section:
@@ -113,17 +125,21 @@ def seed_table(on: Sequence[Run], off: Sequence[Run]) -> page.Section:
         twin = off_by_seed.get(run.seed)
         peak_off = max((h["peak_pitch_deg"] for h in twin.hops), default=0.0) if twin else float("nan")
         rows.append([
-            run.seed, f"{len(done)}{' fell' if run.fell else ''}", peak,
+            run.seed, f"{len(done)}{_ended(run)}", peak,
             max((h["rms_pitch_rate_deg_s"] for h in run.hops), default=0.0),
             max((h["landing_pitch_deg"] for h in done), default=0.0),
             max((h["saturation_time_s"] for h in run.hops), default=0.0),
-            (f"{sum(h['completed'] for h in twin.hops)}{' fell' if twin.fell else ''}") if twin else "",
+            f"{sum(h['completed'] for h in twin.hops)}{_ended(twin)}" if twin else "",
             peak_off, 100.0 * (peak_off - peak) / peak_off if twin and peak_off > 0 else float("nan"),
         ])  # fmt: skip
     header = ["seed", "on: hops", "peak (deg)", "RMS rate (deg/s)", "landing (deg)", "saturation (s/hop)",
               "off: hops", "off peak (deg)", "reduction (%)"]  # fmt: skip
     return page.Section("Per seed (worst hop of each), wheel on vs off", header=header, rows=rows,
                         note="Wheel off = zero wheel torque, the wheel free to spin.")  # fmt: skip
+
+
+def _ended(run: Run) -> str:
+    return (" fell" if run.fell else "") + (" fault" if run.fault else "")
 
 
 def write(report: Report, folder: Path) -> list[Path]:

@@ -12,6 +12,7 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
 from hopper.experiments.montecarlo import METRICS, QUANTILES, GroupStats, group_stats, landing_or_inf, success
+from hopper.experiments.outcome import SUCCESS_RULE
 from hopper.experiments.stress import LANDING_LIMIT_DEG
 from hopper.experiments.uncertainty import MODEL_PREFIX, params
 from hopper.report import page, style
@@ -42,8 +43,7 @@ def success_probability(stats: list[GroupStats]) -> Figure:
     ax.invert_yaxis()
     lowest = min(100 * g.interval[0] for g in stats)
     ax.set_xlim(max(0.0, math.floor(lowest / 10) * 10 - 10), 101)
-    ax.set_xlabel(f"success probability (%): all hops, no fall, every landing within {LANDING_LIMIT_DEG:g} deg; "
-                  "bars: 95 % Wilson interval")  # fmt: skip
+    ax.set_xlabel(f"success probability (%): {SUCCESS_RULE}; bars: 95 % Wilson interval")
     return fig
 
 
@@ -120,7 +120,7 @@ def table(stats: list[GroupStats]) -> page.Section:
         figures = [" / ".join("failed" if math.isinf(v) else f"{v:.3g}" for v in g.quantiles[m]) for m in METRICS]
         rows.append([g.label, g.episodes, g.successes, 100 * g.probability, f"{100 * low:.1f} - {100 * high:.1f}",
                      *figures])  # fmt: skip
-    note = (f"Success: every hop done, no fall, no controller fault, every landing within {LANDING_LIMIT_DEG:g} deg. "
+    note = (f"Success: {SUCCESS_RULE}. "
             "Quantiles over episodes (one robot each); a failed episode's landing error counts as beyond any bound "
             "('failed').")  # fmt: skip
     return page.Section("Monte Carlo over the sampled robots", header=header, rows=rows, note=note)
@@ -138,7 +138,8 @@ def figures(episodes: pa.Table) -> tuple[list[Named], page.Section]:
               "hop (wheel and legs, braking not recovered) and peak wheel momentum used (% of capacity).",
               distributions(stats)),
         Named("mc_parameters", "Landing error against each sampled parameter",
-              "One dot per robot of the first gain set; red: failed (crosses on the top edge: fell or hops short). "
+              "One dot per robot of the first gain set; red: failed (crosses on the top edge: fell, hops short or a "
+              "controller fault). "
               "Dashed: 3.5 deg; grey: the nominal robot's value.", against_parameters(episodes, stats)),
     ]  # fmt: skip
     return named, table(stats)

@@ -28,6 +28,7 @@ class Run:
     hops: list[dict[str, Any]]
     trace: dict[str, np.ndarray]
     source: str  # where it came from: "run JSON", "compare JSON", ".rrd", "re-simulated"
+    fault: str = ""  # why the controller was replaced by the PID mid-run (its later flights the PID's), "" if not
 
     @property
     def seed(self) -> int | None:
@@ -113,7 +114,16 @@ def run_from_result(result: dict[str, Any], source: str) -> Run:
         hops=hop_dicts(result["hops"]),
         trace=trace_arrays(result["trace"]),
         source=source,
+        fault=fault_of(result),
     )
+
+
+def fault_of(result: dict[str, Any]) -> str:
+    """A result's controller fault: compare's runs hold it as `fault`, run's JSON as `controller.fault`
+    ("" for none, or for a JSON written before either)."""
+    controller = result.get("controller")
+    fault = result.get("fault") or (controller.get("fault") if isinstance(controller, dict) else None)
+    return fault if isinstance(fault, str) else ""
 
 
 def kind_of(document: dict[str, Any]) -> str:

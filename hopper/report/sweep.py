@@ -16,12 +16,14 @@ from matplotlib.patches import Rectangle
 
 from hopper.config import GaitParams
 from hopper.disturbances import DISTURBANCE_LIMITS
+from hopper.experiments import outcome
 from hopper.experiments.spec import GAINS
 from hopper.experiments.store import worst_landing
+from hopper.experiments.stress import LANDING_LIMIT_DEG  # the paper's landing bound (outcome.success)
+from hopper.experiments.uncertainty import MODEL_PREFIX
 from hopper.report import page, style
 from hopper.report.build import Named, Report
 
-LANDING_LIMIT_DEG = 3.5  # the paper's landing bound: an episode succeeds within it, all hops done, no fall
 REQUIRED = ("kp", "kd", "gravity", "wheel", "disturbance_size", "hops_target", "hops_completed", "fell",
             "worst_landing_deg")  # fmt: skip
 # Setting columns of the contract, summarised per value when a sweep varies them.
@@ -48,10 +50,8 @@ class Sweep:
         return worst_landing(self.episodes).to_numpy().astype(float)
 
     def success(self) -> np.ndarray:
-        """Per episode: all hops done, no fall, every landing within LANDING_LIMIT_DEG."""
-        landing = np.nan_to_num(self.landing(), nan=np.inf)
-        done = self.column("hops_completed") >= self.column("hops_target")
-        return done & ~self.column("fell").astype(bool) & (landing <= LANDING_LIMIT_DEG)
+        """Per episode: hopper.experiments.outcome's rule (SUCCESS_RULE), as the Monte Carlo figures count."""
+        return outcome.success(self.episodes)
 
     def flying(self, name: str) -> np.ndarray:
         """Per episode, whether its flight law flies the setting `name`: a gain only the PID's (the other
@@ -72,6 +72,20 @@ class Sweep:
     def varied(self) -> list[str]:
         """The setting columns that take more than one value."""
         return [c for c in self.settings() if len(self.values(c)) > 1]
+
+    def drawn(self) -> list[str]:
+        """The model parameters drawn per robot (hopper.experiments.uncertainty) that take more than one value."""
+        columns = [c for c in self.episodes.column_names if c.startswith(MODEL_PREFIX)]
+        return [c[len(MODEL_PREFIX) :] for c in columns if len(_unique(self.column(c))) > 1]
+
+    def varied_text(self) -> str:
+        """What the sweep varies, in words: its settings, then the model parameters drawn for its robots."""
+        parts = list(self.varied())
+        drawn = self.drawn()
+        if drawn:
+            robots = len(_unique(self.column("sample"))) if "sample" in self.episodes.column_names else "its"
+            parts.append(f"{len(drawn)} model parameters drawn for {robots} robots ({', '.join(drawn)})")
+        return ", ".join(parts) or "nothing"
 
 
 def _unique(values: np.ndarray) -> list:
@@ -155,7 +169,7 @@ def gain_map(sweep: Sweep, wheel: bool = True) -> Figure:
 
 
 def success_against(sweep: Sweep, column: str, label: str) -> Figure:
-    """Share of successful episodes (all hops, no fall, landings within 3.5 deg) per value of
+    """Share of successful episodes (outcome.SUCCESS_RULE) per value of
     `column`, one line per wheel state, with the episode count at each point."""
     fig, (ax,) = style.new_figure(1, height=2.8, sharex=False, title=f"Success rate against {label.split(' (')[0]}")
     _success_lines(ax, sweep, np.ones(sweep.episodes.num_rows, dtype=bool), column, label)
@@ -173,12 +187,14 @@ def disturbance_kinds(sweep: Sweep) -> np.ndarray:
 
 def success_against_disturbance(sweep: Sweep) -> Figure:
     """Success rate against the disturbance's size, one panel per kind with that kind's unit (an
-    N m s kick and an N s push share no axis); the undisturbed episodes are each panel's size 0."""
+    N m s kick and an N s push share no axis); the undisturbed episodes are each panel's size 0. An
+    episode whose disturbance never happened is left out: its robot met no disturbance to survive."""
     kinds = disturbance_kinds(sweep)
+    applied = outcome.applied(sweep.episodes)
     shown = sorted(set(kinds.tolist()) - {""}) or [""]
     fig, axes = style.new_figure(len(shown), height=2.8, sharex=False, title="Success rate against disturbance size")
     for ax, kind in zip(axes, shown, strict=True):
-        rows = (kinds == kind) | (kinds == "")
+        rows = ((kinds == kind) | (kinds == "")) & applied
         if kind == "?":
             label = "disturbance size (kind and unit not recorded)"
         elif kind:
@@ -210,8 +226,8 @@ def _success_lines(ax, sweep: Sweep, chosen: np.ndarray, column: str, label: str
 
 
 def axis_table(sweep: Sweep) -> page.Section:
-    """One line per value of each varied setting: episodes, success, falls, worst landing."""
-    ok, fell = sweep.success(), sweep.column("fell").astype(bool)
+    """One line per value of each varied setting: episodes, success, falls, controller faults, worst landing."""
+    ok, fell, faulted = sweep.success(), sweep.column("fell").astype(bool), outcome.faulted(sweep.episodes)
     landing = sweep.landing()
     rows = []
     for name in sweep.varied():
@@ -219,10 +235,12 @@ def axis_table(sweep: Sweep) -> page.Section:
         for v in sweep.values(name):
             sel = sweep.flying(name) & (values == v)
             worst = np.nanmax(landing[sel]) if np.isfinite(landing[sel]).any() else "no landing"
-            rows.append([name, v, int(sel.sum()), 100.0 * ok[sel].mean(), int(fell[sel].sum()), worst])
-    header = ["setting", "value", "episodes", "success (%)", "falls", "worst landing (deg)"]
-    note = (f"Success: all hops done, no fall, every landing within {LANDING_LIMIT_DEG:g} deg. "
-            f"{sweep.episodes.num_rows} episodes, {int(ok.sum())} successful.")  # fmt: skip
+            rows.append([name, v, int(sel.sum()), 100.0 * ok[sel].mean(), int(fell[sel].sum()), worst,
+                         int(faulted[sel].sum())])  # fmt: skip
+    header = ["setting", "value", "episodes", "success (%)", "falls", "worst landing (deg)", "controller faults"]
+    note = f"Success: {outcome.SUCCESS_RULE}. {sweep.episodes.num_rows} episodes, {int(ok.sum())} successful."
+    for line in (outcome.fault_line(sweep.episodes), outcome.not_applied_line(sweep.episodes)):
+        note += f" {line[0].upper()}{line[1:]}." if line else ""
     return page.Section("Per setting value", header=header, rows=rows, note=note)
 
 
@@ -247,10 +265,14 @@ def sweep_report(sweep: Sweep, title: str) -> Report:
                                  gain_map(sweep, wheel)))  # fmt: skip
     for column, label in (("gravity", "gravity (m/s²)"), ("disturbance_size", "disturbance size")):
         if len(_unique(sweep.column(column))) > 1:
-            note = "Episodes with all hops done, no fall and every landing within 3.5 deg."
+            note = f"Episodes with {outcome.SUCCESS_RULE}."
             if column == "disturbance_size":
                 figure = success_against_disturbance(sweep)
                 note += " One panel per disturbance kind, in its unit; the undisturbed episodes are each one's 0."
+                missed = int((~outcome.applied(sweep.episodes)).sum())
+                if missed:
+                    note += (f" Left out: {missed} episodes whose disturbance was not applied "
+                             f"({outcome.NOT_APPLIED}).")  # fmt: skip
             else:
                 figure = success_against(sweep, column, label)
             figures.append(Named(f"success_vs_{column}", f"Success rate against {label}", note, figure))
@@ -274,5 +296,7 @@ def sweep_report(sweep: Sweep, title: str) -> Report:
            for c in sweep.settings()},
     }  # fmt: skip
     fell = int(pc.sum(sweep.episodes.column("fell").cast(pa.int64())).as_py())
-    subtitle = f"{sweep.episodes.num_rows} episodes, {fell} fell; varied: {', '.join(sweep.varied()) or 'nothing'}"
+    faults = int(outcome.faulted(sweep.episodes).sum())
+    faulted = f", {faults} with a controller fault (failed)" if faults else ""
+    subtitle = f"{sweep.episodes.num_rows} episodes, {fell} fell{faulted}; varied: {sweep.varied_text()}"
     return Report(title, subtitle, settings, figures, tables)
