@@ -64,6 +64,32 @@ def close_notices(page) -> None:  # noqa: ANN001 (a playwright Page)
     page.evaluate(CLOSE_NOTICES_JS)
 
 
+# The list of a viser dropdown (Mantine's searchable Select, `aria-expanded` on its input): open
+# with `option` in it, or shut again (a re-render of the panel by the page's updates can shut it).
+LIST_SETTLED_JS = """([id, option]) => {
+    const open = document.getElementById(id).getAttribute('aria-expanded') === 'true';
+    const shown = [...document.querySelectorAll('[role=option]')].some(o => o.textContent.trim() === option);
+    return (open && shown) || !open;
+}"""
+PICK_TRIES = 3
+
+
+def pick(page, uuid: str, option: str) -> None:  # noqa: ANN001 (a playwright Page)
+    """Open the dropdown whose input is `uuid` and click `option`, as a person does: one who opens
+    the list again if it shut before the click (a browser test once waited 60 s for an option of a
+    list that had shut under it)."""
+    select = page.locator(f'input[id="{uuid}"]')
+    for _ in range(PICK_TRIES):
+        select.click()
+        page.wait_for_function("id => document.getElementById(id).getAttribute('aria-expanded') === 'true'", arg=uuid)
+        page.wait_for_function(LIST_SETTLED_JS, arg=[uuid, option])
+        wanted = page.get_by_role("option", name=option, exact=True)
+        if wanted.is_visible():
+            wanted.click()
+            return
+    raise AssertionError(f"the list of {uuid} shut {PICK_TRIES} times before {option!r} could be clicked")
+
+
 def wait_for_ab_table(page, *texts: str, timeout_ms: float = 30_000) -> None:  # noqa: ANN001 (a Page)
     """Wait for a re-fly table (table.hd-ab) holding every one of `texts`; on a timeout, fail with the
     tables the page holds, so a miss says whether the table came late, came wrong or never came."""

@@ -12,7 +12,7 @@ import pytest
 from hopper.app.dashboard.feedback import format_number
 from hopper.app.dashboard.server import Dashboard
 from net import wait_until
-from pages import wait_for_ab_table
+from pages import pick, wait_for_ab_table
 from test_controllers import readme_example
 from test_dashboard_e2e import PAGE_LOAD_MS
 from test_dashboard_inputs_e2e import box, notice, open_page, type_into
@@ -46,8 +46,7 @@ def _open(browser, dashboard: Dashboard):  # noqa: F811
 
 def _pick(page, dashboard: Dashboard, option: str) -> None:
     """Open the Controller selector and click `option`, as a person does."""
-    page.locator(f'input[id="{dashboard.layout.controller.choice._impl.uuid}"]').click()  # Mantine's Select
-    page.get_by_role("option", name=option).click()
+    pick(page, dashboard.layout.controller.choice._impl.uuid, option)
 
 
 def test_the_selector_switches_to_a_users_controller_and_back(browser, start, tmp_path: Path) -> None:  # noqa: F811

@@ -264,15 +264,23 @@ def test_the_torque_chart_draws_its_limit_lines(page, dashboard: Dashboard, tmp_
     chart = page.locator(".uplot").nth(2)  # pitch, wheel speed, torque
     chart.wait_for(timeout=10_000)
     chart.get_by_text("+limit").wait_for(timeout=10_000)  # its legend
-    dashboard.layout.simulation.set_paused(True)
     shot = tmp_path / "torque-chart.png"
-    chart.screenshot(path=str(shot))
-    page.screenshot(path=str(tmp_path / "page.png"))
-    pixels = np.asarray(Image.open(shot).convert("RGB")).astype(int)
     red = np.array([int(LIMIT_COLOR[i : i + 2], 16) for i in (1, 3, 5)])
-    height, width, _ = pixels.shape
-    # A dashed line across the plot draws its colour in over an eighth of its row (the antialiased
-    # half of each dash aside); the legend's swatches and the torque trace (another red) do not.
-    rows = np.flatnonzero((np.abs(pixels - red).sum(axis=2) < 20).sum(axis=1) > width / 8)
-    assert rows.size, "no limit line drawn"
+
+    def limit_rows() -> tuple[np.ndarray, int]:
+        """The chart's pixel rows drawn in the limit's colour, and its height (px)."""
+        chart.screenshot(path=str(shot))
+        pixels = np.asarray(Image.open(shot).convert("RGB")).astype(int)
+        height, width, _ = pixels.shape
+        # A dashed line across the plot draws its colour in over an eighth of its row (the antialiased
+        # half of each dash aside); the legend's swatches and the torque trace (another red) do not.
+        return np.flatnonzero((np.abs(pixels - red).sum(axis=2) < 20).sum(axis=1) > width / 8), height
+
+    # The legend comes with the chart, the lines with its first data: the page draws them after the
+    # server has the window (CI once read the chart before that).
+    assert wait_until(lambda: limit_rows()[0].size, timeout=30), "no limit line drawn"
+    dashboard.layout.simulation.set_paused(True)
+    rows, height = limit_rows()
+    page.screenshot(path=str(tmp_path / "page.png"))
+    assert rows.size, "the limit lines went when the simulation paused"
     assert rows.min() < height / 3 and height / 3 < rows.max(), f"one line above zero and one below: rows {rows}"

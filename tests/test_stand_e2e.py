@@ -11,7 +11,7 @@ from pathlib import Path
 
 from hopper.app.dashboard.server import Dashboard
 from net import wait_until
-from pages import close_notices
+from pages import close_notices, pick
 from test_dashboard_e2e import PAGE_LOAD_MS
 from test_dashboard_inputs_e2e import box, notice, type_into
 from test_replay_e2e import WORK_VIEWPORT
@@ -22,8 +22,7 @@ from hopper.stand import StandSimulation
 def _mode(page, dashboard: Dashboard, option: str) -> None:
     """Open the Mode selector and click `option`, as a person does."""
     assert dashboard.layout.stand is not None
-    page.locator(f'input[id="{dashboard.layout.stand.mode._impl.uuid}"]').click()  # Mantine's Select
-    page.get_by_role("option", name=option).click()
+    pick(page, dashboard.layout.stand.mode._impl.uuid, option)
 
 
 def _inject_a_chirp(page, dashboard: Dashboard, sim: StandSimulation, tmp_path: Path) -> None:
