@@ -18,6 +18,7 @@ import pyarrow.dataset as ds
 import pytest
 from hopper.app import report_cli
 from hopper.app.sim_cli import simulate
+from in_process import cli
 from PIL import Image
 from sweep_data import write_sweep
 
@@ -38,18 +39,6 @@ def hopper_sim(*args: str, cwd: Path | None = None) -> subprocess.CompletedProce
     return subprocess.run(
         [sys.executable, "-m", "hopper.app.sim_cli", *args], capture_output=True, text=True, timeout=300, cwd=cwd
     )
-
-
-def cli(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
-    """hopper-sim's main() in this process (what the process runs, without its start-up cost)."""
-    from hopper.app.sim_cli import main
-
-    try:
-        code = main(list(argv))
-    except SystemExit as exc:
-        code = int(exc.code)
-    captured = capsys.readouterr()
-    return code, captured.out, captured.err
 
 
 def args(**overrides: object) -> argparse.Namespace:
@@ -344,11 +333,11 @@ def test_a_seed_not_in_the_file_is_refused_before_any_simulation(run_json: Path,
 )
 def test_bad_inputs_fail_in_one_line(tmp_path: Path, capsys, make, message: str) -> None:  # noqa: ANN001
     path = make(tmp_path)
-    code, out, err = cli(capsys, "report", str(path), "--out", str(tmp_path / "out" / "figures"))
+    code, out, err = cli(capsys, "report", str(path), "--out", str(tmp_path / "out"))
     assert code == 2, (out, err)
     assert err.startswith("hopper-sim: error: ") and err.count("\n") == 1, err
     assert message in err and out == ""
-    assert not (tmp_path / "out").exists(), "a refused input left the --out folders it made"
+    assert not (tmp_path / "out").exists(), "a refused input left the --out folder it made"
 
 
 def test_bad_input_in_a_real_process_is_one_line_too(tmp_path: Path) -> None:

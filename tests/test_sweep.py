@@ -89,8 +89,9 @@ def test_bad_specs_are_refused_with_the_reason(data: dict, message: str) -> None
         (["spec.toml", "--out", "o"], "spec.toml is not valid TOML"),
         (["--out", "o", "--kp", "1:2"], "a range is {start, stop, num}"),
         (["--out", "file.txt", "--seeds", "1"], "is not a folder"),
-        (["--out", "file.txt/runs/quick", "--seeds", "1"], "file.txt is not a folder"),
-        (["--out", "/proc/hopper/runs", "--seeds", "1"], "cannot write to /proc/hopper/runs"),  # even as root
+        (["--out", "file.txt/quick", "--seeds", "1"], "file.txt is not a folder"),
+        (["--out", "missing/runs/quick", "--seeds", "1"], "--out: folder missing/runs does not exist"),  # not made
+        (["--out", "/proc/runs", "--seeds", "1"], "cannot write to /proc/runs"),  # even as root
     ],
 )
 def test_the_cli_refuses_a_bad_spec_in_one_line_before_any_work(tmp_path: Path, args: list[str], message: str) -> None:
