@@ -166,6 +166,28 @@ def check_out(out: Path, flag: str = "--out") -> list[Path]:
     return made
 
 
+def check_reused(out: Path, ours: Callable[[Path], bool], what: str, flag: str = "--out") -> None:
+    """An OUT that exists and holds anything must be `what` (`ours(OUT)` says so): a command never
+    writes into, nor replaces, a folder of something else. One line and exit 2 otherwise, before any
+    work, saying what OUT holds."""
+    names = entries(out) if out.is_dir() else []
+    if names and not ours(out):
+        fail(f"{flag}: {out} holds {held_text(names)}, and is not {what}: give a new or empty folder")
+
+
+def entries(folder: Path) -> list[str]:
+    """The names in `folder`, sorted, a folder's with a trailing /, the write probe left out."""
+    names = (p.name + ("/" if p.is_dir() else "") for p in folder.iterdir() if p.name != WRITE_PROBE)
+    return sorted(names)
+
+
+def held_text(names: list[str], shown: int = 4) -> str:
+    """'a, b and c', or the first `shown` names and how many more."""
+    if len(names) > shown:
+        return f"{', '.join(names[:shown])} and {len(names) - shown} more"
+    return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} and {names[-1]}"
+
+
 @contextlib.contextmanager
 def made_out(out: Path | None, flag: str = "--out") -> Iterator[None]:
     """check_out(OUT) (nothing without one); if the block then stops on an exception (a check that
