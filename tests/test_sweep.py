@@ -443,11 +443,11 @@ def test_an_executor_that_cannot_start_leaves_no_sweep_folder_and_one_line(
     monkeypatch.setattr(ray, "init", refuse)
     flags = ["--seeds", "2", "--hops", "1", "--executor", "ray"]
     with pytest.raises(SystemExit) as exit:
-        main(["sweep", "--out", str(tmp_path / "new" / "out"), *flags])
+        main(["sweep", "--out", str(tmp_path / "new"), *flags])
     err = capsys.readouterr().err
     hint = "(token authentication? see the README)"
     assert exit.value.code == 2 and err == f"hopper-sim: error: cannot start or reach a local Ray {hint}: {words}\n"
-    assert not (tmp_path / "new").exists(), "the folders made for the sweep were left behind"
+    assert not (tmp_path / "new").exists(), "the folder made for the sweep was left behind"
 
     resumed = tmp_path / "resumed"
     spec = parse_spec({"seeds": 2, "hops": 1})
