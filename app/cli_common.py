@@ -90,6 +90,16 @@ def _reader_gone(stream: object) -> bool:
         return False
 
 
+def missing_folder(path: Path) -> str | None:
+    """Why the output `path` cannot be made: the folder it would be made in is missing or is no
+    folder; None if that folder exists. Every output path of hopper-sim's commands, a file's or a
+    folder's, is made in a folder that exists: a mistyped parent is refused, never created."""
+    folder = path.parent
+    if folder.is_dir():
+        return None
+    return f"{folder} is not a folder" if folder.exists() else f"folder {folder} does not exist"
+
+
 def writable_file(text: str) -> Path:
     """An output path that can really be written (checked before any simulation).
 
@@ -97,11 +107,11 @@ def writable_file(text: str) -> Path:
     say little for root, /proc, read-only mounts or ACLs. A file that did not exist is removed again.
     """
     path = Path(text)
-    folder = path.parent
     if path.is_dir():
         raise argparse.ArgumentTypeError(f"{text} is a directory")
-    if not folder.is_dir():
-        raise argparse.ArgumentTypeError(f"folder {folder} does not exist")
+    missing = missing_folder(path)
+    if missing:
+        raise argparse.ArgumentTypeError(missing)
     existed = path.exists()
     try:
         with open(path, "ab"):
@@ -125,29 +135,30 @@ def same_file(a: Path | str, b: Path | str) -> bool:
         return False
 
 
+WRITE_PROBE = ".hopper-write-test"  # written and removed again: a folder proven writable
+
+
 def make_writable_folder(path: Path) -> None:
-    """Make the folder `path` (and its parents) and write in it; OSError if that cannot be done.
+    """Make the folder `path` (its parent must exist) and write in it; OSError if that cannot be done.
 
     Written to, not judged by its permission bits, which say little for root, /proc or a read-only mount.
     """
-    path.mkdir(parents=True, exist_ok=True)
-    probe = path / ".hopper-write-test"
+    path.mkdir(exist_ok=True)
+    probe = path / WRITE_PROBE
     probe.write_bytes(b"")
     probe.unlink()
 
 
-def check_out(out: Path, flag: str = "--out", parents: bool = True) -> list[Path]:
-    """OUT is a folder (or can be made one, with its missing parents; without `parents`, in a folder
-    that exists, as a file's path must be) that can be written: made and written to now, before any
-    work; one line and exit 2 otherwise. Returns the folders it made, OUT first (see made_out)."""
-    folder, made = out.absolute(), []
-    if not parents and not folder.parent.exists():
-        fail(f"{flag}: folder {folder.parent} does not exist")
-    while not folder.exists():  # OUT itself, or the nearest of its parents that exists
-        made.append(folder)
-        folder = folder.parent
-    if not folder.is_dir():
-        fail(f"{flag}: {folder} is not a folder")
+def check_out(out: Path, flag: str = "--out") -> list[Path]:
+    """OUT is a folder, or can be made one in a folder that exists (missing_folder: as a file's path
+    must be), that can be written: made and written to now, before any work; one line and exit 2
+    otherwise. Returns the folders it made (OUT, or none; see made_out)."""
+    missing = missing_folder(out)
+    if missing:
+        fail(f"{flag}: {missing}")
+    if out.exists() and not out.is_dir():
+        fail(f"{flag}: {out} is not a folder")
+    made = [] if out.exists() else [out]
     try:  # written to, not judged by permission bits (root, /proc, read-only mounts)
         make_writable_folder(out)
     except OSError as exc:
@@ -156,12 +167,34 @@ def check_out(out: Path, flag: str = "--out", parents: bool = True) -> list[Path
     return made
 
 
+def check_reused(out: Path, ours: Callable[[Path], bool], what: str, flag: str = "--out") -> None:
+    """An OUT that exists and holds anything must be `what` (`ours(OUT)` says so): a command never
+    writes into, nor replaces, a folder of something else. One line and exit 2 otherwise, before any
+    work, saying what OUT holds."""
+    names = entries(out) if out.is_dir() else []
+    if names and not ours(out):
+        fail(f"{flag}: {out} holds {held_text(names)}, and is not {what}: give a new or empty folder")
+
+
+def entries(folder: Path) -> list[str]:
+    """The names in `folder`, sorted, a folder's with a trailing /, the write probe left out."""
+    names = (p.name + ("/" if p.is_dir() else "") for p in folder.iterdir() if p.name != WRITE_PROBE)
+    return sorted(names)
+
+
+def held_text(names: list[str], shown: int = 4) -> str:
+    """'a, b and c', or the first `shown` names and how many more."""
+    if len(names) > shown:
+        return f"{', '.join(names[:shown])} and {len(names) - shown} more"
+    return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} and {names[-1]}"
+
+
 @contextlib.contextmanager
-def made_out(out: Path | None, flag: str = "--out", parents: bool = True) -> Iterator[None]:
+def made_out(out: Path | None, flag: str = "--out") -> Iterator[None]:
     """check_out(OUT) (nothing without one); if the block then stops on an exception (a check that
-    refuses, Ctrl-C), the folders check_out made are removed again if still empty: a refused command
+    refuses, Ctrl-C), the folder check_out made is removed again if still empty: a refused command
     leaves no empty folder behind, and never removes one it did not make or that holds anything."""
-    made = check_out(out, flag, parents) if out is not None else []
+    made = check_out(out, flag) if out is not None else []
     try:
         yield
     except BaseException:

@@ -9,16 +9,18 @@ one self-contained page with the figures and the settings.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import json
 import sys
 from pathlib import Path
 from typing import Any
 
-from hopper.app.cli_common import EXIT_OK, fail, made_out
+from hopper.app.cli_common import EXIT_OK, check_reused, fail, made_out, same_file
 from hopper.app.episode import sim_config, simulate
 
 from hopper.controllers import ControllerError
+from hopper.report.folder import is_report_folder, staged
 from hopper.trace import TRACE_COLUMNS
 
 KINDS = ("run JSON", "compare JSON", "league JSON", "stand JSON", ".rrd recording", "sweep directory or Parquet")
@@ -30,7 +32,10 @@ def add_parser(commands: argparse._SubParsersAction, epilog: str) -> None:
         "report", help="figures (PNG, PDF) and one HTML page from a run's JSON, a .rrd or a sweep", epilog=epilog
     )
     report.add_argument("input", type=Path, metavar="INPUT", help="; ".join(KINDS))
-    report.add_argument("--out", type=Path, required=True, metavar="DIR", help="folder for the figures and report.html")
+    report.add_argument(
+        "--out", type=Path, required=True, metavar="DIR",
+        help="folder for the figures and report.html: new, empty or an earlier report's (replaced whole at the end)",
+    )  # fmt: skip
     report.add_argument("--seed", type=int, default=None, help="compare JSON: the seed whose time series is drawn")
     report.add_argument(
         "--controller",
@@ -199,11 +204,17 @@ def command_report(args: argparse.Namespace) -> int:
         what = kind(args.input)
     except ValueError as exc:
         fail(str(exc))
+    check_report_out(args.out)
     # --out is made and written to now, before the input is read; unmade (if it was made here and is
-    # still empty) when the input is refused: a bad input leaves no empty folder behind.
-    with made_out(args.out):
+    # still empty) when the input is refused: a bad input leaves no empty folder behind. The report
+    # is written beside it and takes its place whole at the end: stopped before, --out is as it was.
+    with made_out(args.out), contextlib.ExitStack() as stack:
         from hopper.report.build import write
 
+        try:
+            partial = stack.enter_context(staged(args.out))
+        except OSError as exc:
+            fail(f"--out: cannot write beside {args.out}: {exc.strerror or exc}")
         try:
             if what == "json":
                 report = _json_report(args.input, args)
@@ -215,6 +226,15 @@ def command_report(args: argparse.Namespace) -> int:
                 report = _sweep_report(args.input)
         except (ValueError, KeyError, ControllerError) as exc:
             fail(str(exc.args[0]) if isinstance(exc, KeyError) and exc.args else str(exc))  # a KeyError's str quotes
-        paths = write(report, args.out)
-    print(f"{len(paths)} files in {args.out}: {', '.join(p.name for p in paths)}")
+        names = [p.name for p in write(report, partial)]
+    print(f"{len(names)} files in {args.out}: {', '.join(names)}")
     return EXIT_OK
+
+
+def check_report_out(out: Path) -> None:
+    """--out is new, empty or an earlier report's folder (which the report replaces whole); anything
+    else is refused in one line, before any work, as is the folder the command runs in (replaced, it
+    would leave the shell in a removed folder)."""
+    check_reused(out, is_report_folder, "a report's folder (report.html with its PNG and PDF figures)")
+    if out.exists() and same_file(out, Path.cwd()):
+        fail(f"--out: {out} is the folder this command runs in, which a report replaces whole: give another")

@@ -14,6 +14,7 @@ from hopper.app.cli_common import (
     EXIT_OK,
     add_model_flag,
     check_executor,
+    check_reused,
     checked_controller,
     fail,
     made_out,
@@ -52,7 +53,9 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         "sweep", help="a sweep of episodes to Parquet (spec file and/or flags)", epilog=SWEEP_EPILOG
     )
     sweep.add_argument("spec", nargs="?", type=Path, help="TOML spec (hopper/experiments/spec.py); flags override it")
-    sweep.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder (resumed if it exists)")
+    sweep.add_argument(
+        "--out", type=Path, required=True, metavar="DIR", help="output folder: new, empty, or a sweep's (resumed)"
+    )
     for name, text in AXIS_FLAGS.items():
         sweep.add_argument(f"--{name}", metavar="VALUES", help=text)
     sweep.add_argument("--gait", action="append", default=[], metavar="NAME=VALUES", help="a GaitParams axis")
@@ -301,14 +304,15 @@ def command_sweep(args: argparse.Namespace) -> int:
 
     from hopper.experiments.executor import ExecutorError, choose
     from hopper.experiments.runner import run_sweep, workers
-    from hopper.experiments.store import SweepStore
+    from hopper.experiments.store import DamagedSweep, SweepStore
     from hopper.experiments.summary import axis_lines, detail_lines, overall_line
 
-    # OUT is written to now; the folders made for it are removed again if the executor cannot start.
+    check_sweep_out(args.out)
+    # OUT is written to now; the folder made for it is removed again if the executor cannot start.
     with made_out(args.out):
         try:
             run = run_sweep(spec, args.out, lambda todo: choose(args.executor, todo, args.workers, args.address))
-        except (SpecMismatch, ExecutorError) as exc:
+        except (SpecMismatch, DamagedSweep, ExecutorError) as exc:
             fail(str(exc))
     episodes, others = SweepStore(args.out, spec).spec_episodes()
     print(f"{args.out}: {overall_line(episodes)}")
@@ -352,6 +356,17 @@ def controllers_status(episodes: Any) -> int:  # noqa: ANN401 (a pyarrow Table)
     why = "; ".join(parts)
     print(f"hopper-sim: error: {why} (the PID flew on; counted failed)", file=sys.stderr)
     return EXIT_CONTROLLER
+
+
+def check_sweep_out(out: Path) -> None:
+    """OUT is new, empty or a sweep's folder (resumed): anything else is refused in one line, before
+    any work; a sweep's own episodes/ or hops/ folder names the sweep to resume instead."""
+    from hopper.experiments.store import is_sweep_folder
+
+    if out.name in ("episodes", "hops") and (out.parent / "spec.toml").is_file():
+        fail(f"--out: {out} is the {out.name}/ dataset of the sweep in {out.parent}: give --out {out.parent} "
+             "to resume that sweep, or a new folder")  # fmt: skip
+    check_reused(out, is_sweep_folder, "a sweep's folder (no spec.toml)")
 
 
 def command_tune(args: argparse.Namespace) -> int:

@@ -262,7 +262,7 @@ def command_replay(args: argparse.Namespace) -> int:
     replay_flags(args)
     # made and written to now, before the replay, in a folder that exists (as identify's and export's
     # files must be); unmade if the log's checks refuse
-    with made_out(args.out, parents=False):
+    with made_out(args.out):
         return _replay(args)
 
 

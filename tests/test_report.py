@@ -19,6 +19,7 @@ import pyarrow.dataset as ds
 import pytest
 from hopper.app import report_cli
 from hopper.app.sim_cli import simulate
+from in_process import cli, tree
 from PIL import Image
 from sweep_data import write_sweep
 
@@ -39,18 +40,6 @@ def hopper_sim(*args: str, cwd: Path | None = None) -> subprocess.CompletedProce
     return subprocess.run(
         [sys.executable, "-m", "hopper.app.sim_cli", *args], capture_output=True, text=True, timeout=300, cwd=cwd
     )
-
-
-def cli(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
-    """hopper-sim's main() in this process (what the process runs, without its start-up cost)."""
-    from hopper.app.sim_cli import main
-
-    try:
-        code = main(list(argv))
-    except SystemExit as exc:
-        code = int(exc.code)
-    captured = capsys.readouterr()
-    return code, captured.out, captured.err
 
 
 def args(**overrides: object) -> argparse.Namespace:
@@ -408,11 +397,11 @@ def test_a_seed_not_in_the_file_is_refused_before_any_simulation(run_json: Path,
 )
 def test_bad_inputs_fail_in_one_line(tmp_path: Path, capsys, make, message: str) -> None:  # noqa: ANN001
     path = make(tmp_path)
-    code, out, err = cli(capsys, "report", str(path), "--out", str(tmp_path / "out" / "figures"))
+    code, out, err = cli(capsys, "report", str(path), "--out", str(tmp_path / "out"))
     assert code == 2, (out, err)
     assert err.startswith("hopper-sim: error: ") and err.count("\n") == 1, err
     assert message in err and out == ""
-    assert not (tmp_path / "out").exists(), "a refused input left the --out folders it made"
+    assert not (tmp_path / "out").exists(), "a refused input left the --out folder it made"
 
 
 def test_bad_input_in_a_real_process_is_one_line_too(tmp_path: Path) -> None:
@@ -440,6 +429,113 @@ def test_a_hops_dataset_or_an_unwritable_out_is_refused(sweep_dir: Path, tmp_pat
     assert code == 2 and err == f"hopper-sim: error: --out: {blocker} is not a folder\n", err
     code, _, err = cli(capsys, "report", str(sweep_dir), "--out", "/proc/report")
     assert code == 2 and err.startswith("hopper-sim: error: --out: cannot write to /proc/report: "), err
+
+
+def _stop_after_figures(monkeypatch: pytest.MonkeyPatch, figures: int) -> None:
+    """Ctrl-C as each report writes: KeyboardInterrupt once its `figures`-th figure is on disk."""
+    from hopper.report import style
+
+    save, saved = style.save, []
+
+    def save_then_stop(fig, folder: Path, name: str) -> list[Path]:  # noqa: ANN001 (Figure)
+        paths = save(fig, folder, name)
+        saved.append(name)
+        if len(saved) % figures == 0:
+            raise KeyboardInterrupt
+        return paths
+
+    monkeypatch.setattr(style, "save", save_then_stop)
+
+
+def test_an_interrupted_report_leaves_out_as_it_was(run_json: Path, tmp_path: Path, capsys, monkeypatch) -> None:  # noqa: ANN001
+    """Stopped mid-write, report left new figures beside an earlier report's page and figures (a mixed
+    folder), or, in a new folder, a few figures and no report.html."""
+    old = tmp_path / "old"
+    assert cli(capsys, "report", str(run_json), "--out", str(old), "--no-simulate")[0] == 0
+    (old / "stale.png").write_bytes(b"a figure only the earlier report drew")
+    before = tree(tmp_path)
+    _stop_after_figures(monkeypatch, 2)
+    for out in (old, tmp_path / "new"):
+        code, printed, err = cli(capsys, "report", str(run_json), "--out", str(out), "--no-simulate")
+        assert code == 130 and err == "hopper-sim: interrupted\n", err
+        assert tree(tmp_path) == before, f"{out}: an interrupted report changed what was there"
+    monkeypatch.undo()
+    (old / "stale.pdf").write_bytes(b"")
+    old.chmod(0o750)
+    code, printed, _ = cli(capsys, "report", str(run_json), "--out", str(old), "--no-simulate")
+    assert code == 0 and printed.startswith(f"{len(RUN_FIGURES) * 2 + 1} files in {old}: ")
+    assert sorted(p.name for p in old.iterdir()) == sorted(
+        ["report.html", *(f"{name}.{kind}" for name in RUN_FIGURES for kind in ("png", "pdf"))]
+    ), "the earlier report is replaced whole: its own figures go with it"
+    assert old.stat().st_mode & 0o777 == 0o750, "the folder keeps who may read it"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["old"], "a partial or old folder was left beside it"
+
+
+def test_a_stop_signal_during_the_swap_waits_for_it(run_json: Path, tmp_path: Path, capsys, monkeypatch) -> None:  # noqa: ANN001
+    """The new report takes the folder's place in two renames; Ctrl-C between them would leave no
+    folder at all (or the earlier report aside, hidden): it is delivered after the second."""
+    import os
+    import signal
+
+    from hopper import interrupts
+    from hopper.report import folder
+
+    out = tmp_path / "out"
+    assert cli(capsys, "report", str(run_json), "--out", str(out), "--no-simulate")[0] == 0
+    (out / "stale.png").write_bytes(b"")
+    rename, renames = os.rename, []
+
+    def rename_then_ctrl_c(src: Path, dst: Path) -> None:
+        rename(src, dst)
+        renames.append(dst)
+        if len(renames) == 1:
+            signal.raise_signal(signal.SIGINT)
+
+    monkeypatch.setattr(folder.os, "rename", rename_then_ctrl_c)
+    try:
+        code, _, err = cli(capsys, "report", str(run_json), "--out", str(out), "--no-simulate")
+    finally:
+        interrupts.clear()
+    assert code == 130 and len(renames) == 2 and renames[1] == out, renames
+    assert (out / "report.html").is_file() and not (out / "stale.png").exists(), "the new report, whole"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+@pytest.mark.parametrize(
+    "files, message",
+    [
+        (["report.html", "a.png", "notes.txt"], "holds a.png, notes.txt and report.html, and is not a report's folder"),
+        (["a.png", "a.pdf"], "holds a.pdf and a.png, and is not a report's folder (report.html with its PNG and PDF"),
+        (["report.html", "data/"], "holds data/ and report.html, and is not a report's folder"),
+    ],
+)
+def test_an_out_that_holds_more_than_a_report_is_refused_before_any_work(
+    run_json: Path,
+    tmp_path: Path,
+    capsys,
+    files: list[str],
+    message: str,  # noqa: ANN001
+) -> None:
+    """A report replaces its folder whole: one holding anything else (a note, data, loose figures not
+    known to be a report's) would lose it, and was written into, mixed, before."""
+    out = tmp_path / "out"
+    out.mkdir()
+    for name in files:
+        (out / name).mkdir() if name.endswith("/") else (out / name).write_text("mine")
+    before = tree(tmp_path)
+    code, printed, err = cli(capsys, "report", str(run_json), "--out", str(out))
+    assert code == 2 and printed == "" and err.count("\n") == 1, err
+    assert err.startswith(f"hopper-sim: error: --out: {out} ") and message in err and "simulating" not in err, err
+    assert tree(tmp_path) == before
+
+
+def test_the_folder_the_command_runs_in_is_refused_as_out(run_json: Path, tmp_path: Path, capsys, monkeypatch) -> None:  # noqa: ANN001
+    """Replaced whole, it would leave the shell that ran the command in a removed folder."""
+    monkeypatch.chdir(tmp_path)
+    code, _, err = cli(capsys, "report", str(run_json), "--out", ".", "--no-simulate")
+    assert code == 2 and err == ("hopper-sim: error: --out: . is the folder this command runs in, which a report "
+                                 "replaces whole: give another\n"), err  # fmt: skip
+    assert not any(tmp_path.iterdir())
 
 
 def test_the_page_escapes_and_flattens_settings() -> None:

@@ -174,6 +174,35 @@ def test_bad_arguments_fail_in_one_line_before_any_work(tmp_path: Path, args: li
     assert result.stdout == "" and not any(tmp_path.iterdir()), "work started before the arguments were checked"
 
 
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["sweep", "--out", "MISSING/x", "--seeds", "1", "--hops", "1", "--workers", "1"],
+        ["report", "IN.json", "--out", "MISSING/x"],
+        ["envelope", "--sizes", "0.5", "--moments", "0.5", "--workers", "1", "--out", "MISSING/x"],
+        ["run", "--hops", "1", "--json", "MISSING/x.json"],
+        ["run", "--hops", "1", "--rrd", "MISSING/x.rrd"],
+        ["compare", "--seeds", "1", "--hops", "1", "--json", "MISSING/x.json"],
+        ["size", "--gravity", "earth", "--out", "MISSING/x.xml"],
+    ],
+)
+def test_every_output_path_in_a_missing_folder_is_refused_before_any_work(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str]
+) -> None:
+    """sweep, report and envelope made a whole --out path (/nonexistent/dir/x: both folders) where --json
+    refused 'folder /nonexistent does not exist': one rule now, the last folder alone may be made."""
+    from in_process import cli
+
+    (tmp_path / "IN.json").write_text("{}")
+    missing = tmp_path / "missing"
+    argv = [a.replace("MISSING", str(missing)).replace("IN.json", str(tmp_path / "IN.json")) for a in argv]
+    code, printed, err = cli(capsys, *argv)
+    assert code == 2 and printed == "" and err.count("\n") == 1, err
+    said = f"{missing}' does not exist" if "--rrd" in argv else f"folder {missing} does not exist"  # --rrd: telemetry's
+    assert err.startswith("hopper-sim: error: ") and err.endswith(f"{said}\n"), err
+    assert [p.name for p in tmp_path.iterdir()] == ["IN.json"], "an output folder was made"
+
+
 def test_every_flag_with_a_default_says_it_and_every_command_its_exit_statuses() -> None:
     """`run --terrain` showed no default (crater); capture, replay and identify had no exit statuses."""
     import argparse

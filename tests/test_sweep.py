@@ -11,12 +11,14 @@ import subprocess
 import sys
 import threading
 import tomllib
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
 import pyarrow.dataset as ds
 import pytest
+from in_process import cli, tree
 from net import free_port, wait_until
 from sweep_data import FLAKY
 
@@ -97,8 +99,9 @@ def test_bad_specs_are_refused_with_the_reason(data: dict, message: str) -> None
         (["spec.toml", "--out", "o"], "spec.toml is not valid TOML"),
         (["--out", "o", "--kp", "1:2"], "a range is {start, stop, num}"),
         (["--out", "file.txt", "--seeds", "1"], "is not a folder"),
-        (["--out", "file.txt/runs/quick", "--seeds", "1"], "file.txt is not a folder"),
-        (["--out", "/proc/hopper/runs", "--seeds", "1"], "cannot write to /proc/hopper/runs"),  # even as root
+        (["--out", "file.txt/quick", "--seeds", "1"], "file.txt is not a folder"),
+        (["--out", "missing/runs/quick", "--seeds", "1"], "--out: folder missing/runs does not exist"),  # not made
+        (["--out", "/proc/runs", "--seeds", "1"], "cannot write to /proc/runs"),  # even as root
         (["--out", "o", "--hops", "2", "--disturbance", "pitch_kick:5:flight:0.1:5"], "hop 5 never comes"),
     ],
 )
@@ -203,6 +206,81 @@ def test_a_killed_runs_leftovers_are_cleaned_and_another_spec_is_refused(tmp_pat
     assert not orphan.exists() and not (out / "episodes" / ".tmp-part-x.parquet").exists()
     result = hopper_sim("sweep", "--out", str(out), "--seeds", "2", "--hops", "1")
     assert result.returncode == 2 and "holds another sweep" in result.stderr, result.stderr
+
+
+ONE_EPISODE = ["--seeds", "1", "--hops", "1", "--workers", "1"]
+
+
+@pytest.fixture
+def grid(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> Path:
+    """TMP/runs/grid: a one-episode sweep, as hopper-sim sweep writes it."""
+    grid = tmp_path / "runs" / "grid"
+    grid.parent.mkdir()
+    assert cli(capsys, "sweep", "--out", str(grid), *ONE_EPISODE)[0] == 0
+    return grid
+
+
+@pytest.mark.parametrize(
+    "make, message",
+    [
+        (
+            lambda grid: grid / "episodes",
+            "is the episodes/ dataset of the sweep in {grid}: give --out {grid} to resume",
+        ),
+        (lambda grid: grid / "hops", "is the hops/ dataset of the sweep in {grid}"),
+        (lambda grid: grid.parent, "holds grid/, and is not a sweep's folder (no spec.toml)"),
+        (
+            lambda grid: _figures(grid.parent / "fig_grid"),
+            "holds a.pdf, a.png and report.html, and is not a sweep's folder (no spec.toml): give a new or empty",
+        ),
+    ],
+)
+def test_an_out_that_holds_something_else_than_a_sweep_is_refused_before_any_work(
+    grid: Path, capsys: pytest.CaptureFixture[str], make: Callable[[Path], Path], message: str
+) -> None:
+    """`sweep --out runs/grid/episodes` wrote a new sweep into the old one's dataset (exit 0): its report
+    and its resume then failed on a spec.toml among the Parquet parts. A report's folder was taken too."""
+    out = make(grid)
+    before = tree(grid.parent)
+    code, printed, err = cli(capsys, "sweep", "--out", str(out), *ONE_EPISODE)
+    assert code == 2 and printed == "" and err.count("\n") == 1, err
+    assert err.startswith(f"hopper-sim: error: --out: {out} ") and message.format(grid=grid) in err, err
+    assert tree(grid.parent) == before, "a refused --out was written to"
+    code, printed, _ = cli(capsys, "sweep", "--out", str(grid), *ONE_EPISODE)  # the sweep itself resumes as before
+    assert code == 0 and "nothing left to run" in printed
+
+
+def _figures(folder: Path) -> Path:
+    folder.mkdir()
+    for name in ("report.html", "a.png", "a.pdf"):
+        (folder / name).write_text("")
+    return folder
+
+
+def _cut(episodes: Path) -> None:
+    """A Parquet part cut short: its first 300 bytes."""
+    (episodes / "cut.parquet").write_bytes(next(episodes.glob("*.parquet")).read_bytes()[:300])
+
+
+@pytest.mark.parametrize(
+    "damage, message",
+    [
+        (
+            lambda episodes: [(episodes / "spec.toml").write_text("x"), (episodes / "hops").mkdir()],
+            "episodes holds hops/, spec.toml, which are not its Parquet parts: move them out of it and run again",
+        ),
+        (_cut, "cannot read {grid}/episodes (Error creating dataset"),
+    ],
+)
+def test_resuming_a_damaged_sweep_is_one_line_not_a_traceback(
+    grid: Path, capsys: pytest.CaptureFixture[str], damage: Callable[[Path], object], message: str
+) -> None:
+    """A stray file in a dataset (what the bug above wrote) or a part cut short ended the resume in
+    pyarrow's ArrowInvalid traceback, exit 1."""
+    damage(grid / "episodes")
+    code, printed, err = cli(capsys, "sweep", "--out", str(grid), *ONE_EPISODE)
+    assert code == 2 and printed == "" and err.count("\n") == 1, err
+    assert err.startswith(f"hopper-sim: error: {grid} is a damaged sweep: ") and message.format(grid=grid) in err, err
 
 
 def test_two_stores_of_one_process_within_a_second_keep_each_others_parts(tmp_path: Path) -> None:
@@ -374,11 +452,11 @@ def test_an_executor_that_cannot_start_leaves_no_sweep_folder_and_one_line(
     monkeypatch.setattr(ray, "init", refuse)
     flags = ["--seeds", "2", "--hops", "1", "--executor", "ray"]
     with pytest.raises(SystemExit) as exit:
-        main(["sweep", "--out", str(tmp_path / "new" / "out"), *flags])
+        main(["sweep", "--out", str(tmp_path / "new"), *flags])
     err = capsys.readouterr().err
     hint = "(token authentication? see the README)"
     assert exit.value.code == 2 and err == f"hopper-sim: error: cannot start or reach a local Ray {hint}: {words}\n"
-    assert not (tmp_path / "new").exists(), "the folders made for the sweep were left behind"
+    assert not (tmp_path / "new").exists(), "the folder made for the sweep was left behind"
 
     resumed = tmp_path / "resumed"
     spec = parse_spec({"seeds": 2, "hops": 1})

@@ -88,6 +88,20 @@ class SpecMismatch(HopperError, ValueError):
     """The output folder holds another sweep."""
 
 
+class DamagedSweep(HopperError, ValueError):
+    """The output folder's datasets hold what is not theirs, or a part that cannot be read."""
+
+
+# What a sweep's folder holds before its spec.toml is there (SweepStore.create makes them first).
+OWN_ENTRIES = frozenset({"episodes", "hops", ".tmp-spec.toml"})
+
+
+def is_sweep_folder(out: Path) -> bool:
+    """`out` (a folder) is a sweep's: it holds a spec.toml, or nothing but what a sweep's holds
+    before its spec.toml is written (a start killed there). A sweep's episodes/ folder is not one."""
+    return (out / "spec.toml").is_file() or all(p.name in OWN_ENTRIES for p in out.iterdir())
+
+
 class SweepStore:
     """Appends results to OUT's datasets; knows which episodes are done."""
 
@@ -111,11 +125,27 @@ class SweepStore:
         for folder in (self.episodes_dir, self.hops_dir):
             for temporary in folder.glob(".tmp-*"):
                 temporary.unlink()
+            self._check_dataset(folder)
         committed = {p.name for p in self.episodes_dir.glob("*.parquet")}
         for orphan in self.hops_dir.glob("*.parquet"):
             if orphan.name not in committed:
                 orphan.unlink()
         return self.done_ids()
+
+    def _check_dataset(self, folder: Path) -> None:
+        """DamagedSweep if `folder` (a dataset) is no folder or holds what Arrow would read that is not
+        a Parquet part (a file or a folder; Arrow skips names that start with . or _)."""
+        if folder.exists() and not folder.is_dir():
+            raise DamagedSweep(f"{self.out} is a damaged sweep: {folder} is not a folder")
+        strays = sorted(
+            p.name + ("/" if p.is_dir() else "") for p in folder.glob("*")
+            if p.name[0] not in "._" and not (p.suffix == ".parquet" and p.is_file())
+        )  # fmt: skip
+        if strays:
+            raise DamagedSweep(
+                f"{self.out} is a damaged sweep: {folder} holds {', '.join(strays)}, which are not its Parquet "
+                "parts: move them out of it and run again"
+            )
 
     def create(self) -> None:
         """Make OUT and its datasets' folders and write its spec.toml (after check), if not there yet."""
@@ -139,7 +169,10 @@ class SweepStore:
     def read_episodes(self, columns: list[str] | None = None) -> pa.Table:
         if not any(self.episodes_dir.glob("*.parquet")):
             return self.episode_schema.empty_table().select(columns or self.episode_schema.names)
-        return ds.dataset(self.episodes_dir, format="parquet").to_table(columns=columns)
+        try:
+            return ds.dataset(self.episodes_dir, format="parquet").to_table(columns=columns)
+        except (pa.ArrowException, OSError) as exc:  # a part cut short or not Parquet at all
+            raise DamagedSweep(f"{self.out} is a damaged sweep: cannot read {self.episodes_dir} ({exc})") from None
 
     def spec_episodes(self) -> tuple[pa.Table, int]:
         """The rows of the spec's episodes, each once, and how many other rows OUT holds. A folder
