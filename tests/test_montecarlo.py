@@ -201,7 +201,7 @@ def test_a_sweep_over_sampled_robots_reports_success_with_its_interval_and_draws
     spec = tmp_path / "mc.toml"
     spec.write_text('sensing = "realistic"\nterrain = "flat"\nhops = 1\n[model]\nsamples = 3\nseed = 4\n'
                     'friction = {uniform = [0.5, 1.0]}\ndelay = {uniform = [0, 5]}\n')  # fmt: skip
-    out = tmp_path / "runs" / "mc"  # as the README's: the missing parent is made too
+    out = tmp_path / "mc"  # as the README's `--out mc`
     result = hopper_sim("sweep", str(spec), "--out", str(out), "--kp", "300,450", "--vary",
                         "mass_torso=uniform:0.9:1.1:relative", "--workers", "1")  # fmt: skip
     assert result.returncode == 0, result.stderr
