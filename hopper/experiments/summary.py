@@ -29,7 +29,7 @@ def axis_lines(episodes: pa.Table, axes: dict[str, tuple[Any, ...]]) -> list[str
             falls = pc.sum(rows.column("fell")).as_py() or 0
             momentum = pc.max(rows.column("momentum_used_pct")).as_py()
             label = _label(value)
-            parts.append(f"{label}: {falls}/{rows.num_rows} fell, land {_landing(rows)}, wheel {momentum:.0f} %")
+            parts.append(f"{label}: {falls}/{rows.num_rows} fell, land {_landing(rows)}, wheel {momentum:.1f} %")
         unit = ", ".join(([UNITS[name]] if name in UNITS else []) + (["pid episodes"] if pool is not episodes else []))
         lines.append(f"{name}{f' ({unit})' if unit else ''}: " + "; ".join(parts))
     return lines
