@@ -365,6 +365,11 @@ def with_controller_flags(config: SimConfig, args: argparse.Namespace) -> SimCon
     return checked_controller(config, args.controller, args.controller_param)
 
 
+def not_flown(controllers: str, remedy: str) -> str:
+    """The refusal of a PID gain (or its range) given where `controllers` fly no PID, after the gain's name."""
+    return f"is the PID's gain, which {controllers} does not fly: {remedy}"
+
+
 def gains_flags(args: argparse.Namespace) -> Gains:
     """--kp, --ki, --kd (each None unless given) as the PID's gains, the defaults for those not given.
 
@@ -372,8 +377,7 @@ def gains_flags(args: argparse.Namespace) -> Gains:
     --controller-param kp=... sets the same gain."""
     given = [name for name in ("kp", "ki", "kd") if getattr(args, name) is not None]
     if given and args.controller.strip() != "pid":
-        fail(f"--{given[0]} is the PID's gain, which --controller {args.controller} does not fly: "
-             "set its params with --controller-param")  # fmt: skip
+        fail(f"--{given[0]} {not_flown(f'--controller {args.controller}', 'set its params with --controller-param')}")
     both = [name for name in given if name in {n for n, _ in args.controller_param}]
     if both:
         fail(f"--{both[0]} and --controller-param {both[0]}=... both set {both[0]}: give one")

@@ -19,8 +19,11 @@ from hopper.app.cli_common import (
     fail,
     made_out,
     model_file,
+    not_flown,
     writable_file,
 )
+
+from hopper.config import GAIN_RANGES
 
 SWEEP_EPILOG = (
     "exit status: 0 finished (falls are results), 2 bad spec or arguments, 4 finished, but a controller failed "
@@ -90,8 +93,12 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     tune.add_argument("--terrain", choices=("crater", "flat"), default="crater", help="(default crater)")
     tune.add_argument("--sensing", choices=("ideal", "realistic"), default="ideal", help="(default ideal)")
     for name, (low, high, log) in default_ranges().items():
-        tune.add_argument(f"--{name}-range", default=f"{low:g}:{high:g}", metavar="LOW:HIGH",
-                          help=f"search range ({'log' if log else 'linear'}; default {low:g}:{high:g})")  # fmt: skip
+        limits = GAIN_RANGES[name]  # a negative LOW is beyond every gain's limits
+        tune.add_argument(
+            f"--{name}-range", metavar="LOW:HIGH",
+            help=f"search range ({'log' if log else 'linear'}; default {low:g}:{high:g}; within the gain's limits "
+            f"[{limits.low:g}, {limits.high:g}] {limits.unit}; the PID's only)",
+        )  # fmt: skip
     tune.add_argument("--gait", action="append", default=[], metavar="NAME=LOW:HIGH", help="also search a gait field")
     tune.add_argument(
         "--controller",
@@ -104,7 +111,8 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         action="append",
         default=[],
         metavar="NAME=LOW:HIGH",
-        help="search one of the controller's params over this range instead of its declared one (repeatable)",
+        help="search one of the --controller's params over this range instead of its declared one (repeatable; "
+        "the PID's params are its gains: --kp-range ...)",
     )
     tune.add_argument("--batch", type=int, default=0, help="candidates evaluated together (default: the workers)")
     tune.add_argument(
@@ -126,10 +134,12 @@ def robust_options(p: argparse.ArgumentParser) -> None:
         "the score; the best and the defaults are then judged on --judge-samples robots drawn with --judge-seed",
     )  # fmt: skip
     model_options(p)
-    p.add_argument("--objective", choices=("landing", "failure"), default="landing",
+    # --objective and --quantile default to None, so that one given without --robust is refused, not ignored.
+    p.add_argument("--objective", choices=("landing", "failure"),
                    help="landing: the --quantile of the worst landing error (a failure counts 90 deg); failure: the "
-                   "failure probability, ties broken by that quantile (default landing)")  # fmt: skip
-    p.add_argument("--quantile", type=float, default=0.9, help="the landing error's quantile scored (default 0.9)")
+                   "failure probability, ties broken by that quantile (default landing; with --robust)")  # fmt: skip
+    p.add_argument("--quantile", type=float,
+                   help="the landing error's quantile scored, in (0, 1) (default 0.9; with --robust)")  # fmt: skip
     p.add_argument("--judge-samples", type=int, metavar="N", help="robots the result is judged on (default: SPEC's)")
     p.add_argument("--judge-seed", type=int, metavar="SEED", help="their seed (default: the model's seed + 1)")
 
@@ -293,8 +303,8 @@ def command_sweep(args: argparse.Namespace) -> int:
     default = Gains()  # what the episodes of a controller other than the PID hold (SweepSpec.flown)
     gains = [n for n in GAINS if getattr(args, n) is not None or getattr(spec, n) != (getattr(default, n),)]
     if gains and "pid" not in spec.controller:  # a gain axis that no episode would fly
-        fail(f"{gains[0]} is the PID's gain, which controller {', '.join(spec.controller)} does not fly: "
-             "sweep its params with --param")  # fmt: skip
+        flown = "controller " + ", ".join(spec.controller)
+        fail(f"{gains[0]} {not_flown(flown, 'sweep its params with --param')}")
     if spec.mjcf is not None:  # a spec file's, checked as --model's
         try:
             model_file(spec.mjcf)
@@ -374,8 +384,10 @@ def command_tune(args: argparse.Namespace) -> int:
     from hopper.experiments.tune import TuneSetup, report_lines, tune
 
     check_workers(args)
-    if args.trials < 1 or args.hops < 1 or args.batch < 0:
-        fail("--trials and --hops must be at least 1, --batch at least 0")
+    for flag, value, least in (("--trials", args.trials, 1), ("--hops", args.hops, 1), ("--batch", args.batch, 0)):
+        if value < least:
+            fail(f"{flag} must be at least {least}, got {value}")
+    check_flown_ranges(args)
     try:
         axes = parse_spec(
             {
@@ -385,8 +397,8 @@ def command_tune(args: argparse.Namespace) -> int:
             }
         )
         heldout = parse_spec({"seeds": flag_value("heldout", args.heldout)}).seeds
-        ranges = {name: _range(f"{name}-range", getattr(args, f"{name}_range"), log) for name, (_, _, log) in
-                  default_ranges().items()}  # fmt: skip
+        ranges = {name: _range(f"{name}-range", getattr(args, f"{name}_range") or f"{low:g}:{high:g}", log)
+                  for name, (low, high, log) in default_ranges().items()}  # fmt: skip
         if args.controller != "pid":
             ranges = controller_ranges(args)
         for text in args.gait:
@@ -397,7 +409,7 @@ def command_tune(args: argparse.Namespace) -> int:
             seeds=axes.seeds, heldout=heldout, gravities=axes.gravity, hops=args.hops, terrain=args.terrain,
             sensing=args.sensing, ranges=ranges, trials=args.trials, batch=args.batch, seed=args.seed,
             energy_weight=args.energy_weight, controller=args.controller, model=model, judge=judge,
-            objective=args.objective, quantile=args.quantile, mjcf=args.model,
+            mjcf=args.model, **{k: getattr(args, k) for k in ("objective", "quantile") if getattr(args, k) is not None},
         )  # fmt: skip
     except (SpecError, ValueError) as exc:
         fail(str(exc))
@@ -415,6 +427,18 @@ def command_tune(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def check_flown_ranges(args: argparse.Namespace) -> None:
+    """A range given for params the controller does not fly is refused, as sweep refuses such an axis:
+    --kp-range and co. are the PID's, --param-range another controller's."""
+    gains = [name for name in default_ranges() if getattr(args, f"{name}_range") is not None]
+    if gains and args.controller.strip() != "pid":
+        flown = f"--controller {args.controller}"
+        fail(f"--{gains[0]}-range: {gains[0]} {not_flown(flown, 'search its params with --param-range')}")
+    if args.param_range and args.controller.strip() == "pid":
+        fail("--param-range searches another --controller's params: the PID's are its gains, searched with "
+             "--kp-range, --ki-range and --kd-range")  # fmt: skip
+
+
 def robust_models(args: argparse.Namespace) -> tuple[Any, Any]:  # (ModelAxis | None, ModelAxis | None)
     """--robust's tuning robots and judging robots (None, None without it)."""
     import tomllib
@@ -424,8 +448,12 @@ def robust_models(args: argparse.Namespace) -> tuple[Any, Any]:  # (ModelAxis | 
 
     flags = model_table(args)
     if args.robust is None:
-        if flags or args.judge_samples is not None or args.judge_seed is not None:
-            raise SpecError("--samples, --model-seed, --vary and --judge-* need --robust SPEC.toml")
+        robust_only = {"--samples": args.samples, "--model-seed": args.model_seed, "--vary": args.vary or None,
+                       "--judge-samples": args.judge_samples, "--judge-seed": args.judge_seed,
+                       "--objective": args.objective, "--quantile": args.quantile}  # fmt: skip
+        given = [flag for flag, value in robust_only.items() if value is not None]
+        if given:
+            raise SpecError(f"{', '.join(given)} {'needs' if len(given) == 1 else 'need'} --robust SPEC.toml")
         return None, None
     try:
         data = tomllib.loads(args.robust.read_text(encoding="utf-8"))

@@ -155,6 +155,16 @@ class MetricsTracker:
     def _acc(self, name: str) -> float:
         return float(self.mem[name][0])
 
+    def momentum_pct(self, wheel_speed: float) -> float:
+        """A wheel speed (rad/s, relative to the torso) as its momentum's share of the wheel's capacity, %."""
+        return 100.0 * self.robot.spin_inertia * abs(wheel_speed) / self.robot.momentum_capacity
+
+    def flight_momentum_pct(self) -> float:
+        """The largest share of the wheel's momentum capacity a flight has used so far, %: every hop's
+        peak_momentum_pct and the flight in progress's. The ground phases are left out: the stance
+        spins the wheel to 57 to 59 % on the Moon whatever the flight gains, which hid what they use."""
+        return max([h.peak_momentum_pct for h in self.hops] + [self.momentum_pct(self._acc("acc_resp_wheel"))])
+
     def touchdown(self, time: float, x: float, pitch: float, completed: bool = True) -> HopMetrics | None:
         """Close the hop at a touchdown (or a fall in flight); None if no liftoff preceded it."""
         p = self.progress
@@ -196,7 +206,7 @@ class MetricsTracker:
             settling_time_s=max(settling, 0.0),
             settled=settled,
             peak_wheel_torque_nm=acc("acc_peak_torque"),
-            peak_momentum_pct=100.0 * self.robot.spin_inertia * acc("acc_resp_wheel") / self.robot.momentum_capacity,
+            peak_momentum_pct=self.momentum_pct(acc("acc_resp_wheel")),
             landing_error_deg=math.degrees(pitch),
             wheel_energy_j=wheel_energy,
             leg_energy_j=leg_energy,

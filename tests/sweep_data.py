@@ -12,9 +12,8 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from hopper.config import WHEEL_NO_LOAD_SPEED, Gains, SimConfig
+from hopper.config import Gains, SimConfig
 from hopper.control import Phase
-from hopper.metrics import RAD_S_TO_RPM
 from hopper.sim import Simulation
 
 # A controller file (write it as flaky.py): a PD that faults (NaN) from its second flight on, so an
@@ -63,8 +62,7 @@ def episode(config: SimConfig, hops: int, kick: float) -> tuple[dict[str, Any], 
         "worst_landing_deg": max((h.landing_pitch_deg for h in done), default=float("nan")),
         "peak_pitch_deg": max((h.peak_pitch_deg for h in sim.hops), default=0.0),
         "rms_pitch_rate_deg_s": max((h.rms_pitch_rate_deg_s for h in sim.hops), default=0.0),
-        "momentum_used_pct": 100.0 * max((h.peak_wheel_rpm for h in sim.hops), default=0.0)
-        / (WHEEL_NO_LOAD_SPEED * RAD_S_TO_RPM),
+        "momentum_used_pct": sim.metrics.flight_momentum_pct(),
         "saturation_s": sum(h.saturation_time_s for h in sim.hops),
         "sim_time_s": sim.time, "wall_s": time.perf_counter() - start,
     }  # fmt: skip

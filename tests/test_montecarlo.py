@@ -8,6 +8,7 @@ import math
 import subprocess
 import sys
 import tomllib
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +18,7 @@ import pytest
 from hopper.config import MOTOR_TORQUE_CONSTANT, STANDARD_GRAVITY, SimConfig
 from hopper.experiments.montecarlo import group_stats, percent, success, wilson
 from hopper.experiments.spec import SpecError, parse_spec
-from hopper.experiments.uncertainty import TRUNCATE_SD, Distribution, params, parse_model
+from hopper.experiments.uncertainty import TRUNCATE_SD, Distribution, UncertaintyError, params, parse_model
 from hopper.mismatch import quantities
 from hopper.model import build_model
 from hopper.sim import Simulation
@@ -75,6 +76,19 @@ def test_every_draw_lies_in_its_distributions_range() -> None:
     assert set(delays) == {0.0, 1.0, 2.0, 3.0, 4.0, 5.0}, "the delay is flown in whole 1 ms ticks"
     friction = draws[:, model.names().index("friction")]
     assert abs(friction.mean() - 0.75) < 0.03 and abs(friction.std() - 0.5 / math.sqrt(12)) < 0.02
+
+
+def test_a_uniform_delay_gives_each_whole_tick_equally_often() -> None:
+    """It rounded a continuous draw to the tick: 0 and 5 ms came half as often (526, 994, 1033, 964, 1001,
+    482 in 5000)."""
+    model = parse_model({"samples": 6000, "seed": 1, "delay": {"uniform": [0, 5]}})
+    counts = Counter(model.sample(i)[0][1] for i in range(model.samples))
+    assert sorted(counts) == [0.0, 1.0, 2.0, 3.0, 4.0, 5.0]
+    assert all(850 < n < 1150 for n in counts.values()), counts  # 1000 each, +-5 standard deviations
+    normal = parse_model({"samples": 200, "seed": 1, "delay": {"normal": [3, 1]}})
+    assert {normal.sample(i)[0][1] for i in range(200)} <= {float(t) for t in range(7)}, "a normal: the nearest tick"
+    with pytest.raises(UncertaintyError, match=r"model.delay: uniform \[0.5, 5\] ms: it takes whole steps of 1 ms"):
+        parse_model({"samples": 2, "seed": 0, "delay": {"uniform": [0.5, 5]}})
 
 
 def test_a_fixed_seed_reproduces_every_sample_exactly() -> None:

@@ -32,6 +32,7 @@ from hopper.experiments.stress import Case, Schedule, run_case
 from hopper.experiments.worker import Worker
 from hopper.metrics import HopMetrics
 from hopper.model import build_model, set_terrain, terrain_window
+from hopper.sim import Simulation
 
 pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)
 
@@ -165,6 +166,27 @@ def test_a_disturbed_episode_is_the_stress_battery_case() -> None:
     row = result.row()
     assert (row["hops_completed"], row["fell"]) == (outcome.hops, outcome.fell)
     assert row["worst_landing_deg"] == outcome.worst_landing_deg and row["peak_pitch_deg"] == outcome.worst_peak_deg
+
+
+def test_an_episodes_momentum_is_the_most_a_flight_used_and_tells_gain_sets_apart() -> None:
+    """It was the peak wheel speed over whole hops, the first stance from standing included: 59.089608 %
+    for every gain set (the stance's, which the flight gains do not touch), the flights' ~19 % hidden."""
+    spec = parse_spec({"seeds": [0], "hops": 2, "kp": [200, 1200], "kd": [15, 60]})
+    worker = Worker()
+    results = [worker.run(e) for e in spec.episodes()]
+    used = [r.momentum_used_pct for r in results]
+    for r in results:
+        assert r.row()["momentum_used_pct"] == r.momentum_used_pct == max(h.peak_momentum_pct for h in r.hops)
+        stance = max(h.peak_wheel_rpm for h in r.hops) / 60 * 2 * np.pi / worker.sim.robot.wheel_no_load_speed
+        assert r.momentum_used_pct < 40 < 100 * stance, "the flights use a third of what the stance spins up"
+    assert len(set(used)) == 4 and max(used) - min(used) > 0.5, used
+    # A flight in progress counts too: the first one, before its hop is done.
+    sim = Simulation(SimConfig(terrain="flat"))
+    while sim.phase is not Phase.FLIGHT:
+        sim.step()
+    sim.advance(200)
+    in_flight = sim.metrics.momentum_pct(float(sim.controller.mem["acc_resp_wheel"][0]))
+    assert sim.hops == [] and sim.metrics.flight_momentum_pct() == in_flight > 1.0
 
 
 def test_the_parquet_datasets_follow_the_contract(tmp_path: Path) -> None:

@@ -29,8 +29,8 @@ def test_a_value_whose_robots_all_fell_before_landing_reports_no_landing() -> No
     table = episodes([True, True, False, False], [3, 3, 0, 0], [0.04, 0.02, 0.0, 0.0], [False, False, True, True])
     (line,) = axis_lines(table, {"wheel": (True, False)})
     on, off = line.removeprefix("wheel: ").split("; ")
-    assert on == "on: 0/2 fell, land 0.04 deg, wheel 50 %"
-    assert off == "off: 2/2 fell, land none (no hop completed), wheel 50 %"
+    assert on == "on: 0/2 fell, land 0.04 deg, wheel 50.0 %"
+    assert off == "off: 2/2 fell, land none (no hop completed), wheel 50.0 %"
     assert "worst landing 0.04 deg" in overall_line(table)
 
 

@@ -96,6 +96,31 @@ def test_bad_tune_arguments_fail_in_one_line(tmp_path: Path, args: list[str], me
     assert result.stderr.count("\n") == 1 and message in result.stderr, result.stderr
 
 
+# Each would have run a whole (short) search and exited 0, the option ignored, or given one line for three flags.
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--quantile", "1.5"], "error: --quantile needs --robust SPEC.toml"),
+        (["--quantile", "0"], "error: --quantile needs --robust SPEC.toml"),
+        (["--objective", "failure"], "error: --objective needs --robust SPEC.toml"),
+        (["--judge-seed", "3", "--quantile", "0.5"], "error: --judge-seed, --quantile need --robust SPEC.toml"),
+        (["--controller", "lqr", "--kp-range", "100:200"],
+         "error: --kp-range: kp is the PID's gain, which --controller lqr does not fly: search its params with "
+         "--param-range"),
+        (["--param-range", "pitch_tol=1:3"], "error: --param-range searches another --controller's params: the PID's"),
+        (["--trials", "0"], "error: --trials must be at least 1, got 0"),
+        (["--hops", "0"], "error: --hops must be at least 1, got 0"),
+        (["--batch", "-1"], "error: --batch must be at least 0, got -1"),
+        # A negative LOW is beyond every gain's limits; with `=` it reaches that refusal (not argparse's).
+        (["--ki-range=-5:10"], "error: ki's range [-5, 10] goes beyond the gain's limits [0, 500] N m/(rad s)"),
+    ],
+)  # fmt: skip
+def test_an_option_that_would_do_nothing_is_refused_naming_it(tmp_path: Path, args: list[str], message: str) -> None:
+    result = hopper_sim("tune", *FLAGS, "--trials", "1", *args, cwd=tmp_path)
+    assert result.returncode == 2 and result.stdout == "", result
+    assert result.stderr.count("\n") == 1 and message in result.stderr, result.stderr
+
+
 @pytest.mark.parametrize(
     "ranges, message",
     [

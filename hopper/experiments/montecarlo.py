@@ -25,7 +25,7 @@ METRICS = {  # column: (label, unit)
     "worst_landing_deg": ("landing error", "deg"),
     "peak_pitch_deg": ("peak pitch", "deg"),
     "energy_j_per_hop": ("energy per hop", "J"),
-    "momentum_used_pct": ("momentum used", "%"),
+    "momentum_used_pct": ("momentum used in flight", "%"),
 }
 # Columns that tell one robot or terrain of the same gain set from another, never a group.
 NOT_GROUPS = ("episode_id", "seed", "sample", "disturbance_size")

@@ -49,7 +49,7 @@ RESULT_COLUMNS: list[tuple[str, pa.DataType]] = [
     ("worst_landing_deg", pa.float64()),  # max over completed hops, 0 without one
     ("peak_pitch_deg", pa.float64()),  # max over hops
     ("rms_pitch_rate_deg_s", pa.float64()),  # max over hops
-    ("momentum_used_pct", pa.float64()),  # peak |wheel momentum| / capacity, %
+    ("momentum_used_pct", pa.float64()),  # the most wheel momentum a flight used / capacity, %
     ("saturation_s", pa.float64()),  # total
     ("sim_time_s", pa.float64()),
     ("wall_s", pa.float64()),

@@ -31,7 +31,7 @@ def axis_lines(episodes: pa.Table, axes: dict[str, tuple[Any, ...]]) -> list[str
             momentum = pc.max(rows.column("momentum_used_pct")).as_py()
             label = _label(value)
             parts.append(f"{label}: {falls}/{rows.num_rows} fell{_failed_otherwise(rows)}, land {_landing(rows)}, "
-                         f"wheel {momentum:.0f} %")  # fmt: skip
+                         f"wheel {momentum:.1f} %")  # fmt: skip
         unit = ", ".join(([UNITS[name]] if name in UNITS else []) + (["pid episodes"] if pool is not episodes else []))
         lines.append(f"{name}{f' ({unit})' if unit else ''}: " + "; ".join(parts))
     return lines

@@ -3,11 +3,12 @@ gait fields), for the best worst case.
 
 A candidate's score is its worst case over every tuning seed and gravity: failures (a fall, or
 fewer hops than asked) dominate, then the worst landing error against the paper's 3.5 deg, then
-the most wheel momentum used against the capacity, and, given an energy weight of W J/hop, the most
-electrical energy an episode spent per hop (wheel and legs, hopper.control.energy) against W, so
-that W J/hop count as much as a 3.5 deg landing error (the paper's energy-optimal future work, at
-an exchange rate of the user's). The defaults are the first candidate, so the best is never worse
-than them on the tuning set; the held-out seeds say whether that generalises.
+the most wheel momentum a flight used against the capacity (what the gains use; the stance's is
+left out), and, given an energy weight of W J/hop, the most electrical energy an episode spent per
+hop (wheel and legs, hopper.control.energy) against W, so that W J/hop count as much as a 3.5 deg
+landing error (the paper's energy-optimal future work, at an exchange rate of the user's). The
+defaults are the first candidate, so the best is never worse than them on the tuning set; the
+held-out seeds say whether that generalises.
 Candidates are evaluated in batches through an executor (hopper.experiments.executor).
 With a model (`--robust`), every candidate flies sampled robots and is scored by a quantile over
 them (hopper.experiments.robust); the best and the defaults are then judged on robots drawn anew.
@@ -50,7 +51,7 @@ class Score:
     episodes: int
     failures: int  # fell, or fewer hops than asked
     worst_landing_deg: float
-    worst_momentum_pct: float
+    worst_momentum_pct: float  # the most wheel momentum a flight used, % of capacity (momentum_used_pct)
     worst_peak_deg: float
     worst_energy_j_per_hop: float = 0.0  # the most any episode spent per hop, J (energy_per_hop)
     energy_weight: float = 0.0  # J/hop that count as much as a 3.5 deg landing error; 0: energy does not count

@@ -14,6 +14,9 @@ parameter, so it does not depend on how many samples are drawn nor on the other 
 Normals are truncated at TRUNCATE_SD standard deviations (redrawn beyond, so nothing piles up at
 the bounds); a distribution whose range (uniform) or truncated range (normal) reaches a
 non-physical value (a negative mass, a factor outside hopper.config.MISMATCH_RANGE, ...) is refused.
+An integer-valued parameter (the delay, in whole control ticks) takes whole steps: a uniform gives
+each step from LOW to HIGH (whole steps, both included) equally often, a normal is rounded to the
+nearest step.
 """
 
 from __future__ import annotations
@@ -55,6 +58,7 @@ class Param:
     high: float
     what: str
     kind: Literal["factor", "offset", "sensor"]  # a hopper.mismatch factor (value / nominal), offset, or sensing
+    step: float = 0.0  # > 0: integer-valued, its values are whole multiples of this (in its unit); 0: continuous
 
 
 @functools.cache
@@ -86,7 +90,7 @@ def params() -> dict[str, Param]:
         out[f"com_{axis}"] = Param("m", 0.0, -COM_OFFSET_LIMIT, COM_OFFSET_LIMIT, f"the torso CoM's {axis} offset",
                                    "offset")  # fmt: skip
     out["delay"] = Param("ms", s.motor_delay_ticks * ms, 0.0, MAX_MOTOR_DELAY_TICKS * ms,
-                         "the wheel command's delay (whole 1 ms ticks)", "sensor")  # fmt: skip
+                         "the wheel command's delay (whole 1 ms ticks)", "sensor", step=ms)  # fmt: skip
     out["gyro_noise"] = Param("deg/s/sqrt(Hz)", s.gyro_noise_density, 0.0, 1.0, "the gyro's noise density", "sensor")
     out["accel_noise"] = Param("ug/sqrt(Hz)", s.accel_noise_density, 0.0, 5000.0, "the accelerometer's", "sensor")
     out["gyro_bias"] = Param("deg/s", 0.0, -10.0, 10.0, "the gyro's turn-on bias", "sensor")
@@ -111,7 +115,15 @@ class Distribution:
             return self.a * scale, self.b * scale
         return (self.a - TRUNCATE_SD * self.b) * scale, (self.a + TRUNCATE_SD * self.b) * scale
 
-    def draw(self, rng: np.random.Generator, nominal: float) -> float:
+    def draw(self, rng: np.random.Generator, nominal: float, step: float = 0.0) -> float:
+        """One value in the parameter's unit; `step` > 0: a whole multiple of it (Param.step)."""
+        if self.shape == "uniform" and step > 0.0:
+            # Each whole step of [low, high] equally likely. Rounding a continuous draw would give
+            # the two ends half a step's share each. The same one double as rng.uniform's draw, so
+            # most robots keep the delay they drew before (and every other parameter, always).
+            low, high = (round(end / step) for end in self.support(nominal))
+            n = high - low + 1
+            return float((low + min(int(rng.random() * n), n - 1)) * step)
         if self.shape == "uniform":
             x = rng.uniform(self.a, self.b)
         else:
@@ -119,7 +131,8 @@ class Distribution:
             while abs(z) > TRUNCATE_SD:  # truncated by redrawing: seeded, so still reproducible
                 z = rng.standard_normal()
             x = self.a + self.b * z
-        return float(x * nominal if self.relative else x)
+        x = x * nominal if self.relative else x
+        return float(round(x / step) * step if step > 0.0 else x)
 
     def to_toml(self) -> str:
         relative = ", relative = true" if self.relative else ""
@@ -146,10 +159,7 @@ class ModelAxis:
         out = []
         for name, dist in self.distributions:
             rng = np.random.default_rng((self.seed, index, order.index(name)))
-            value = dist.draw(rng, table[name].nominal)
-            if name == "delay":  # the kernel delays by whole control ticks: the sample is what it flies
-                value = float(round(value / (TIMESTEP * 1e3))) * TIMESTEP * 1e3
-            out.append((name, value))
+            out.append((name, dist.draw(rng, table[name].nominal, table[name].step)))
         return tuple(out)
 
     def sensing(self) -> bool:
@@ -252,10 +262,16 @@ def _distribution(name: str, value: Any, param: Param) -> Distribution:
         raise UncertaintyError(f"{where}: negative spread (SD {b:g}); a standard deviation is >= 0")
     dist = Distribution(shape, a, b, relative)
     low, high = dist.support(param.nominal)
+    unit = f" {param.unit}" if param.unit else ""
+    if shape == "uniform" and param.step > 0.0 and any(abs(end / param.step - round(end / param.step)) > 1e-9
+                                                       for end in (low, high)):  # fmt: skip
+        raise UncertaintyError(
+            f"{where}: uniform [{low:g}, {high:g}]{unit}: it takes whole steps of {param.step:g}{unit}, each from "
+            "LOW to HIGH equally likely: give LOW and HIGH in whole steps"
+        )
     slack = 1e-12 * max(abs(param.low), abs(param.high))  # 0.2 x 0.8 is 0.16000000000000003: 0.16 is in range
     if low < param.low - slack or high > param.high + slack:
         reach = "its range" if shape == "uniform" else f"mean +- {TRUNCATE_SD:g} SD"
-        unit = f" {param.unit}" if param.unit else ""
         raise UncertaintyError(
             f"{where}: {reach} [{low:.4g}, {high:.4g}]{unit} leaves the physical range [{param.low:.4g}, "
             f"{param.high:.4g}]{unit} ({param.what}): narrow it (values are refused, never clipped)"

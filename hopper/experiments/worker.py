@@ -7,7 +7,6 @@ sweep's rows are what `hopper-sim run` gives for the same settings.
 from __future__ import annotations
 
 import dataclasses
-import math
 import time
 from typing import Any
 
@@ -30,7 +29,7 @@ class EpisodeResult:
     sim_time_s: float
     wall_s: float
     saturation_s: float  # s, every hop's plus the unfinished one's
-    momentum_used_pct: float  # peak |wheel speed| / no-load speed = peak |wheel momentum| / capacity, %
+    momentum_used_pct: float  # the most wheel momentum a flight used, % of capacity (hopper.metrics)
     applied: bool  # the disturbance happened (its phase came); True without one
     controller_fault: str = ""  # why the controller could not fly or was replaced by the PID; "" if neither
     compute_us: float = 0.0  # us, the controller's mean call (0 for the compiled PID)
@@ -108,8 +107,6 @@ class Worker:
             if recorder is not None:
                 sim.listeners.remove(recorder)  # the next episode on this simulation records nothing of it
         mem = sim.controller.mem
-        peak_wheel = max((h.peak_wheel_rpm * 2 * math.pi / 60 for h in sim.hops), default=0.0)
-        peak_wheel = max(peak_wheel, float(mem["acc_peak_wheel"][0]))  # the unfinished hop's
         saturation = sum(h.saturation_time_s for h in sim.hops) + float(mem["acc_saturation"][0])
         return EpisodeResult(
             episode=episode,
@@ -118,7 +115,7 @@ class Worker:
             sim_time_s=sim.time,
             wall_s=time.perf_counter() - start,
             saturation_s=saturation,
-            momentum_used_pct=100.0 * peak_wheel / sim.robot.wheel_no_load_speed,
+            momentum_used_pct=sim.metrics.flight_momentum_pct(),
             applied=applied,
             controller_fault=sim.controller_fault or "",
             compute_us=_compute_us(sim),

@@ -135,7 +135,7 @@ def figures(episodes: pa.Table) -> tuple[list[Named], page.Section]:
               "robots, with the 95 % Wilson score interval.", success_probability(stats)),
         Named("mc_distributions", "Distributions over the sampled robots",
               "Empirical CDFs of each episode's worst landing error, peak mid-air pitch, mean electrical energy per "
-              "hop (wheel and legs, braking not recovered) and peak wheel momentum used (% of capacity).",
+              "hop (wheel and legs, braking not recovered) and peak wheel momentum a flight used (% of capacity).",
               distributions(stats)),
         Named("mc_parameters", "Landing error against each sampled parameter",
               "One dot per robot of the first gain set; red: failed (crosses on the top edge: fell, hops short or a "
