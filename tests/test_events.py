@@ -36,6 +36,9 @@ SAMPLES = [
     ev.ControllerFailed("my.py:Law", "Law returned nan N m, not a finite torque"),
     ev.Restored("keyframe 'mid hop'"),
     ev.Resumed(),
+    ev.Injected("a 3 s logarithmic chirp, 1-200 Hz, 2 N m", "input"),
+    ev.Injected("a 3 s signal, peak 1 deg", "reference", 1.2, "the stand was reset (user)"),
+    ev.Injected("a 3 s signal, peak 1 deg", "reference", 3.0),
 ]
 
 
