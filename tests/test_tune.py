@@ -41,6 +41,8 @@ def test_tune_is_reproducible_with_its_seed_and_reports_best_against_defaults(tm
     assert report["best"] == min(report["history"], key=lambda h: h["score"])["params"]
     lines = runs[0].stdout.splitlines()
     assert any(line.startswith("held-out seeds 7") for line in lines) and lines[-1].startswith("best: --kp ")
+    bars = runs[0].stderr.replace("\r", "\n")  # the judging's bar counts its episodes from its first line
+    assert "judging: 0ep" not in bars and "judging: 100%" in bars and "2/2" in bars, bars
 
 
 def test_a_candidate_score_is_its_worst_case() -> None:

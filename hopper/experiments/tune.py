@@ -17,6 +17,7 @@ them (hopper.experiments.robust); the best and the defaults are then judged on r
 from __future__ import annotations
 
 import dataclasses
+import functools
 import logging
 import math
 import sys
@@ -237,10 +238,10 @@ def evaluate(
     setup: TuneSetup,
     executor: Executor,
     judging: bool = False,
-    bar: Any = None,
+    bar: Callable[..., Any] | None = None,
 ) -> list[Score | RobustScore | None]:
     """Each candidate's score over `seeds` x gravities (x robots) (None if its configuration is refused);
-    `bar` (a tqdm), if given, counts the episodes as they finish."""
+    `bar(total=N)` (a tqdm's maker), if given, counts the N episodes as they finish."""
     valid, episodes = {}, []
     for i, params in enumerate(candidates):
         eps = setup.episodes(params, seeds, judging)
@@ -251,13 +252,17 @@ def evaluate(
         valid[i] = eps
         episodes += eps
     unique = list({e.episode_id: e for e in episodes}.values())
-    if bar is not None:
-        bar.reset(total=len(unique))
+    # Made once the count is known: a bar made before printed a stray "judging: 0ep" line.
+    counter = bar(total=len(unique)) if bar is not None else None
     results: dict[str, EpisodeResult] = {}
-    for chunk_results in executor.map(chunks(unique, executor.workers)):
-        results |= {r.episode.episode_id: r for r in chunk_results}
-        if bar is not None:
-            bar.update(len(chunk_results))
+    try:
+        for chunk_results in executor.map(chunks(unique, executor.workers)):
+            results |= {r.episode.episode_id: r for r in chunk_results}
+            if counter is not None:
+                counter.update(len(chunk_results))
+    finally:
+        if counter is not None:
+            counter.close()
     return [
         setup.score([results[e.episode_id] for e in valid[i]]) if i in valid else None for i in range(len(candidates))
     ]
@@ -293,9 +298,9 @@ def tune(setup: TuneSetup, make_executor: Callable[[list[Episode]], Executor], p
         best = {**defaults, **history[best_index][0]}
         bar.close()
         # The judging can be the longest part (--judge-samples 500: 16,000 episodes): it counts too.
-        bar = tqdm(desc="judging", unit="ep", file=sys.stderr, disable=not progress)
+        judged = functools.partial(tqdm, desc="judging", unit="ep", file=sys.stderr, disable=not progress)
         default_heldout, best_heldout = evaluate(
-            [defaults, best], setup.heldout, setup, executor, judging=True, bar=bar
+            [defaults, best], setup.heldout, setup, executor, judging=True, bar=judged
         )
     finally:
         bar.close()
