@@ -398,8 +398,11 @@ def check_executor(args: argparse.Namespace) -> None:
             fail(str(exc))
 
 
-def run_all(episodes: list, executor_kind: str, workers: int, address: str | None, desc: str) -> dict:
-    """Every episode on the chosen executor with a progress bar: episode_id -> EpisodeResult."""
+def run_all(
+    episodes: list, executor_kind: str, workers: int, address: str | None, desc: str, noun: str = "episode"
+) -> dict:
+    """Every episode on the chosen executor with a progress bar (`desc`): episode_id -> EpisodeResult.
+    `noun` names one episode where the command's own word differs ("run" for compare)."""
     from tqdm import tqdm
 
     from hopper.experiments.executor import ExecutorError, choose, chunks
@@ -410,7 +413,8 @@ def run_all(episodes: list, executor_kind: str, workers: int, address: str | Non
         fail(str(exc))
     why = getattr(executor, "why", "")  # InProcess's: why not the workers asked for
     if why:
-        print(f"running {len(episodes)} {desc} in this process: {why}", file=sys.stderr)
+        n = len(episodes)
+        print(f"running {n} {noun}{'s' if n != 1 else ''} in this process: {why}", file=sys.stderr)
     done = {}
     try:
         with tqdm(total=len(episodes), desc=desc, unit="ep", file=sys.stderr) as bar:

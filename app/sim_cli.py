@@ -392,7 +392,7 @@ def command_compare(args: argparse.Namespace) -> int:
         for seed in range(args.seeds)
         for wheel in (True, False)
     ]  # fmt: skip
-    done = run_all(episodes, args.executor, args.workers, args.address, "runs")
+    done = run_all(episodes, args.executor, args.workers, args.address, "runs", noun="run")
     results = []
     for episode in episodes:
         r = done[episode.episode_id]
@@ -425,7 +425,8 @@ def command_compare(args: argparse.Namespace) -> int:
     median = statistics.median(reductions)
     print(
         f"median reduction of the peak mid-air pitch deviation, wheel on vs off: {median:.1f}% "
-        f"(over {len(reductions)} seeds; wheel off = zero torque, wheel free to spin)"
+        f"(over {len(reductions)} seed{'s' if len(reductions) != 1 else ''}; wheel off = zero torque, wheel free to "
+        "spin)"
     )
     faulted = [r for r in results if r["fault"]]
     if args.json:

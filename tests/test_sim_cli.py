@@ -286,6 +286,9 @@ def test_a_small_job_says_why_it_runs_in_process_instead_of_on_the_workers_asked
     compare = hopper_sim("compare", "--seeds", "1", "--hops", "1", "--workers", "2")
     assert compare.returncode in (0, 1), compare.stderr
     assert compare.stderr.startswith("running 2 runs in this process: about 0.") and why in compare.stderr
+    assert "(over 1 seed; " in compare.stdout  # not "1 seeds"
+    one = hopper_sim("sweep", "--out", str(tmp_path / "one"), "--seeds", "1", "--hops", "1")
+    assert one.returncode == 0 and "running 1 episode on in-process (1 worker)" in one.stderr, one.stderr
 
 
 def test_help_documents_the_exit_statuses() -> None:

@@ -62,7 +62,8 @@ def run_sweep(
     startup = getattr(executor, "startup_s", 0.0)
     why = getattr(executor, "why", "")  # InProcess's: why not the workers asked for
     announce(
-        f"running {len(todo)} episodes on {executor.name} ({workers(executor.workers)})" + (f": {why}" if why else "")
+        f"running {len(todo)} episode{'s' if len(todo) != 1 else ''} on {executor.name} ({workers(executor.workers)})"
+        + (f": {why}" if why else "")
     )
     bar = tqdm(total=spec.size, initial=skipped, desc="episodes", unit="ep", file=sys.stderr, disable=not progress)
     ran = 0
