@@ -61,3 +61,13 @@ def test_a_controller_fault_and_a_disturbance_never_applied_are_counted_and_said
     assert missed.startswith("1 of 4 episodes' disturbance was not applied")
     older = episodes([True], [3], [0.1], [False])  # a folder of before either column: as it read then
     assert overall_line(older).startswith("1 episodes, 0 fell (0.0 %), worst landing") and detail_lines(older) == []
+
+
+def test_a_controller_params_axis_gives_the_unit_its_controller_declares() -> None:
+    """`param_pitch_tol: 2: ...` gave no unit where the gains' axes give theirs."""
+    table = episodes([True, True], [3, 3], [0.1, 0.2], [False, False])
+    table = table.append_column("controller", pa.array(["lqr", "lqr"])).append_column("param_pitch_tol", [[2.0, 5.0]])
+    (line,) = axis_lines(table, {"param_pitch_tol": (2.0, 5.0)})
+    assert line.startswith("param_pitch_tol (deg): 2: 0/1 fell"), line
+    unknown = table.set_column(table.column_names.index("controller"), "controller", pa.array(["gone.py:X"] * 2))
+    assert axis_lines(unknown, {"param_pitch_tol": (2.0, 5.0)})[0].startswith("param_pitch_tol: 2: ")

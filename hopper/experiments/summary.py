@@ -8,7 +8,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 
 from hopper.experiments import outcome
-from hopper.experiments.spec import GAINS
+from hopper.experiments.spec import GAINS, PARAM_PREFIX
 from hopper.experiments.store import worst_landing
 
 UNITS = {"kp": "N m/rad", "ki": "N m/(rad s)", "kd": "N m s/rad", "gravity": "m/s^2"}
@@ -32,9 +32,29 @@ def axis_lines(episodes: pa.Table, axes: dict[str, tuple[Any, ...]]) -> list[str
             label = _label(value)
             parts.append(f"{label}: {falls}/{rows.num_rows} fell{_failed_otherwise(rows)}, land {_landing(rows)}, "
                          f"wheel {momentum:.1f} %")  # fmt: skip
-        unit = ", ".join(([UNITS[name]] if name in UNITS else []) + (["pid episodes"] if pool is not episodes else []))
+        notes = [_unit(pool, name)] + (["pid episodes"] if pool is not episodes else [])
+        unit = ", ".join(note for note in notes if note)
         lines.append(f"{name}{f' ({unit})' if unit else ''}: " + "; ".join(parts))
     return lines
+
+
+def _unit(episodes: pa.Table, name: str) -> str:
+    """A swept setting's unit: a gain's or gravity's, or a controller param's as its controllers
+    declare it (hopper.controllers.Param); "" if none or they disagree."""
+    if name in UNITS:
+        return UNITS[name]
+    if not name.startswith(PARAM_PREFIX) or "controller" not in episodes.column_names:
+        return ""
+    from hopper.controllers import ControllerError, load_class
+
+    units = set()
+    for spec in set(episodes.column("controller").to_pylist()):
+        try:
+            declared = load_class(spec).params
+        except ControllerError:  # a file gone since the sweep: no unit rather than no summary
+            continue
+        units |= {p.unit for p in declared if p.name == name.removeprefix(PARAM_PREFIX)}
+    return units.pop() if len(units) == 1 else ""
 
 
 def _flying(episodes: pa.Table, name: str) -> pa.Table:
