@@ -322,6 +322,8 @@ def test_a_gain_cell_whose_robots_never_landed_says_so_instead_of_a_perfect_zero
     report = sweep_report(sweep, "t")
     for named in report.figures:
         build.style.close(named.figure)
+    assert "gain_map_wheel_off" not in [n.name for n in report.figures]  # the gains act on nothing there
+    assert any("wheel off: no Kp x Kd map" in t.note for t in report.tables)
     rows = {(r[0], r[1]): r for r in report.tables[0].rows}
     on = [e["worst_landing_deg"] for e in ds.dataset(out / "episodes").to_table().to_pylist() if e["wheel"]]
     assert rows[("wheel", False)][5] == "no landing"
