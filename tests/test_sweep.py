@@ -596,6 +596,8 @@ def test_unreachable_tells_a_closed_loopback_port_from_a_silent_one_and_from_a_g
     assert unreachable(f"127.0.0.1:{free_port()}", timeout_s=2.0) == "connection refused"
     assert unreachable(f"ray://127.0.0.1:{free_port()}", timeout_s=2.0) == "connection refused"
     assert unreachable("auto") is None  # Ray finds the cluster `ray start` runs here itself
+    for port in ("99999", "0"):  # the socket said "connection refused" for a port that cannot exist
+        assert unreachable(f"127.0.0.1:{port}") == f"port {port} is not a TCP port (1 to 65535)"
 
 
 @pytest.mark.integration  # a process (Ray is never started: the probe fails first)

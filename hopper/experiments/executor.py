@@ -172,6 +172,8 @@ def unreachable(address: str, timeout_s: float = PROBE_S) -> str | None:
     host, sep, port = address.removeprefix("ray://").rpartition(":")
     if not sep or not port.isdigit() or not host:
         return None
+    if not 0 < int(port) < 65536:  # socket's own words for it: "connection refused"
+        return f"port {port} is not a TCP port (1 to 65535)"
     deadline = time.monotonic() + timeout_s
     try:
         connection = socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s)
