@@ -58,7 +58,7 @@ def test_compare_stress_sweep_and_league_fly_it(example: Path) -> None:
     sweep = hopper_sim("sweep", "--out", str(example / "sweep"), "--seeds", "1", "--hops", "2", "--controller",
                        SPEC, "--param", "boost=0,3", "--workers", "2", cwd=example)  # fmt: skip
     assert sweep.returncode == 0, sweep.stderr
-    assert "param_boost: 0: 0/1 fell" in sweep.stdout and "3: 0/1 fell" in sweep.stdout
+    assert "param_boost (x kp at the touchdown): 0: 0/1 fell" in sweep.stdout and "3: 0/1 fell" in sweep.stdout
     league = hopper_sim("league", "--quick", "--controllers", f"pid,{SPEC}", "--workers", "2",
                         "--json", str(example / "l.json"), cwd=example)  # fmt: skip
     assert league.returncode == 0, league.stderr
