@@ -17,10 +17,9 @@ from pathlib import Path
 
 from hopper.app.cli_common import EXIT_OK, add_model_flag, fail, gravity, writable_file
 
-from hopper.config import GaitParams, SimConfig
+from hopper.config import SimConfig
 from hopper.errors import ModelError
 from hopper.model import model_source, model_spec, robot_of
-from hopper.robot import Robot
 from hopper.similarity import PARTS, design_gravity, designs, size_for
 
 
@@ -90,18 +89,11 @@ def run(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def legs_cap(gravity: float, gait: GaitParams, robot: Robot) -> tuple[float, float] | None:
-    """(apex, asked), m: the hop the robot's legs cap at `gravity` (m/s^2), sized for less, and the one
-    the gait asks; None when they do not cap it."""
-    from hopper.control.gait import derive  # numba's import, not paid by --help
-
-    apex, asked = derive(gravity, gait, robot).apex, gait.apex_height
-    return None if apex >= asked - 1e-9 else (apex, asked)
-
-
 def capped(config: SimConfig) -> str | None:
     """A note when the flown robot's legs cap the hop at `config`'s gravity (it is sized for less),
     naming the command that sizes it; None when they do not."""
+    from hopper.control.gait import legs_cap  # numba's import, not paid by --help
+
     robot = robot_of(config)
     cap = legs_cap(config.gravity, config.gait, robot)
     if cap is None:

@@ -42,7 +42,7 @@ from hopper.config import (
     SimConfig,
 )
 from hopper.control import EV_FALL, EV_LIFTOFF, EV_TOUCHDOWN
-from hopper.control.gait import derive, held_gravity, momentum_capacity
+from hopper.control.gait import held_gravity, legs_cap, momentum_capacity
 from hopper.controllers.api import Observation
 from hopper.controllers.features import HIGH, LOW, SIZE, PitchIntegral, features
 from hopper.disturbances import DISTURBANCE_LIMITS
@@ -75,16 +75,15 @@ class NoFlight(HopperError, RuntimeError):
     """reset() saw the robot fall before its first flight: the gait could not fly it there."""
 
 
-def legs_cap(gravity: float) -> str:
+def legs_cap_note(gravity: float) -> str:
     """Why the packaged robot may fall before it flies at `gravity` (m/s^2): its legs cap the hop below
-    the gait's apex there (hopper.control.gait.derive); "" when they do not."""
-    gait = GaitParams()
-    apex = derive(gravity, gait).apex
-    if apex >= gait.apex_height - 1e-9:
+    the gait's apex there (hopper.control.gait.legs_cap); "" when they do not."""
+    cap = legs_cap(gravity, GaitParams())
+    if cap is None:
         return ""
     return (
-        f"at {gravity:g} m/s^2 the robot's {PACKAGED.leg_torque_limit:g} N m legs cap the hop at {apex:.2f} m of the "
-        f"{gait.apex_height:g} m asked: expect falls on the ground, some before the first flight"
+        f"at {gravity:g} m/s^2 the robot's {PACKAGED.leg_torque_limit:g} N m legs cap the hop at {cap[0]:.2f} m of "
+        f"the {cap[1]:g} m asked: expect falls on the ground, some before the first flight"
     )
 
 
@@ -230,7 +229,7 @@ class FlightAttitudeEnv(gym.Env):
         obs, _, terminated, truncated, info = self._advance()
         if terminated or truncated:  # no flight to act in: the gait could not fly the robot there
             what = "fell" if info.get("fell") else "reached the time limit"
-            cap = legs_cap(config.gravity)
+            cap = legs_cap_note(config.gravity)
             where = f"(terrain seed {config.seed}, {info['time']:.2f} s)"
             why = f": {cap}" if cap else f" at {config.gravity:g} m/s^2"
             raise NoFlight(f"the robot {what} before its first flight {where}{why}")

@@ -18,7 +18,7 @@ from hopper.gym_env import (
     InvalidAction,
     NoFlight,
     gravity_limits,
-    legs_cap,
+    legs_cap_note,
     make_vector,
     max_kick_fraction,
 )
@@ -237,5 +237,5 @@ def test_a_reset_without_a_flight_says_why_in_one_line() -> None:
     with pytest.raises(NoFlight, match=said + r"legs cap the hop at 0\.02 m of the 0\.25 m asked"):
         env.reset(seed=0)
     assert isinstance(NoFlight("x"), RuntimeError)  # as it was: `except RuntimeError` still catches it
-    assert legs_cap(GRAVITY_PRESETS["mars"]) == ""  # the legs lift the gait's apex there
+    assert legs_cap_note(GRAVITY_PRESETS["mars"]) == ""  # the legs lift the gait's apex there
     assert derive(GRAVITY_PRESETS["mars"], GaitParams()).apex == GaitParams().apex_height

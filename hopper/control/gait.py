@@ -212,3 +212,10 @@ def derive(gravity: float, gait: GaitParams, robot: Robot = PACKAGED) -> Gait:
         wait_from=WAIT_FROM,
         wait_max=WAIT_MAX,
     )
+
+
+def legs_cap(gravity: float, gait: GaitParams, robot: Robot = PACKAGED) -> tuple[float, float] | None:
+    """(apex, asked), m: the hop the robot's legs cap at `gravity` (m/s^2), sized for less, and the one
+    the gait asks; None when they do not cap it."""
+    apex, asked = derive(gravity, gait, robot).apex, gait.apex_height
+    return None if apex >= asked - 1e-9 else (apex, asked)

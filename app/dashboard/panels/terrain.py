@@ -8,10 +8,10 @@ import viser
 from hopper.app.dashboard.feedback import Refused, guarded, notify_all
 from hopper.app.dashboard.panels import PanelContext
 from hopper.app.dashboard.panels.entry import NumberEntry
-from hopper.app.size_cli import legs_cap
 
 from hopper.commands import SetGravity, SetTerrain
 from hopper.config import GRAVITY_PRESETS, MAX_SEED, MOON_GRAVITY, GaitParams
+from hopper.control.gait import legs_cap
 from hopper.robot import PACKAGED, Robot
 
 
