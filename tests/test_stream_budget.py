@@ -1,11 +1,17 @@
 """A client's stream within budget at 1x (issue 22): 20 kB/s in the default session, 25 kB/s in a
-tuning session (a kick every hop), with the charts and the terrain. Not timed: the bytes a probe
-client receives are counted per frame the server published over a bounded run and scaled to its 30
-frames a second. The terrain's tiles go as the window reaches them, seldom within a run this short,
-so they count at their long-run rate: the mean tile's bytes per metre at the robot's speed over the
-run, as benchmarks/bench_dashboard.py reports them."""
+tuning session (a kick every hop), with the charts and the terrain. Not timed: a loaded machine can
+only make the count smaller. Each kind of traffic counts at the rate that paces it: the poses go with
+the frames, so they count per frame the server published, scaled to its 30 frames a second; the
+charts (5 refreshes a second) and the rest (the status strip 5 times a second, tables and events as
+they come) are paced by the clock or by the simulation, so they count per second of wall time. (Scaled
+by frames, the clocked traffic read more on a loaded machine that published fewer frames: 21.9 kB/s
+where the same code reads 19.3 alone.) The terrain's tiles go as the window reaches them, seldom
+within a run this short, so they count at their long-run rate: the mean tile's bytes per metre at
+the robot's speed over the run, as benchmarks/bench_dashboard.py reports them."""
 
 from __future__ import annotations
+
+import time
 
 import pytest
 from hopper.app.dashboard.probe import ProbeClient
@@ -28,13 +34,14 @@ def test_a_client_receives_under_budget_per_second_with_the_charts(start, probes
     probes.append(client)
     # Past the page itself and the charts' first, whole windows.
     assert client.wait_for(lambda p: p.pose_frames > 0 and min(p.traffic.chart_refreshes.values(), default=0) >= 3, 60)
-    before, frames = client.traffic_snapshot(), dashboard.frames
+    before, frames, wall = client.traffic_snapshot(), dashboard.frames, time.perf_counter()
     x0, t0 = dashboard.sim.state().x, dashboard.sim.state().time
     assert wait_until(lambda: dashboard.frames - frames >= FRAMES, timeout=120)
     sent = dashboard.frames - frames
     assert client.wait_for(lambda p: p.traffic.scene_updates - before.scene_updates >= 0.9 * sent, 30)
-    got = client.traffic_snapshot().minus(before)
-    per_s = {k: v / sent / FRAME_S / 1e3 for k, v in got.bytes.items()}  # kB per second of frames
+    got, wall = client.traffic_snapshot().minus(before), time.perf_counter() - wall
+    per_s = {k: v / wall / 1e3 for k, v in got.bytes.items()}  # kB per wall s
+    per_s["poses"] = got.bytes["poses"] / sent / FRAME_S / 1e3  # kB per second of frames
     state, terrain = dashboard.sim.state(), dashboard.terrain
     speed = (state.x - x0) / (state.time - t0)  # m per simulated s: per wall s at 1x
     per_s["tiles"] = terrain.sent_bytes / terrain.sent * speed / dashboard.sim.config.craters.tile / 1e3
