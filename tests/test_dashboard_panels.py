@@ -649,9 +649,12 @@ def test_back_is_typed_in_seconds_ago_and_the_log_tells_each_restore_and_resume(
     client.set_gui_value("s back", "5")
     assert wait_until(lambda: replay.scrubbed is not None and dashboard.sim.time == replay.scrubbed.time, timeout=30)
     ring, snap = list(dashboard.history.ring), replay.scrubbed
-    assert 50 <= len(ring) - 1 - ring.index(snap) <= 90  # 50 ring entries, and those before the pause took
+    # 50 ring entries back from the newest when it was picked, and those the loop added before it
+    # applied the pause: as many as the machine's load delays it, so no upper bound.
+    assert len(ring) - 1 - ring.index(snap) >= 50
     assert replay.back.value == 5.0 and replay.scrub.value == -5.0
-    assert "(5.0 s back of " in replay.scrub_info.content
+    # The panel writes its line after it asks for the restore, on viser's thread: the loop may restore first.
+    assert wait_until(lambda: "(5.0 s back of " in replay.scrub_info.content), replay.scrub_info.content
     assert wait_until(lambda: "restored the moment 5.0 s back" in newest()), newest()
     torso = dashboard.sim.state()
     assert wait_until(lambda: math.dist(dashboard.trail.points[-1], (torso.x, torso.z)) < 0.1)
