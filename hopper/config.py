@@ -310,6 +310,12 @@ class SimConfig:
         require_finite("gravity", self.gravity, *GRAVITY_LIMITS, "m/s^2")
         require_finite("timestep", self.timestep, 1e-4, 5e-3)
 
+    @property
+    def command_delay_ticks(self) -> int:
+        """Ticks (1 ms) from a wheel command to the motor: the sensor's delay line runs under
+        realistic sensing only."""
+        return self.sensor.motor_delay_ticks if self.sensing == "realistic" else 0
+
 
 # The unit of each number of a SimConfig, by its dotted name as a report's settings table shows it
 # ("" for a pure number); tests/test_report.py checks that every number of SimConfig has one.

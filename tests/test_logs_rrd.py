@@ -37,7 +37,8 @@ class Truth:
             "time": d.time - self.dt,
             "gyro_pitch": d.sensordata[lay.s_gyro_pitch],
             "wheel_speed": d.sensordata[lay.s_wheel_speed],
-            "wheel_torque_cmd": d.actuator_force[lay.a_wheel] * lay.wheel_gear,
+            "wheel_torque_cmd": sim.controller.wheel_command,  # asked, before the delay line
+            "wheel_torque": d.actuator_force[lay.a_wheel] * lay.wheel_gear,  # applied
             "foot_L_force": d.sensordata[lay.s_foot_l],
             "foot_R_force": d.sensordata[lay.s_foot_r],
             "pitch": d.sensordata[lay.s_pitch],
@@ -97,10 +98,8 @@ def test_the_state_comes_from_the_50_hz_poses(recorded) -> None:
 
 def test_the_source_says_what_stands_in_for_what(recorded) -> None:
     path, _ = recorded
-    assert (
-        rrd_log.read(path).source
-        == f"{path} (our .rrd: applied torques stand in for the commands, gyro noise-free, x z vx vz from 50 Hz poses)"
-    )
+    said = "our .rrd: leg torques applied, gyro noise-free, x z vx vz from 50 Hz poses"
+    assert rrd_log.read(path).source == f"{path} ({said})"
 
 
 def test_our_rrd_exported_to_mcap_reads_back_the_same(recorded, tmp_path: Path) -> None:
@@ -136,7 +135,68 @@ def test_files_that_are_no_hopper_recording_are_refused(recorded, tmp_path: Path
 
 def test_the_recordings_world_is_its_config_property(recorded) -> None:  # noqa: ANN001
     from hopper.logs.world import World
+    from hopper.robot import PACKAGED
 
     path, _ = recorded
-    # Its torques are the applied ones, after the motor's delay: a replay delays them no more.
-    assert rrd_log.read(path).world == World(terrain="flat", seed=0, gravity=SimConfig().gravity, delay_ticks=0)
+    # Ideal sensing: the command reaches the motor in the same tick; the motor is the packaged one.
+    motor = (PACKAGED.wheel_torque_limit, PACKAGED.wheel_damping)
+    world = World(terrain="flat", seed=0, gravity=SimConfig().gravity, delay_ticks=0, wheel_motor=motor)
+    assert rrd_log.read(path).world == world
+
+
+MISMATCH = (("torso_mass", 1.2), ("wheel_inertia", 0.85), ("motor_torque", 0.9))
+
+
+@pytest.fixture(scope="module")
+def mismatched(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Three hops of a robot that differs from the one its controller knows, realistic sensing, recorded."""
+    path = tmp_path_factory.mktemp("rrd") / "mismatched.rrd"
+    sim = Simulation(SimConfig(terrain="flat", sensing="realistic", seed=5, mismatch=MISMATCH))
+    with Telemetry(sim, path=path):
+        sim.run(3)
+    return path
+
+
+def replayed_pitch_rms(log: Log, mismatch: tuple) -> float:
+    """Pitch RMS (deg) of the log's hops replayed re-anchored on the nominal robot with `mismatch`."""
+    from hopper.logs.replay import REANCHOR_S, Errors, replay_hops, world_model
+    from hopper.logs.world import resolve
+    from hopper.mismatch import Nominal
+
+    world, _ = resolve(log.world)
+    model, window = world_model(world)
+    Nominal.of(model).apply(model, mismatch)
+    parts = replay_hops(model, log, window=window, delay_ticks=world.command_delay, drive=world.drive, every=REANCHOR_S)
+    return float(np.degrees(Errors.concat([e for _, e in parts]).rms("pitch")))
+
+
+def test_a_recording_keeps_the_wheel_command_so_its_replay_finds_the_robot_that_flew(mismatched: Path) -> None:
+    """The wheel's command column is what the controller asked, 3 ticks before the motor under
+    realistic sensing: replayed, the recording tells the robot that flew it from the nominal one.
+    With the applied torque for the command and no delay, as recordings had it, the replay found
+    the nominal robot (0.28 deg) and not the true one (7.1 deg)."""
+    log = rrd_log.read(mismatched)
+    assert log.world is not None and log.world.delay_ticks == 3
+    true, nominal = replayed_pitch_rms(log, MISMATCH), replayed_pitch_rms(log, ())
+    assert true < 0.5 and nominal > 10 * true, (true, nominal)
+
+
+def test_a_recording_made_before_the_command_was_kept_reads_with_the_applied_torque(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from hopper.telemetry import recorder, schema
+
+    # A recorder of before: no wheel_cmd_nm among its signals, no delay or motor in its config.
+    old = tuple(s for s in schema.SIGNALS_F32 if s != "wheel_cmd_nm")
+    monkeypatch.setattr(recorder, "SIGNALS_F32", old)
+    monkeypatch.setattr(recorder, "SIGNALS", old + schema.SIGNALS_F16)
+    path = tmp_path / "old.rrd"
+    sim = Simulation(SimConfig(terrain="flat", sensing="realistic"))
+    truth = Truth(sim)
+    with Telemetry(sim, path=path):
+        sim.listeners.append(truth)
+        sim.run(1)
+    log = rrd_log.read(path)
+    assert "applied torques stand in for the commands" in log.source
+    assert log.world is not None and log.world.delay_ticks == 0 and log.world.wheel_motor is None
+    np.testing.assert_allclose(log.signals["wheel_torque_cmd"], truth.rows["wheel_torque"], rtol=1e-6, atol=1e-6)

@@ -123,10 +123,9 @@ def loop_of(sim: Simulation, law: LinearLaw | None = None) -> Loop | None:
     if law is None:
         return None
     plant = flight_plant(sim, lagged_gyro=True)
-    realistic = sim.config.sensing == "realistic"
-    delay = sim.config.sensor.motor_delay_ticks if realistic else 0
     wheel = sim.model.nv + sim.layout.v_wheel
-    return close_law(plant, law, wheel, delay=delay, estimated=realistic)
+    estimated = sim.config.sensing == "realistic"
+    return close_law(plant, law, wheel, delay=sim.config.command_delay_ticks, estimated=estimated)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -2,13 +2,15 @@
 
 A recording (hopper/telemetry/schema.py) keeps at 1 kHz the `signals` struct (pitch, pitch rate,
 wheel rpm, wheel torque in float32; leg angles and torques, foot forces in float16) and at 50 Hz
-the body poses (`world/tf`). It does not keep the commands: the torques the actuators applied
-(after the wheel motor's delay and torque-speed envelope) stand in for them, as the Log's source
-says. Nor the IMU as the controller read it: `gyro_pitch` is MuJoCo's gyro (noise-free). The
-state: `pitch` and `pitch_rate` at 1 kHz; `x`, `z` the torso frame's position (its CoM in
-models/hopper.xml) and `vx`, `vz` its central differences, at the 50 Hz poses interpolated.
-The world (terrain, seed, gravity, model) is the recording's `config` property, if it never changed;
-its command delay is 0 ticks (the torques are the applied ones).
+the body poses (`world/tf`). The wheel command is the torque the controller asked (`wheel_cmd_nm`,
+before the motor's delay line and torque-speed envelope); the legs' are the torques applied. A
+recording made before the command was kept has the applied wheel torque stand in for it, as the
+Log's source says. The IMU as the controller read it is not kept: `gyro_pitch` is MuJoCo's gyro
+(noise-free). The state: `pitch` and `pitch_rate` at 1 kHz; `x`, `z` the torso frame's position
+(its CoM in models/hopper.xml) and `vx`, `vz` its central differences, at the 50 Hz poses
+interpolated. The world (terrain, seed, gravity, model, the commands' delay and wheel motor) is the
+recording's `config` property, if it never changed; an older recording's delay is 0 ticks (its
+torques are the applied ones).
 """
 
 from __future__ import annotations
@@ -27,9 +29,10 @@ from hopper.logs.world import World, from_meta
 
 DEG = math.pi / 180.0
 RPM = 2.0 * math.pi / 60.0
+COMMAND = "wheel_cmd_nm"  # the wheel torque asked (recordings made since it was kept)
 # Log column <- (the recording's signal field, factor to SI).
 FROM_SIGNALS = {
-    "wheel_torque_cmd": ("wheel_torque_nm", 1.0),  # applied, at the wheel
+    "wheel_torque_cmd": ("wheel_torque_nm", 1.0),  # applied, at the wheel: COMMAND replaces it where recorded
     **{f"{j}_torque_cmd": (f"{j}_torque_nm", 1.0) for j in LEG_JOINTS},  # applied
     "gyro_pitch": ("pitch_rate_deg_s", DEG),
     "wheel_speed": ("wheel_rpm", RPM),
@@ -39,7 +42,10 @@ FROM_SIGNALS = {
     "pitch": ("pitch_deg", DEG),
     "pitch_rate": ("pitch_rate_deg_s", DEG),
 }
-NOTE = "our .rrd: applied torques stand in for the commands, gyro noise-free, x z vx vz from 50 Hz poses"
+NOTE = "our .rrd: leg torques applied, gyro noise-free, x z vx vz from 50 Hz poses"
+OLD_NOTE = "our .rrd: applied torques stand in for the commands, gyro noise-free, x z vx vz from 50 Hz poses"
+WORLD_KEYS = ("terrain", "seed", "gravity", "model")
+MOTOR_KEYS = ("delay_ticks", "wheel_torque_limit", "wheel_damping")  # recorded with COMMAND
 
 
 def _chunks(path: Path) -> tuple[list[pa.RecordBatch], list[pa.RecordBatch]]:
@@ -58,21 +64,22 @@ def _chunks(path: Path) -> tuple[list[pa.RecordBatch], list[pa.RecordBatch]]:
     return signals, poses
 
 
-def _world(path: Path) -> World | None:
+def _world(path: Path, commanded: bool) -> World | None:
     """The recording's world from its `config` property (hopper.telemetry.recorder), None if it has
-    none or it changed during the recording (a Regenerate: which one would the log be?)."""
+    none or it changed during the recording (a Regenerate: which one would the log be?). `commanded`:
+    the recording keeps the wheel command, and with it the commands' delay and motor."""
     rows = []
     for chunk in RrdReader(path).stream().filter(content=["/__properties/config"]):
         rows += chunk.to_record_batch().to_pylist()
-    keys = ("terrain", "seed", "gravity", "model")
+    keys = WORLD_KEYS + (MOTOR_KEYS if commanded else ())
     seen = {tuple((r.get(k) or [""])[0] for k in keys) for r in rows}
     if len(seen) != 1:
         return None
-    terrain, seed, gravity, model = seen.pop()
+    meta = {k: str(v) for k, v in zip(keys, seen.pop(), strict=True)}
+    if not commanded:  # its wheel "commands" are the torques applied, after the motor's delay: a replay adds none
+        meta["delay_ticks"] = "0"
     try:
-        # Its wheel "commands" are the torques applied, after the motor's delay: a replay adds none.
-        meta = {"terrain": str(terrain), "seed": str(seed), "gravity": str(gravity), "model": str(model)}
-        return from_meta(meta | {"delay_ticks": "0"})
+        return from_meta(meta)
     except ValueError as exc:
         raise LogError(f"{path}: the recording's config property: {exc}") from None
 
@@ -120,9 +127,12 @@ def read(path: str | Path) -> Log:
     missing = sorted({field for field, _ in FROM_SIGNALS.values()} - recorded)
     if missing:
         raise LogError(f"{path}: the recording's signals lack {', '.join(missing)}: not a hopper recording")
+    commanded = COMMAND in recorded
+    fields = FROM_SIGNALS | ({"wheel_torque_cmd": (COMMAND, 1.0)} if commanded else {})
     signals = {
         name: struct.field(field).to_numpy(zero_copy_only=False).astype(np.float64) * factor
-        for name, (field, factor) in FROM_SIGNALS.items()
+        for name, (field, factor) in fields.items()
     }
     signals |= _torso(poses, time, path)
-    return located(time, signals, f"{path} ({NOTE})", lambda i: f"sim_time {time[i]:.3f} s", _world(path))
+    note = NOTE if commanded else OLD_NOTE
+    return located(time, signals, f"{path} ({note})", lambda i: f"sim_time {time[i]:.3f} s", _world(path, commanded))

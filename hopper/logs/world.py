@@ -93,9 +93,9 @@ def motor_of(robot: Robot) -> tuple[float, float]:
 def of_config(config: SimConfig, robot: Robot | None = None) -> World:
     """The world of a run of `config` whose controller knows `robot` (hopper.sim.Simulation.robot;
     None: the motor is not recorded); its wheel commands are late only under realistic sensing."""
-    delay = config.sensor.motor_delay_ticks if config.sensing == "realistic" else 0
     return World(
-        terrain=config.terrain, seed=config.seed, gravity=config.gravity, model=config.model, delay_ticks=delay,
+        terrain=config.terrain, seed=config.seed, gravity=config.gravity, model=config.model,
+        delay_ticks=config.command_delay_ticks,
         wheel_motor=None if robot is None else motor_of(robot),
     )  # fmt: skip
 

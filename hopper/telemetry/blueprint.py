@@ -62,7 +62,12 @@ def default_blueprint() -> rrb.Blueprint:
             rrb.Vertical(
                 _plot("pitch (deg)", ("pitch_deg", "pitch", BLUE), ("pitch_est_deg", "estimate", ORANGE)),
                 _plot("wheel speed (rpm)", ("wheel_rpm", "wheel", PURPLE)),
-                _plot("wheel torque (N m)", ("wheel_torque_nm", "torque", ORANGE), extra="/limits/wheel_torque"),
+                _plot(  # applied, and asked (before the motor's delay and speed envelope), as the dashboard's chart
+                    "wheel torque (N m)",
+                    ("wheel_torque_nm", "torque", ORANGE),
+                    ("wheel_cmd_nm", "asked", BLUE),
+                    extra="/limits/wheel_torque",
+                ),
                 rrb.Tabs(
                     _plot("wheel momentum (% of capacity)", ("wheel_capacity_pct", "capacity used", PURPLE)),
                     _plot("pitch rate (deg/s)", ("pitch_rate_deg_s", "pitch rate", GREEN)),

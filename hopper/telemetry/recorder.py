@@ -279,8 +279,9 @@ class Telemetry:
         # The kernel's phase slot, appended to every row: phases exact to the tick at no cost.
         self._phase_view = memoryview(sim.controller.field("phase")).cast("B")  # int64
         # The controller's pitch and rate estimate, beside the truth (hopper.control.sensing), and the
-        # injected excitations (hopper.analysis.bench: the wheel torque's, N m; the reference's, rad).
-        fields = ("pitch_est", "rate_est", "inject_torque", "inject_ref")
+        # injected excitations (hopper.analysis.bench: the wheel torque's, N m; the reference's, rad),
+        # and the wheel torque asked (N m): the command a log's replay or a fit starts from.
+        fields = ("pitch_est", "rate_est", "inject_torque", "inject_ref", "wheel_command")
         self._est_views = [memoryview(sim.controller.field(f)).cast("B") for f in fields]
         self._phase = int(sim.phase)
 
@@ -457,6 +458,7 @@ class Telemetry:
             "pitch_rate_est_deg_s": (self._nsens + self._nu + self._nq + 1, math.degrees(1.0)),
             "inject_torque_nm": (self._nsens + self._nu + self._nq + 2, 1.0),
             "inject_ref_deg": (self._nsens + self._nu + self._nq + 3, math.degrees(1.0)),
+            "wheel_cmd_nm": (self._nsens + self._nu + self._nq + 4, 1.0),
         }
         for j, qi, fi in zip(LEG_JOINTS, lay.q_legs, lay.a_legs, strict=True):
             sources[f"{j}_deg"] = (self._nsens + self._nu + qi, math.degrees(1.0))
@@ -485,12 +487,17 @@ class Telemetry:
                 kd=g.kd,
                 controller=c.controller,  # hopper.controllers spec, and its param values as JSON
                 controller_params=json.dumps(sim.law.values),
+                # The wheel commands' way to the motor (wheel_cmd_nm): ticks late, and the motor they
+                # were made for (stall torque N m, back-EMF slope N m s/rad at the wheel).
+                delay_ticks=c.command_delay_ticks,
+                wheel_torque_limit=sim.robot.wheel_torque_limit,
+                wheel_damping=sim.robot.wheel_damping,
             ),
         )
 
     # -- Listener --------------------------------------------------------------------------
     def tick(self, sim: Simulation) -> None:
-        """Buffer one tick. The hot path: eight byte-view appends and a counter."""
+        """Buffer one tick. The hot path: nine byte-view appends and a counter."""
         b = self._ticks
         b += self._sensor_view
         b += self._force_view
@@ -499,6 +506,7 @@ class Telemetry:
         b += self._est_views[1]
         b += self._est_views[2]
         b += self._est_views[3]
+        b += self._est_views[4]
         b += self._phase_view
         n = self._n = self._n + 1
         if n % POSE_EVERY_TICKS == 0:
@@ -570,7 +578,7 @@ class Telemetry:
         ticks, rows, poses = bytes(self._ticks), self._pose_rows, bytes(self._poses)
         count, events, phases, hop_rows = self._n, self._events, self._phases, self._hop_rows
         self._drop_buffers()
-        width = self._nsens + self._nu + self._nq + 5  # ... | pitch_est | rate_est | injections (2) | phase
+        width = self._nsens + self._nu + self._nq + 6  # ... | pitch_est | rate_est | injections (2) | command | phase
         ticks, poses = np.frombuffer(ticks, dtype=np.float64), np.frombuffer(poses, dtype=np.float64)
         n = min(count, len(ticks) // width)  # an interrupt may cut a tick's appends short
         k = min(len(rows), len(poses) // (7 * self._nbody))
@@ -578,7 +586,7 @@ class Telemetry:
             times = self._next_ns + np.arange(n, dtype=np.int64) * self._dt_ns
             self._next_ns += n * self._dt_ns
             table = ticks[: n * width].reshape(n, width)
-            self._send_signals(times, table[:, :-5], table[:, -5:-1])
+            self._send_signals(times, table[:, :-6], table[:, -6:-1])
             codes = table[:, -1].view(np.int64)  # the phase field is an int64 in the kernel memory
             phases = sorted(phases + self._phase_changes(times, codes, hop_rows))
             self._batches += 1
@@ -638,8 +646,8 @@ class Telemetry:
         ]
 
     def _send_signals(self, times: np.ndarray, rows: np.ndarray, estimates: np.ndarray) -> None:
-        """rows: (n, nsensordata + nu + nq) as buffered by tick(); estimates: (n, 4) pitch, rate and
-        the injected torque and reference."""
+        """rows: (n, nsensordata + nu + nq) as buffered by tick(); estimates: (n, 5) pitch, rate, the
+        injected torque and reference, and the wheel command."""
         s, f = rows[:, : self._nsens], rows[:, self._nsens : self._nsens + self._nu]
         after = rows[:, self._nsens + self._nu :]  # qpos after each step: the next row's state
         q = np.vstack([self._carry_qpos, after[:-1]])

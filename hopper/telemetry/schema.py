@@ -22,6 +22,7 @@ SIGNALS_F32 = (
     "wheel_capacity_pct",
     "inject_torque_nm",  # the excitation added to the wheel torque (0 unless a measurement runs)
     "inject_ref_deg",  # the excitation added to the pitch reference
+    "wheel_cmd_nm",  # the wheel torque the controller asked, before the motor's delay line and speed envelope
 )
 SIGNALS_F16 = (*(f"{j}_deg" for j in LEG_JOINTS), *(f"{j}_torque_nm" for j in LEG_JOINTS), "foot_L_n", "foot_R_n")
 SIGNALS = SIGNALS_F32 + SIGNALS_F16

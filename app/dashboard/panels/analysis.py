@@ -112,7 +112,7 @@ class AnalysisPanel:
             self._generation += 1
             generation = self._generation
             self.config = config
-            self.delay = config.sensor.motor_delay_ticks if config.sensing == "realistic" else 0
+            self.delay = config.command_delay_ticks
             self.html.content = _render(None, self.gains, self.plant, pending=True)
 
         def work() -> None:
