@@ -375,6 +375,7 @@ def command_run(args: argparse.Namespace) -> int:
 
 def command_compare(args: argparse.Namespace) -> int:
 
+    from hopper.experiments.reduction import SeedPair, median_reduction
     from hopper.experiments.spec import Episode
 
     gait, default = scenario(args.scenario).gait, GaitParams()
@@ -403,16 +404,19 @@ def command_compare(args: argparse.Namespace) -> int:
             "hops": [hop.as_dict() for hop in r.hops],
             **({"trace": r.trace} if r.trace is not None else {}),  # as run's: what report draws
         })  # fmt: skip
-    rows, reductions = [], []
+    rows, pairs = [], []
     print(
         f"{'seed':>4} {'on: hops':>9} {'peak deg':>9} {'off: hops':>10} {'peak deg':>9} {'reduction':>10}"
         f" {'on: J/hop':>10}"
     )
     for on, off in zip(results[::2], results[1::2], strict=False):
         peak_on, peak_off = peak_deviation(on), peak_deviation(off)
-        reduction = 100.0 * (peak_off - peak_on) / peak_off if peak_off > 0 else 0.0
-        reductions.append(reduction)
-        rows.append({"seed": on["seed"], "peak_on_deg": peak_on, "peak_off_deg": peak_off, "reduction_pct": reduction})
+        pair = SeedPair(on["seed"], peak_on, peak_off, faulted_runs=bool(on["fault"]) + bool(off["fault"]))
+        pairs.append(pair)
+        reduction = pair.reduction_pct
+        left_out = bool(pair.faulted_runs)  # of the median: a faulted run's figures are not the controller's
+        rows.append({"seed": on["seed"], "peak_on_deg": peak_on, "peak_off_deg": peak_off, "reduction_pct": reduction,
+                     "left_out": left_out})  # fmt: skip
 
         def hops(r: dict[str, Any]) -> str:
             ended = (" fell" if r["fell"] else "") + (" fault" if r["fault"] else "")
@@ -422,15 +426,12 @@ def command_compare(args: argparse.Namespace) -> int:
             f"{on['seed']:>4} {hops(on):>9} {peak_on:9.2f} {hops(off):>10} {peak_off:9.2f} {reduction:9.1f}%"
             f" {energy_per_hop(on['hops']):10.1f}"
         )
-    median = statistics.median(reductions)
-    print(
-        f"median reduction of the peak mid-air pitch deviation, wheel on vs off: {median:.1f}% "
-        f"(over {len(reductions)} seed{'s' if len(reductions) != 1 else ''}; wheel off = zero torque, wheel free to "
-        "spin)"
-    )
+    reduced = median_reduction(pairs)  # over the seeds the controller flew to the end
+    print(reduced.line())
     faulted = [r for r in results if r["fault"]]
     if args.json:
-        doc = {"median_peak_reduction_pct": median, "controller_faults": len(faulted), "seeds": rows, "runs": results}
+        doc = {"median_peak_reduction_pct": reduced.median_pct, "controller_faults": len(faulted), "seeds": rows,
+               "runs": results}  # fmt: skip
         args.json.write_text(json.dumps(doc, indent=2))
     if faulted:  # the PID flew the rest of those runs: their figures are not the controller's (run's exit 4)
         which = ", ".join(f"seed {r['seed']} wheel {'on' if r['wheel'] else 'off'}" for r in faulted)

@@ -28,7 +28,8 @@ from hopper.config import GAIN_RANGES
 SWEEP_EPILOG = (
     "exit status: 0 finished (falls are results), 2 bad spec or arguments, 4 finished, but a controller failed "
     "mid-episode and the PID flew on (it says which and why; those episodes count as failed), 130 interrupted "
-    f"(Ctrl-C or SIGTERM): run the same command again and it skips the finished episodes; {CLOSED_STDOUT_STATUS}."
+    "(Ctrl-C or SIGTERM) before every episode was written: run the same command again and it skips the "
+    f"finished episodes; {CLOSED_STDOUT_STATUS}."
 )
 # tune keeps no folder: an interrupted search is not resumed (and writes no --json).
 TUNE_EPILOG = (
@@ -313,9 +314,9 @@ def command_sweep(args: argparse.Namespace) -> int:
     check_controllers(spec)
 
     from hopper.experiments.executor import ExecutorError, choose
-    from hopper.experiments.runner import run_sweep, workers
-    from hopper.experiments.store import DamagedSweep, SweepStore
-    from hopper.experiments.summary import axis_lines, detail_lines, overall_line
+    from hopper.experiments.runner import late_stop, run_sweep
+    from hopper.experiments.store import DamagedSweep
+    from hopper.interrupts import clear, held
 
     check_sweep_out(args.out)
     # OUT is written to now; the folder made for it is removed again if the executor cannot start.
@@ -324,10 +325,28 @@ def command_sweep(args: argparse.Namespace) -> int:
             run = run_sweep(spec, args.out, lambda todo: choose(args.executor, todo, args.workers, args.address))
         except (SpecMismatch, DamagedSweep, ExecutorError) as exc:
             fail(str(exc))
-    episodes, others = SweepStore(args.out, spec).spec_episodes()
-    print(f"{args.out}: {overall_line(episodes)}")
+    # Every episode is written: a stop now would cut nothing short. It waits for the whole summary and
+    # is then dropped, so that the status says what the sweep did (0 or 4), not 130.
+    status = EXIT_OK
+    try:
+        with held():
+            status = sweep_summary(args.out, spec, run)
+    except KeyboardInterrupt:
+        clear()
+        print(late_stop(args.out), file=sys.stderr)
+    return status
+
+
+def sweep_summary(out: Path, spec: Any, run: Any) -> int:  # noqa: ANN401 (SweepSpec, SweepRun)
+    """Print a finished sweep's summary (OUT's episodes of `spec` and this `run`); its exit status."""
+    from hopper.experiments.runner import workers
+    from hopper.experiments.store import SweepStore
+    from hopper.experiments.summary import axis_lines, detail_lines, overall_line
+
+    episodes, others = SweepStore(out, spec).spec_episodes()
+    print(f"{out}: {overall_line(episodes)}")
     if others:
-        print(f"{args.out} also holds {others} rows of episodes this spec does not fly (an older version's, whose "
+        print(f"{out} also holds {others} rows of episodes this spec does not fly (an older version's, whose "
               "other controllers flew every gain point): not counted")  # fmt: skip
     for line in axis_lines(episodes, spec.axes()) + detail_lines(episodes):
         print(line)

@@ -126,6 +126,53 @@ def test_compare_with_a_faulting_controller_exits_4_saying_why_and_its_report_sa
     assert "2 fault" in page  # the per-seed table's hops
 
 
+# A controller file (write it as picky.py): a PD that, in its second flight in the runs of seeds `bad` and up,
+# tips the robot to 5 deg and then returns NaN, so that the PID flies on from a peak that is this law's doing.
+PICKY = """
+from hopper.controllers import Param
+
+
+class Picky:
+    params = (Param("bad", 1.0, (0.0, 100.0), "seed"),)
+
+    def configure(self, context):
+        self.seed = context.config.seed
+
+    def reset(self, obs):
+        self.flights = getattr(self, "flights", 0) + 1
+
+    def __call__(self, obs):
+        if getattr(self, "flights", 0) >= 2 and self.seed >= self.bad:
+            return 10.0 if abs(obs.pitch) < 0.09 else float("nan")
+        return 450.0 * obs.pitch + 30.0 * obs.rate
+"""
+
+
+@pytest.mark.parametrize("bad, seeds", [(1, 3), (0, 2)], ids=["some-seeds-fault", "every-seed-faults"])
+def test_compares_median_leaves_out_the_seeds_whose_controller_faulted(tmp_path: Path, bad: int, seeds: int) -> None:
+    """The median reduction took in the runs where the PID flew on from a fault: their figures are
+    the PID's (and here the faulting law's 5 deg), not the controller's."""
+    (tmp_path / "picky.py").write_text(PICKY)
+    out = tmp_path / "compare.json"
+    flags = ("--controller", "picky.py:Picky", "--controller-param", f"bad={bad}", "--seeds", str(seeds), "--hops",
+             "2", "--workers", "1", "--json", str(out))  # fmt: skip
+    result = hopper_sim("compare", *flags, cwd=tmp_path)
+    assert result.returncode == 4, result  # a fault is still the run's failure
+    data = json.loads(out.read_text())
+    rows = data["seeds"]
+    median = result.stdout.strip().splitlines()[-1]
+    if bad:
+        kept = rows[0]["reduction_pct"]
+        assert max(r["reduction_pct"] for r in rows[1:]) < kept - 1, rows  # the faulted seeds' would move it
+        assert data["median_peak_reduction_pct"] == kept, data["median_peak_reduction_pct"]
+        assert f": {kept:.1f}% (over 1 seed of 3; 2 faulted runs left out (seeds 1, 2); wheel off" in median, median
+    else:
+        assert data["median_peak_reduction_pct"] is None
+        assert median.endswith(": none, every seed has a faulted run (2 faulted runs of 4): the PID flew on from "
+                               "the fault, so no figure is the controller's"), median  # fmt: skip
+    assert [r["left_out"] for r in rows] == [r["seed"] >= bad for r in rows]  # the JSON's per-seed rows say which
+
+
 @pytest.mark.parametrize(
     "args, message",
     [

@@ -11,6 +11,7 @@ from pathlib import Path
 from hopper.experiments.executor import Executor, chunks
 from hopper.experiments.spec import Episode, SweepSpec
 from hopper.experiments.store import SweepStore
+from hopper.interrupts import clear
 
 
 @dataclasses.dataclass(frozen=True)
@@ -38,7 +39,8 @@ def run_sweep(
 ) -> SweepRun:
     """Run what OUT does not hold yet. OUT is created once the executor has started; results are
     written as they come, and on the way out too: an interrupted run (KeyboardInterrupt propagates)
-    keeps every episode it finished."""
+    keeps every episode it finished. A stop that comes once every episode is written (as the executor
+    ends or closes) interrupts nothing: the run returns, complete."""
     from tqdm import tqdm
 
     start = time.perf_counter()
@@ -66,19 +68,34 @@ def run_sweep(
         + (f": {why}" if why else "")
     )
     bar = tqdm(total=spec.size, initial=skipped, desc="episodes", unit="ep", file=sys.stderr, disable=not progress)
-    ran = 0
+    ran, finished = 0, ready
     try:
-        for results in executor.map(chunks(todo, executor.workers)):
-            store.add(results)
-            ran += len(results)
-            bar.update(len(results))
-    finally:  # Ctrl-C included: what finished is kept
-        store.flush()
-        finished = time.perf_counter()
-        bar.close()
-        executor.close()
+        try:
+            for results in executor.map(chunks(todo, executor.workers)):
+                store.add(results)
+                ran += len(results)
+                bar.update(len(results))
+        finally:  # Ctrl-C included: what finished is kept
+            try:
+                store.flush()
+                finished = time.perf_counter()
+                bar.close()
+            finally:
+                executor.close()
+    except KeyboardInterrupt:
+        if store.written < len(todo):
+            raise
+        # The stop came once every episode was written (as the executor ended or closed): it cut nothing
+        # short, and a rerun would find nothing to do. The sweep is complete and ends as one.
+        clear()
+        announce(late_stop(out))
     wall = time.perf_counter() - start
     return SweepRun(spec.size, skipped, ran, wall, startup, finished - ready, executor.name, executor.workers)
+
+
+def late_stop(out: Path) -> str:
+    """What a stop signal that came after the sweep in OUT had written every episode did: nothing."""
+    return f"{out}: the stop came after every episode was written: the sweep is complete"
 
 
 def workers(n: int) -> str:

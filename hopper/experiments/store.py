@@ -27,6 +27,7 @@ from hopper.errors import HopperError
 from hopper.experiments.spec import PARAM_PREFIX, SweepSpec
 from hopper.experiments.uncertainty import MODEL_PREFIX
 from hopper.experiments.worker import EpisodeResult
+from hopper.interrupts import held
 from hopper.metrics import HopMetrics
 
 SETTING_COLUMNS: list[tuple[str, pa.DataType]] = [
@@ -115,6 +116,7 @@ class SweepStore:
         # a second, and the second's part 1 overwrote the first's (a resumed sweep lost its rows).
         self._stamp = f"{time.strftime('%Y%m%dT%H%M%S')}-{os.getpid()}-{secrets.token_hex(4)}"
         self._parts = 0
+        self.written = 0  # episodes this store has written (committed parts)
 
     def check(self) -> set[str]:
         """Refuse another sweep's OUT, clean up a killed run's leftovers, return the done ids. Nothing
@@ -196,18 +198,21 @@ class SweepStore:
             self.flush()
 
     def flush(self) -> int:
-        """Write what is queued as one part of each dataset; returns the episodes written."""
-        pending, self._pending = self._pending, []
-        self._last_flush = time.monotonic()
-        if not pending:
-            return 0
-        self._parts += 1
-        name = f"part-{self._stamp}-{self._parts:05d}.parquet"
-        hops = pa.Table.from_pylist([row for r in pending for row in r.hop_rows()], schema=self.hop_schema)
-        episodes = pa.Table.from_pylist([r.row() for r in pending], schema=self.episode_schema)
-        _write_table(self.hops_dir / name, hops)
-        _write_table(self.episodes_dir / name, episodes)  # last: this commits the episodes
-        return len(pending)
+        """Write what is queued as one part of each dataset; returns the episodes written. A stop signal
+        waits for the part (held): one cut short lost the results it held, already taken off the queue."""
+        with held():
+            pending, self._pending = self._pending, []
+            self._last_flush = time.monotonic()
+            if not pending:
+                return 0
+            self._parts += 1
+            name = f"part-{self._stamp}-{self._parts:05d}.parquet"
+            hops = pa.Table.from_pylist([row for r in pending for row in r.hop_rows()], schema=self.hop_schema)
+            episodes = pa.Table.from_pylist([r.row() for r in pending], schema=self.episode_schema)
+            _write_table(self.hops_dir / name, hops)
+            _write_table(self.episodes_dir / name, episodes)  # last: this commits the episodes
+            self.written += len(pending)
+            return len(pending)
 
 
 def _write_table(path: Path, table: pa.Table) -> None:
