@@ -176,6 +176,30 @@ def check_reused(out: Path, ours: Callable[[Path], bool], what: str, flag: str =
         fail(f"{flag}: {out} holds {held_text(names)}, and is not {what}: give a new or empty folder")
 
 
+def check_replaced(out: Path, ours: Callable[[Path], bool], what: str, noun: str, flag: str = "--out") -> None:
+    """check_reused for a command that replaces OUT whole (staged_out): OUT is also refused if it is
+    the folder the command runs in, as replaced it would leave the shell in a removed folder. `noun`
+    names what replaces it ("a report")."""
+    check_reused(out, ours, what, flag)
+    if out.exists() and same_file(out, Path.cwd()):
+        fail(f"{flag}: {out} is the folder this command runs in, which {noun} replaces whole: give another")
+
+
+@contextlib.contextmanager
+def staged_out(out: Path, flag: str = "--out") -> Iterator[Path]:
+    """made_out(OUT), then a hidden folder beside OUT to write into (hopper.report.folder.staged) that
+    takes OUT's place whole as the block ends: stopped before, OUT is as it was. One line and exit 2
+    if that folder cannot be made (the folder holding OUT is not writable)."""
+    from hopper.report.folder import staged
+
+    with made_out(out, flag), contextlib.ExitStack() as stack:
+        try:
+            partial = stack.enter_context(staged(out))
+        except OSError as exc:
+            fail(f"{flag}: cannot write beside {out}: {exc.strerror or exc}")
+        yield partial
+
+
 def entries(folder: Path) -> list[str]:
     """The names in `folder`, sorted, a folder's with a trailing /, the write probe left out."""
     names = (p.name + ("/" if p.is_dir() else "") for p in folder.iterdir() if p.name != WRITE_PROBE)

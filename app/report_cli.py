@@ -9,18 +9,17 @@ one self-contained page with the figures and the settings.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import dataclasses
 import json
 import sys
 from pathlib import Path
 from typing import Any
 
-from hopper.app.cli_common import EXIT_OK, check_reused, fail, made_out, same_file
+from hopper.app.cli_common import EXIT_OK, check_replaced, fail, staged_out
 from hopper.app.episode import sim_config, simulate
 
 from hopper.controllers import ControllerError
-from hopper.report.folder import is_report_folder, staged
+from hopper.report.folder import is_report_folder
 from hopper.trace import TRACE_COLUMNS
 
 KINDS = ("run JSON", "compare JSON", "league JSON", "stand JSON", ".rrd recording", "sweep directory or Parquet")
@@ -208,13 +207,9 @@ def command_report(args: argparse.Namespace) -> int:
     # --out is made and written to now, before the input is read; unmade (if it was made here and is
     # still empty) when the input is refused: a bad input leaves no empty folder behind. The report
     # is written beside it and takes its place whole at the end: stopped before, --out is as it was.
-    with made_out(args.out), contextlib.ExitStack() as stack:
+    with staged_out(args.out) as partial:
         from hopper.report.build import write
 
-        try:
-            partial = stack.enter_context(staged(args.out))
-        except OSError as exc:
-            fail(f"--out: cannot write beside {args.out}: {exc.strerror or exc}")
         try:
             if what == "json":
                 report = _json_report(args.input, args)
@@ -233,8 +228,6 @@ def command_report(args: argparse.Namespace) -> int:
 
 def check_report_out(out: Path) -> None:
     """--out is new, empty or an earlier report's folder (which the report replaces whole); anything
-    else is refused in one line, before any work, as is the folder the command runs in (replaced, it
-    would leave the shell in a removed folder)."""
-    check_reused(out, is_report_folder, "a report's folder (report.html with its PNG and PDF figures)")
-    if out.exists() and same_file(out, Path.cwd()):
-        fail(f"--out: {out} is the folder this command runs in, which a report replaces whole: give another")
+    else is refused in one line, before any work, as is the folder the command runs in."""
+    what = "a report's folder (report.html with its PNG and PDF figures)"
+    check_replaced(out, is_report_folder, what, "a report")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import json
 import math
@@ -11,7 +12,7 @@ import os
 import statistics
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from hopper.app import log_cli, report_cli, size_cli, stand_cli, sweep_cli, sysid_cli
@@ -28,7 +29,7 @@ from hopper.app.cli_common import (
     add_model_flag,
     add_run_flags,
     check_executor,
-    check_out,
+    check_replaced,
     checked_controller,
     fail,
     finite,
@@ -39,6 +40,7 @@ from hopper.app.cli_common import (
     run_all,
     schedule,
     seed,
+    staged_out,
     with_controller_flags,
     writable_file,
 )
@@ -50,6 +52,9 @@ from hopper.terrain import CraterParams
 from hopper.config import TOTAL_MASS, GaitParams, InvalidConfig, SimConfig
 from hopper.interrupts import children_ignore_ctrl_c, each, stop_like_ctrl_c
 from hopper.scenarios import scenario
+
+if TYPE_CHECKING:
+    from hopper.analysis.envelope import Row
 
 CRATER_DEFAULTS = CraterParams()
 
@@ -169,7 +174,10 @@ def parser() -> Parser:
         "--moments", type=float_list, default="0.1,0.3,0.5,0.7,0.9", metavar="LIST",
         help="moments of the kick as fractions of the undisturbed flight (default 0.1,0.3,0.5,0.7,0.9)",
     )  # fmt: skip
-    envelope.add_argument("--out", type=Path, metavar="DIR", help="write envelope.png, .pdf and .json here")
+    envelope.add_argument(
+        "--out", type=Path, metavar="DIR",
+        help="folder for envelope.png, .pdf and .json: new, empty or an earlier envelope's (replaced whole at the end)",
+    )  # fmt: skip
     envelope.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
     add_model_flag(envelope)
 
@@ -545,19 +553,33 @@ def float_list(text: str) -> list[float]:
 
 def command_envelope(args: argparse.Namespace) -> int:
     """Fly the envelope's grid on all cores; print its table, write the figure and JSON if asked."""
-    from tqdm import tqdm
-
-    from hopper.analysis import envelope
     from hopper.disturbances import DISTURBANCE_LIMITS
-    from hopper.experiments.stress import LANDING_LIMIT_DEG, run_case
+    from hopper.report.envelope import is_envelope_folder
 
     top = DISTURBANCE_LIMITS["pitch_kick"][0]
     if not all(0 < v <= top for v in args.sizes):
         fail(f"--sizes must lie in (0, {top:g}] N m s")
     if not all(0 < v < 1 for v in args.moments):
         fail("--moments are fractions of the flight, between 0 and 1")
+    if args.out:  # before the minutes of flying, not after
+        check_replaced(args.out, is_envelope_folder, "an envelope's folder (envelope.png, .pdf and .json)",
+                       "an envelope")  # fmt: skip
+    # Written beside --out and swapped in whole at the end: stopped before, --out is as it was.
+    with staged_out(args.out) if args.out else contextlib.nullcontext() as partial:
+        rows = _fly_envelope(args, partial)
     if args.out:
-        check_out(args.out)  # before the minutes of flying, not after
+        print(f"wrote {args.out / 'envelope.png'}, .pdf and .json")
+    falls = sum(r.falls_below_limit for r in rows)
+    return EXIT_OK if falls == 0 else EXIT_FELL
+
+
+def _fly_envelope(args: argparse.Namespace, folder: Path | None) -> list[Row]:
+    """The envelope's rows, its table printed, its figure and JSON written into `folder` if given."""
+    from tqdm import tqdm
+
+    from hopper.analysis import envelope
+    from hopper.experiments.stress import LANDING_LIMIT_DEG, run_case
+
     config = SimConfig(terrain="flat", model=args.model)
     moments = envelope.flight_moments(config)
     flight = moments[-1].t + moments[-1].to_go
@@ -572,10 +594,10 @@ def command_envelope(args: argparse.Namespace) -> int:
     rows = envelope.rows(outcomes, moments, args.moments, flight)
     print(f"flat Moon, kicks in the second flight ({flight:.3f} s); landing limit {LANDING_LIMIT_DEG:g} deg")
     print("\n".join(envelope.table(rows)))
-    if args.out:
+    if folder is not None:
         from hopper.report.envelope import figure
 
-        figure(outcomes, moments, args.out)
+        figure(outcomes, moments, folder)
         cases_json = [
             {"size": o.case.disturbance.magnitude, "delay_s": o.case.disturbance.delay_s, "fell": o.fell,
              "landing_deg": o.worst_landing_deg, "peak_deg": o.worst_peak_deg, "hops": o.hops}
@@ -583,10 +605,8 @@ def command_envelope(args: argparse.Namespace) -> int:
         ]  # fmt: skip
         payload = {"version": version(), "flight_s": flight, "rows": [dataclasses.asdict(r) for r in rows],
                    "cases": cases_json}  # fmt: skip
-        (args.out / "envelope.json").write_text(json.dumps(payload, indent=2))
-        print(f"wrote {args.out / 'envelope.png'}, .pdf and .json")
-    falls = sum(r.falls_below_limit for r in rows)
-    return EXIT_OK if falls == 0 else EXIT_FELL
+        (folder / "envelope.json").write_text(json.dumps(payload, indent=2))
+    return rows
 
 
 def check_counts(args: argparse.Namespace) -> None:

@@ -130,11 +130,43 @@ def test_no_flags_give_the_default_config_and_flags_reach_their_fields() -> None
     assert parse(["--speed", "16"]).speed == 16.0
 
 
-def test_a_sessions_folder_is_created_and_probed_and_left_empty(tmp_path: Path) -> None:
-    folder = tmp_path / "a" / "b"
+def test_a_sessions_folder_is_made_in_a_folder_that_exists_and_probed_and_left_empty(tmp_path: Path) -> None:
+    folder = tmp_path / "sessions"
     assert check_sessions_dir(folder) == folder
     assert folder.is_dir() and not any(folder.iterdir())
     assert check_sessions_dir(folder) == folder  # an existing, writable folder is fine too
+
+
+def test_a_sessions_folder_whose_parent_is_missing_is_refused_in_one_line_and_nothing_is_made(tmp_path: Path) -> None:
+    """It made the whole path (/nonexistent/dir/sessions: both folders) where every output path of
+    hopper-sim refuses a missing parent: one rule now, the last folder alone may be made."""
+    folder = tmp_path / "missing" / "sessions"
+    result = cli("--sessions-dir", str(folder), "--port", str(free_port()))
+    assert result.returncode == 2, result
+    assert result.stderr == (
+        f"hopper-dashboard: error: cannot use sessions folder '{folder}': folder {folder.parent} does not exist\n"
+    ), result.stderr
+    assert not any(tmp_path.iterdir()), "a folder was made"
+
+
+def test_the_default_sessions_folder_is_made_in_the_folder_it_runs_in(tmp_path: Path) -> None:
+    """A fresh clone has no sessions/: the default (relative to the working folder, which exists) is made."""
+    port = free_port()
+    process = dashboard_process("--port", str(port), cwd=tmp_path)
+    try:
+        for line in process.stdout:
+            if "serving" in line:
+                break
+        else:
+            raise AssertionError(f"the dashboard never served: {_ended(process)}")
+        assert (tmp_path / "sessions").is_dir()
+        process.send_signal(signal.SIGTERM)
+        _, err = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 0, err[-2000:]
+    assert port_is_free(port)
 
 
 def test_a_port_in_use_gives_one_line_and_exit_2(tmp_path: Path) -> None:

@@ -130,6 +130,89 @@ def test_hopper_sim_envelope_refuses_an_unwritable_out_before_flying(tmp_path: P
     assert out.startswith("/proc") or Path(out).read_text() == "kept"
 
 
+ENVELOPE = ("envelope", "--sizes", "0.5", "--moments", "0.5", "--workers", "1")  # 2 kicks, a few seconds
+
+
+def _earlier_envelope(out: Path) -> None:
+    """What an earlier `envelope --out OUT` left (its three files; their bytes do not matter)."""
+    out.mkdir()
+    for name in ("envelope.png", "envelope.pdf", "envelope.json"):
+        (out / name).write_text(f"the earlier {name}")
+
+
+def test_an_interrupted_envelope_leaves_out_as_it_was_and_a_finished_one_replaces_it_whole(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """It wrote its three files in place: stopped between the figure and the JSON, OUT held the new
+    figures beside the earlier JSON (or, new, the figures without their JSON)."""
+    from in_process import cli, tree
+
+    from hopper.report import envelope as envelope_report
+
+    old = tmp_path / "old"
+    _earlier_envelope(old)
+    before = tree(tmp_path)
+    figure = envelope_report.figure
+
+    def figure_then_ctrl_c(*args: object) -> list[Path]:
+        figure(*args)  # type: ignore[arg-type]
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(envelope_report, "figure", figure_then_ctrl_c)
+    for out in (old, tmp_path / "new"):
+        code, _, err = cli(capsys, *ENVELOPE, "--out", str(out))
+        assert code == 130 and err.endswith("hopper-sim: interrupted\n"), err
+        assert tree(tmp_path) == before, f"{out}: an interrupted envelope changed what was there"
+    monkeypatch.undo()
+    old.chmod(0o750)
+    code, printed, err = cli(capsys, *ENVELOPE, "--out", str(old))
+    assert code in (0, 1) and printed.endswith(f"wrote {old / 'envelope.png'}, .pdf and .json\n"), err
+    assert sorted(p.name for p in old.iterdir()) == ["envelope.json", "envelope.pdf", "envelope.png"]
+    assert len(json.loads((old / "envelope.json").read_text())["cases"]) == 2, "the new envelope, whole"
+    assert old.stat().st_mode & 0o777 == 0o750, "the folder keeps who may read it"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["old"], "a partial or old folder was left beside it"
+
+
+@pytest.mark.parametrize(
+    "files, message",
+    [
+        (["envelope.json", "notes.txt"], "holds envelope.json and notes.txt, and is not an envelope's folder"),
+        (["envelope.png", "envelope.pdf"], "holds envelope.pdf and envelope.png, and is not an envelope's folder"),
+        (["envelope.json", "data/"], "holds data/ and envelope.json, and is not an envelope's folder"),
+    ],
+)
+def test_an_out_that_holds_more_than_an_envelope_is_refused_before_flying(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], files: list[str], message: str
+) -> None:
+    """The envelope replaces its folder whole: one holding anything else would lose it (it was
+    written into, mixed, before)."""
+    from in_process import cli, tree
+
+    out = tmp_path / "out"
+    out.mkdir()
+    for name in files:
+        (out / name).mkdir() if name.endswith("/") else (out / name).write_text("mine")
+    before = tree(tmp_path)
+    code, printed, err = cli(capsys, *ENVELOPE, "--out", str(out))
+    assert code == 2 and printed == "" and err.count("\n") == 1, err
+    assert err.startswith(f"hopper-sim: error: --out: {out} ") and message in err and "kicks" not in err, err
+    assert tree(tmp_path) == before
+
+
+def test_the_folder_the_command_runs_in_is_refused_as_out(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from in_process import cli
+
+    monkeypatch.chdir(tmp_path)
+    code, _, err = cli(capsys, *ENVELOPE, "--out", ".")
+    assert code == 2 and err == ("hopper-sim: error: --out: . is the folder this command runs in, which an "
+                                 "envelope replaces whole: give another\n"), err  # fmt: skip
+    assert not any(tmp_path.iterdir())
+
+
 def _kicked_peak(share: float, kick: float, delay: float) -> float:
     """Peak |pitch| (deg) of the second flight after `kick` N m s `delay` s into it, legs' share `share`."""
     sim = Simulation(FLAT)

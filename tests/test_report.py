@@ -9,9 +9,13 @@ import dataclasses
 import io
 import json
 import math
+import os
 import re
+import signal
+import socket
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -476,9 +480,6 @@ def test_an_interrupted_report_leaves_out_as_it_was(run_json: Path, tmp_path: Pa
 def test_a_stop_signal_during_the_swap_waits_for_it(run_json: Path, tmp_path: Path, capsys, monkeypatch) -> None:  # noqa: ANN001
     """The new report takes the folder's place in two renames; Ctrl-C between them would leave no
     folder at all (or the earlier report aside, hidden): it is delivered after the second."""
-    import os
-    import signal
-
     from hopper import interrupts
     from hopper.report import folder
 
@@ -501,6 +502,93 @@ def test_a_stop_signal_during_the_swap_waits_for_it(run_json: Path, tmp_path: Pa
     assert code == 130 and len(renames) == 2 and renames[1] == out, renames
     assert (out / "report.html").is_file() and not (out / "stale.png").exists(), "the new report, whole"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+# hopper-sim report in a child process that stops mid-write (one figure in its staging folder), says
+# where on stdout and waits there until it is killed.
+STOPPED_MID_WRITE = """
+import sys
+from hopper.report import build
+
+def write_then_wait(report, folder):
+    (folder / "half-written.png").write_bytes(b"")
+    print(folder, flush=True)
+    sys.stdin.read()  # until killed
+
+build.write = write_then_wait
+from hopper.app.sim_cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def _writing(run_json: Path, out: Path) -> tuple[subprocess.Popen[str], Path]:
+    """A report to `out` running in a child, stopped mid-write, and its staging folder."""
+    child = subprocess.Popen(
+        [sys.executable, "-c", STOPPED_MID_WRITE, "report", str(run_json), "--out", str(out), "--no-simulate"],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    guard = threading.Timer(120, child.kill)  # a bound for a loaded machine, not a pace
+    guard.start()
+    line = child.stdout.readline()  # '' if the child ended first
+    guard.cancel()
+    if not line:
+        child.kill()
+        raise AssertionError(f"the report never wrote: {child.communicate()[1][-2000:]}")
+    return child, Path(line.strip())
+
+
+def _kill(child: subprocess.Popen[str]) -> None:
+    child.kill()  # SIGKILL: no handler, no finally, nothing cleans up
+    assert child.wait(timeout=60) == -signal.SIGKILL
+    child.stdout.close()
+    child.stdin.close()
+    child.stderr.close()
+
+
+def test_a_killed_reports_staging_folder_is_removed_by_the_next_run_and_a_live_writers_kept(
+    run_json: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """kill -9 mid-write left its hidden .OUT.partial-* folder beside OUT for good: the next report to
+    OUT now removes it, once its writer is gone; a report still writing to OUT keeps its own."""
+    out = tmp_path / "fig"
+    children = []
+    try:
+        live, live_partial = _writing(run_json, out)
+        children.append(live)
+        killed, killed_partial = _writing(run_json, out)  # its own start keeps the live writer's folder
+        children.append(killed)
+        _kill(killed)
+        assert (killed_partial / "half-written.png").is_file() and live_partial.is_dir()
+        code, printed, err = cli(capsys, "report", str(run_json), "--out", str(out), "--no-simulate")
+        assert code == 0 and (out / "report.html").is_file(), err
+        assert not killed_partial.exists(), "the killed writer's staging folder is left beside OUT"
+        assert (live_partial / "half-written.png").is_file(), "a live writer's staging folder was removed"
+        _kill(live)
+        assert cli(capsys, "report", str(run_json), "--out", str(out), "--no-simulate")[0] == 0
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["fig"]
+    finally:
+        for child in children:
+            if child.poll() is None:
+                child.kill()
+                child.wait(timeout=60)
+
+
+def test_only_staging_folders_of_writers_gone_from_this_host_are_removed(tmp_path: Path) -> None:
+    """Another host's (a shared disk: its pids mean nothing here), an unknown writer's (named before
+    writers were) and a live one's are kept, as are other folders' staging folders."""
+    from hopper.report.folder import remove_stale
+
+    gone = subprocess.Popen([sys.executable, "-c", ""])
+    assert gone.wait(timeout=60) == 0  # reaped: its pid names no process now
+    here = socket.gethostname()
+    stale = tmp_path / f".fig.partial-0123abcd-{gone.pid}@{here}"
+    kept = [f".fig.partial-0123abcd-{gone.pid}@not-{here}", ".fig.partial-0123abcd",
+            f".fig.partial-0123abcd-{os.getpid()}@{here}", f".other.partial-0123abcd-{gone.pid}@{here}"]  # fmt: skip
+    for path in [stale, *(tmp_path / name for name in kept)]:
+        path.mkdir()
+        (path / "a.png").write_bytes(b"")
+    assert remove_stale(tmp_path / "fig") == [stale]
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(kept)
 
 
 @pytest.mark.parametrize(

@@ -305,6 +305,14 @@ def test_session_path_is_new_and_timestamped(tmp_path: Path) -> None:
     assert first.suffix == ".rrd" and first.name.startswith("hopper-20") and second != first
 
 
+def test_a_session_folder_is_made_only_in_a_folder_that_exists(tmp_path: Path) -> None:
+    """The Record button's folder, gone since start-up with its parent: refused in one line (the
+    dashboard shows it), not made again with a new parent."""
+    with pytest.raises(ValueError, match="cannot make sessions folder .*: No such file or directory") as error:
+        session_path(tmp_path / "missing" / "sessions")
+    assert "\n" not in str(error.value) and not any(tmp_path.iterdir())
+
+
 def test_close_is_idempotent_and_detaches(tmp_path: Path) -> None:
     sim = Simulation(SimConfig(terrain="flat"))
     telemetry = Telemetry(sim, path=tmp_path / "c.rrd")

@@ -10,6 +10,7 @@ import tempfile
 from pathlib import Path
 from typing import Literal, get_args
 
+from hopper.app.cli_common import missing_folder
 from hopper.app.dashboard.access import AUTO, check_token, generate_token, is_loopback
 from hopper.app.dashboard.pacing import MAX, MAX_SPEED, MIN_SPEED
 
@@ -139,14 +140,20 @@ class DashboardConfig:
 
 
 def check_sessions_dir(folder: Path) -> Path:
-    """`folder`, created if missing and proven writable by a probe file; ValueError in one line if not.
+    """`folder`, made if missing and proven writable by a probe file; InvalidConfig in one line if not.
 
-    Checked at start-up so that a bad folder fails there, not at the first press of Record. The
-    probe is really written: permission bits say little for root, /proc or read-only mounts.
+    Only the last folder is made, in one that exists, as every output of hopper-sim (cli_common.
+    missing_folder): a mistyped parent is refused, never created. Checked at start-up so that a bad
+    folder fails there, not at the first press of Record. The probe is really written: permission
+    bits say little for root, /proc or read-only mounts. `~` is expanded, as the Record button does.
     """
+    path = folder.expanduser()
+    missing = missing_folder(path)
+    if missing:
+        raise InvalidConfig(f"cannot use sessions folder {str(folder)!r}: {missing}")
     try:
-        folder.mkdir(parents=True, exist_ok=True)
-        handle, probe = tempfile.mkstemp(prefix=".hopper-probe-", dir=folder)
+        path.mkdir(exist_ok=True)
+        handle, probe = tempfile.mkstemp(prefix=".hopper-probe-", dir=path)
         os.close(handle)
         os.unlink(probe)
     except OSError as exc:

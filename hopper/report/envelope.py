@@ -17,6 +17,15 @@ KINDS = (  # outcome, marker, colour, label
 )
 
 
+FILES = ("envelope.png", "envelope.pdf", "envelope.json")  # what `hopper-sim envelope --out` writes
+
+
+def is_envelope_folder(folder: Path) -> bool:
+    """`folder` holds an envelope (its envelope.json) and nothing else than FILES: what a new envelope
+    may replace whole."""
+    return (folder / FILES[-1]).is_file() and all(p.is_file() and p.name in FILES for p in folder.iterdir())
+
+
 def _kind(outcome: Outcome) -> str:
     if outcome.fell:
         return "fell"

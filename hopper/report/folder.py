@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import secrets
 import shutil
+import socket
 import stat
 from collections.abc import Iterator
 from pathlib import Path
@@ -24,16 +26,23 @@ def is_report_folder(folder: Path) -> bool:
     )
 
 
+# A staging folder's name after .NAME.partial-: a token, then its writer (pid@host), so that a later
+# run can tell the folder of a writer killed with SIGKILL, which nothing could clean up, from a live one's.
+WRITER = re.compile(r"[0-9a-f]{8}-(?P<pid>[1-9][0-9]{0,8})@(?P<host>.+)")
+
+
 @contextlib.contextmanager
 def staged(folder: Path) -> Iterator[Path]:
-    """A new hidden folder beside `folder` (.NAME.partial-XXXX) to write a report into. As the block
-    ends it takes the place of `folder` whole: what `folder` held (an earlier report) is removed only
-    then. If the block raises (a refused input, Ctrl-C), it is removed and `folder` is left as it
-    was. OSError, before the block, if it cannot be made: the folder holding `folder` is not writable.
-    A symbolic link's folder is the one replaced, the link kept."""
+    """A new hidden folder beside `folder` (.NAME.partial-XXXX-PID@HOST) to write a report into. As
+    the block ends it takes the place of `folder` whole: what `folder` held (an earlier report) is
+    removed only then. If the block raises (a refused input, Ctrl-C), it is removed and `folder` is
+    left as it was. OSError, before the block, if it cannot be made: the folder holding `folder` is
+    not writable. A symbolic link's folder is the one replaced, the link kept. Killed writers' staging
+    folders of `folder` are removed first (remove_stale)."""
     target = folder.resolve()
+    remove_stale(target)
     token = secrets.token_hex(4)
-    partial = target.with_name(f".{target.name}.partial-{token}")
+    partial = target.with_name(f".{target.name}.partial-{token}-{os.getpid()}@{socket.gethostname()}")
     partial.mkdir()  # mkdir's mode (umask's), not mkdtemp's 0700: the folder people will open
     try:
         yield partial
@@ -41,6 +50,40 @@ def staged(folder: Path) -> Iterator[Path]:
     except BaseException:
         shutil.rmtree(partial, ignore_errors=True)  # gone already once swapped in
         raise
+
+
+def remove_stale(folder: Path) -> list[Path]:
+    """Remove the staging folders of `folder` whose writer is gone: named by a process of this host
+    that runs no more (killed with SIGKILL: nothing could clean up). A live writer's folder is kept,
+    as is one of another host (a shared disk, where this host cannot tell) or of an unknown writer
+    (named otherwise). A pid since reused keeps its folder: never a live one removed. The removed."""
+    prefix, host = f".{folder.name}.partial-", socket.gethostname()
+    removed = []
+    try:
+        siblings = list(folder.parent.iterdir())
+    except OSError:  # unreadable: staged's own mkdir says what is wrong
+        return []
+    for path in siblings:
+        writer = WRITER.fullmatch(path.name[len(prefix) :]) if path.name.startswith(prefix) else None
+        if writer and writer["host"] == host and not _runs(int(writer["pid"])) and not path.is_symlink():
+            shutil.rmtree(path, ignore_errors=True)
+            if not path.exists():
+                removed.append(path)
+    return removed
+
+
+def _runs(pid: int) -> bool:
+    """A process `pid` exists on this host (a zombie not yet reaped included); True where that cannot
+    be asked (not POSIX, where signal 0 is no probe)."""
+    if os.name != "posix":
+        return True
+    try:
+        os.kill(pid, 0)  # signal 0: only whether the process exists
+    except ProcessLookupError:
+        return False
+    except OSError:  # EPERM: another user's process, which runs
+        return True
+    return True
 
 
 def _swap(new: Path, folder: Path, old: Path) -> None:

@@ -27,9 +27,14 @@ def check_writable(path: str | Path) -> Path:
 
 
 def session_path(folder: str | Path, prefix: str = "hopper") -> Path:
-    """A new path `folder/prefix-YYYYmmdd-HHMMSS.rrd` (folder created; never an existing file)."""
+    """A new path `folder/prefix-YYYYmmdd-HHMMSS.rrd` (never an existing file). The folder is made if
+    missing, in a folder that exists: ValueError in one line if it cannot be (a missing parent is
+    refused, never made, as the dashboard's start-up check does)."""
     directory = Path(folder).expanduser()
-    directory.mkdir(parents=True, exist_ok=True)
+    try:
+        directory.mkdir(exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f"cannot make sessions folder {str(directory)!r}: {exc.strerror or exc}") from None
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
     path, n = directory / f"{prefix}-{stamp}.rrd", 2
     while path.exists():
