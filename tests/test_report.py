@@ -286,6 +286,9 @@ def test_a_faulted_episode_fails_in_every_part_of_the_sweep_report_saying_why(tm
     (values,) = [t for t in report.tables if t.title == "Per setting value"]
     rows = {r[1]: r for r in values.rows if r[0] == "controller"}
     assert rows["flaky.py:Flaky"][3] == 0.0 and rows["flaky.py:Flaky"][6] == 2 and rows["pid"][3] == 100.0
+    # The worst landing is the controller's: the PID's after a fault (0.6 and 0.8 deg here) are left out.
+    assert rows["flaky.py:Flaky"][5] == "every one faulted" and rows["pid"][5] == pytest.approx(0.7)
+    assert "The worst landing leaves out the episodes with a controller fault" in values.note
     assert "4 episodes, 2 successful" in values.note and cause in values.note
     (mc,) = [t for t in report.tables if t.title.startswith("Monte Carlo")]
     assert [r[2] for r in mc.rows] == [2, 0]
