@@ -28,7 +28,8 @@ EXIT_STATUSES = (
     "exit status: 0 success, 1 the robot fell (run), a case failed (stress) or a kick under the physical limit "
     "fell (envelope), 2 bad arguments (a controller that cannot fly included), 3 the run stopped short of the "
     "hops asked without a fall (run; it says why), 4 the controller failed mid-run and the PID flew on (run, and "
-    "compare or sweep once finished; it says why), 130 interrupted (Ctrl-C or SIGTERM), "
+    "compare or sweep once finished; it says why), 130 interrupted (Ctrl-C or SIGTERM; for compare, league and "
+    "stress, before their last result was in: a later stop lets them finish), "
     f"{CLOSED_STDOUT_STATUS}. compare exits 0 once it has finished without a controller fault: with the wheel off "
     "the robot is expected to fall."
 )
@@ -423,10 +424,19 @@ def check_executor(args: argparse.Namespace) -> None:
 
 
 def run_all(
-    episodes: list, executor_kind: str, workers: int, address: str | None, desc: str, noun: str = "episode"
-) -> dict:
-    """Every episode on the chosen executor with a progress bar (`desc`): episode_id -> EpisodeResult.
-    `noun` names one episode where the command's own word differs ("run" for compare)."""
+    episodes: list,
+    executor_kind: str,
+    workers: int,
+    address: str | None,
+    desc: str,
+    finish: Callable[[dict], int],
+    command: str,
+    noun: str = "episode",
+) -> int:
+    """Every episode on the chosen executor with a progress bar (`desc`), then `finish(done)` (done:
+    episode_id -> EpisodeResult), which prints and writes what `command` makes of them: its exit
+    status. `noun` names one episode where the command's own word differs ("run" for compare).
+    A stop that comes once every result is in cuts nothing short (finish_complete)."""
     from tqdm import tqdm
 
     from hopper.experiments.executor import ExecutorError, choose, chunks
@@ -440,14 +450,49 @@ def run_all(
         n = len(episodes)
         print(f"running {n} {noun}{'s' if n != 1 else ''} in this process: {why}", file=sys.stderr)
     done = {}
+
+    def gather() -> None:
+        try:
+            with tqdm(total=len(episodes), desc=desc, unit="ep", file=sys.stderr) as bar:
+                for chunk in executor.map(chunks(episodes, executor.workers)):
+                    done.update((r.episode.episode_id, r) for r in chunk)
+                    bar.update(len(chunk))
+        finally:
+            executor.close()
+
+    return finish_complete(gather, lambda: len(done) == len(episodes), lambda: finish(done), command, noun)
+
+
+def finish_complete(
+    gather: Callable[[], None], complete: Callable[[], bool], finish: Callable[[], int], command: str, noun: str
+) -> int:
+    """`gather()` the results, then `finish()` (the command's table, its files): finish's exit status.
+
+    A stop (Ctrl-C, SIGTERM: KeyboardInterrupt) while gathering interrupts the command (130) unless
+    `complete()`, every result in: then, like one that comes while finish runs (held until it ends),
+    it cut nothing short. It is dropped, said in a line, and the command ends as a complete one, with
+    its table and its status (0, or 1 or 4 on what it found), as `hopper-sim sweep` does."""
+    from hopper.interrupts import clear, held
+
+    status = None
     try:
-        with tqdm(total=len(episodes), desc=desc, unit="ep", file=sys.stderr) as bar:
-            for chunk in executor.map(chunks(episodes, executor.workers)):
-                done |= {r.episode.episode_id: r for r in chunk}
-                bar.update(len(chunk))
-    finally:
-        executor.close()
-    return done
+        gather()
+        with held():
+            status = finish()
+    except KeyboardInterrupt:
+        if not complete():
+            raise
+        clear()
+        print(late_stop(command, noun), file=sys.stderr)
+        if status is None:  # it came before finish: the results are all in, so finish them
+            with held():
+                status = finish()
+    return status
+
+
+def late_stop(command: str, noun: str) -> str:
+    """What a stop signal that came after `command` had every result did: nothing."""
+    return f"hopper-sim: the stop came after every {noun} was done: {command} is complete"
 
 
 def add_run_flags(p: argparse.ArgumentParser) -> None:

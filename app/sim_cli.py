@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import dataclasses
+import functools
 import json
 import math
 import multiprocessing
@@ -32,6 +33,7 @@ from hopper.app.cli_common import (
     check_replaced,
     checked_controller,
     fail,
+    finish_complete,
     finite,
     gains_flags,
     output_closed,
@@ -382,8 +384,6 @@ def command_run(args: argparse.Namespace) -> int:
 
 
 def command_compare(args: argparse.Namespace) -> int:
-
-    from hopper.experiments.reduction import SeedPair, median_reduction
     from hopper.experiments.spec import Episode
 
     gait, default = scenario(args.scenario).gait, GaitParams()
@@ -401,7 +401,15 @@ def command_compare(args: argparse.Namespace) -> int:
         for seed in range(args.seeds)
         for wheel in (True, False)
     ]  # fmt: skip
-    done = run_all(episodes, args.executor, args.workers, args.address, "runs", noun="run")
+    finish = functools.partial(_compare_results, args, flown, episodes)
+    return run_all(episodes, args.executor, args.workers, args.address, "runs", finish, "compare", noun="run")
+
+
+def _compare_results(args: argparse.Namespace, flown: SimConfig, episodes: list, done: dict) -> int:
+    """compare's table, median and JSON from every run's result (`done`: episode_id -> EpisodeResult);
+    its exit status."""
+    from hopper.experiments.reduction import SeedPair, median_reduction
+
     results = []
     for episode in episodes:
         r = done[episode.episode_id]
@@ -479,18 +487,31 @@ def groups(text: str) -> tuple[str, ...]:
 def command_stress(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from hopper.experiments.stress import battery, run_case, table
+    from hopper.experiments.stress import battery, run_case
 
     flown = with_controller_flags(SimConfig(model=args.model), args)
     seeds, gravity_seeds = args.seeds or 100, args.gravity_seeds or 5  # None: not given (check_counts refuses 0)
     cases = battery(seeds=seeds, gravity_seeds=gravity_seeds, quick=args.quick, controller=flown)
     cases = [c for c in cases if c.group in args.groups]
     workers = max(1, min(args.workers, len(cases)))
-    with children_ignore_ctrl_c():  # pool workers leave Ctrl-C to this process, which stops them
-        pool = multiprocessing.get_context("spawn").Pool(workers)
-    with pool:
-        runs = each(pool.imap(run_case, cases, chunksize=1))
-        outcomes = list(tqdm(runs, total=len(cases), desc="cases", unit="case", file=sys.stderr))
+    outcomes = []
+
+    def gather() -> None:
+        with children_ignore_ctrl_c():  # pool workers leave Ctrl-C to this process, which stops them
+            pool = multiprocessing.get_context("spawn").Pool(workers)
+        with pool:
+            runs = each(pool.imap(run_case, cases, chunksize=1))
+            for outcome in tqdm(runs, total=len(cases), desc="cases", unit="case", file=sys.stderr):
+                outcomes.append(outcome)  # one by one: a stop then knows how many are in
+
+    finish = functools.partial(_stress_results, args, outcomes)
+    return finish_complete(gather, lambda: len(outcomes) == len(cases), finish, "stress", "case")
+
+
+def _stress_results(args: argparse.Namespace, outcomes: list) -> int:
+    """The stress battery's table and JSON from every case's outcome; its exit status."""
+    from hopper.experiments.stress import table
+
     print("\n".join(table(outcomes)))
     if args.json:
         rows = [
@@ -519,7 +540,14 @@ def command_league(args: argparse.Namespace) -> int:
 
     entries = league.battery(quick=args.quick, robot=robot_of(SimConfig(terrain="flat", model=args.model)))
     episodes = [e for spec in specs for e in league.episodes(spec, (), entries, args.model)]
-    done = run_all(episodes, args.executor, args.workers, args.address, "league")
+    finish = functools.partial(_league_results, args, specs, entries, episodes)
+    return run_all(episodes, args.executor, args.workers, args.address, "league", finish, "league")
+
+
+def _league_results(args: argparse.Namespace, specs: list[str], entries: list, episodes: list, done: dict) -> int:
+    """The league's table and JSON from every episode's result (`done`: episode_id -> EpisodeResult)."""
+    from hopper.experiments import league
+
     rows = [league.row(spec, [done[e.episode_id] for e in episodes if e.controller == spec]) for spec in specs]
     print(f"league: {len(entries)} episodes per controller, realistic sensing; landing |pitch| in deg")
     print("\n".join(league.table(rows)))

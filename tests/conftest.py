@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import signal
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -21,6 +22,18 @@ from hopper.sim import Simulation
 def browser():
     """Chromium for a module's browser tests (tests/pages.py: frames capped, skips without it)."""
     yield from launch_chromium()
+
+
+@pytest.fixture
+def handlers() -> Iterator[None]:
+    """The test process's stop handlers back (a CLI's main() installs its own) and no stop request, after the test."""
+    from hopper import interrupts
+
+    saved = {s: signal.getsignal(s) for s in interrupts.STOP_SIGNALS}
+    yield
+    for s, handler in saved.items():
+        signal.signal(s, handler)
+    interrupts.clear()
 
 
 @pytest.fixture

@@ -286,6 +286,9 @@ def test_a_faulted_episode_fails_in_every_part_of_the_sweep_report_saying_why(tm
     (values,) = [t for t in report.tables if t.title == "Per setting value"]
     rows = {r[1]: r for r in values.rows if r[0] == "controller"}
     assert rows["flaky.py:Flaky"][3] == 0.0 and rows["flaky.py:Flaky"][6] == 2 and rows["pid"][3] == 100.0
+    # The worst landing is the controller's: the PID's after a fault (0.6 and 0.8 deg here) are left out.
+    assert rows["flaky.py:Flaky"][5] == "every one faulted" and rows["pid"][5] == pytest.approx(0.7)
+    assert "The worst landing leaves out the episodes with a controller fault" in values.note
     assert "4 episodes, 2 successful" in values.note and cause in values.note
     (mc,) = [t for t in report.tables if t.title.startswith("Monte Carlo")]
     assert [r[2] for r in mc.rows] == [2, 0]
@@ -710,3 +713,72 @@ def test_the_papers_bands_are_drawn_for_the_papers_scenario_only(run_json: Path)
         assert ("drawn for its own scenario only" in named.caption) == (bands == 0)
         for n in report.figures:
             build.style.close(n.figure)
+
+
+def _faulted_compare(run_json: Path, tmp_path: Path, faulted: set[int]) -> Path:
+    """A compare JSON of seeds 0 to 2 (copies of the real run, wheel on and off), whose wheel-on runs of
+    `faulted` seeds had a controller fault and flew to 40 deg on the PID after it."""
+    on = json.loads(run_json.read_text())
+    runs = []
+    for seed in range(3):
+        for wheel in (True, False):
+            run = {**on, "settings": {**on["settings"], "seed": seed, "wheel": wheel}, "seed": seed, "wheel": wheel}
+            if seed:
+                del run["trace"]  # as compare keeps the first seed's only
+            if wheel and seed in faulted:
+                run["fault"] = "Picky returned nan N m, not a finite torque"
+                run["hops"] = [{**h, "peak_pitch_deg": 40.0, "saturation_time_s": 0.5} for h in on["hops"]]
+            runs.append(run)
+    path = tmp_path / "compare.json"
+    path.write_text(json.dumps({"median_peak_reduction_pct": None, "seeds": [], "runs": runs}))
+    return path
+
+
+def _bar_heights(figure, label: str) -> list[list[float]]:  # noqa: ANN001 (Figure)
+    """Per axes, the heights of the bars labelled `label`."""
+    return [[p.get_height() for c in ax.containers if c.get_label() == label for p in c] for ax in figure.axes]
+
+
+def test_the_per_hop_medians_leave_out_the_runs_whose_controller_faulted(run_json: Path, tmp_path: Path) -> None:
+    """The bars were medians over every run, the faulted ones' too: two of three seeds flown on by the
+    PID from the fault at 40 deg made the wheel-on medians 40 deg, the PID's figure, not the controller's."""
+    real = json.loads(run_json.read_text())["hops"]
+    report = report_cli._json_report(_faulted_compare(run_json, tmp_path, {1, 2}), args())
+    try:
+        figures = {n.name: n for n in report.figures}
+        metrics, saturation = figures["hop_metrics"], figures["saturation"]
+        peaks, rates = _bar_heights(metrics.figure, "wheel on")
+        assert peaks == pytest.approx([h["peak_pitch_deg"] for h in real])  # seed 0's alone
+        assert rates == pytest.approx([h["rms_pitch_rate_deg_s"] for h in real])
+        assert _bar_heights(saturation.figure, "wheel on")[0] == pytest.approx([h["saturation_time_s"] for h in real])
+        assert metrics.figure._suptitle.get_text().endswith("(over 3 seeds, 2 runs that faulted left out)")  # noqa: SLF001
+        left = ("Left out of the medians: 2 runs whose controller faulted (seed 1 wheel on, seed 2 wheel on), as the "
+                "PID flew on from the fault: their figures are not the controller's.")  # fmt: skip
+        assert left in metrics.caption and left in saturation.caption and "no bars" not in metrics.caption
+        faults, *_, seeds = report.tables
+        assert faults.title == "Controller faults" and "left out of the per-hop medians" in faults.note
+        assert seeds.note.startswith("Median reduction of the peak mid-air pitch deviation, wheel on vs off: 0.0% "
+                                     "(over 1 seed of 3; 2 faulted runs left out (seeds 1, 2);")  # fmt: skip
+    finally:
+        for named in report.figures:
+            build.style.close(named.figure)
+
+
+def test_a_group_whose_every_run_faulted_is_said_so_instead_of_bars(run_json: Path, tmp_path: Path) -> None:
+    report = report_cli._json_report(_faulted_compare(run_json, tmp_path, {0, 1, 2}), args())
+    try:
+        figures = {n.name: n for n in report.figures}
+        for name in ("hop_metrics", "saturation"):
+            figure = figures[name].figure
+            assert all(not heights for heights in _bar_heights(figure, "wheel on")), name
+            said = [t.get_text() for ax in figure.axes for t in ax.texts]
+            line = "wheel on: no bars, the controller faulted in every run (3) and the PID flew on"
+            assert said.count(line) == len(figure.axes), (name, said)
+            assert figures[name].caption.endswith("Wheel on: every run faulted, so no bars."), figures[name].caption
+        assert all(_bar_heights(figures["hop_metrics"].figure, "wheel off (zero torque, free to spin)"))  # still drawn
+        none = "wheel on vs off: none, every seed has a faulted run (3 faulted runs of 6)"
+        assert report.tables[-1].note.startswith(f"Median reduction of the peak mid-air pitch deviation, {none}")
+        assert "its controller faulted and the PID flew on" in report.tables[1].note  # the hop table of seed 0
+    finally:
+        for named in report.figures:
+            build.style.close(named.figure)

@@ -3,55 +3,17 @@ wrote; once every episode is written the sweep is complete and ends as one (0, o
 
 from __future__ import annotations
 
-import signal
-from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 import pyarrow.dataset as ds
 import pytest
 from in_process import cli
+from stops import StopAt, ctrl_c
 from sweep_data import FLAKY
 
-from hopper import interrupts
 from hopper.experiments import executor, store, summary
-from hopper.experiments.worker import EpisodeResult
 
 pytestmark = pytest.mark.integration  # episodes flown in the test's process, the CLI's signal handlers
-
-
-@pytest.fixture
-def handlers() -> Iterator[None]:
-    """The test process's stop handlers back (main() installs the CLI's) and no stop request, after the test."""
-    saved = {s: signal.getsignal(s) for s in interrupts.STOP_SIGNALS}
-    yield
-    for s, handler in saved.items():
-        signal.signal(s, handler)
-    interrupts.clear()
-
-
-def ctrl_c() -> None:
-    signal.raise_signal(signal.SIGINT)  # through the CLI's handler, as a terminal's Ctrl-C
-
-
-class StopAt(executor.InProcess):
-    """The in-process executor (one episode a chunk here), sending Ctrl-C at `moment`: `first` once the
-    first chunk's results are stored (one of two episodes done), `last` once the last chunk's are (before
-    the sweep's last part is written), `close` as it is closed (every part written)."""
-
-    def __init__(self, moment: str) -> None:
-        super().__init__()
-        self.moment = moment
-
-    def map(self, chunks: Iterable[executor.Chunk]) -> Iterator[list[EpisodeResult]]:
-        chunks = list(chunks)
-        for i, results in enumerate(super().map(chunks)):
-            yield results  # run_sweep stores them before it asks for the next
-            if (self.moment, i) in (("first", 0), ("last", len(chunks) - 1)):
-                ctrl_c()
-
-    def close(self) -> None:
-        if self.moment == "close":
-            ctrl_c()
 
 
 @pytest.mark.parametrize(

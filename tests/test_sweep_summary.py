@@ -71,3 +71,21 @@ def test_a_controller_params_axis_gives_the_unit_its_controller_declares() -> No
     assert line.startswith("param_pitch_tol (deg): 2: 0/1 fell"), line
     unknown = table.set_column(table.column_names.index("controller"), "controller", pa.array(["gone.py:X"] * 2))
     assert axis_lines(unknown, {"param_pitch_tol": (2.0, 5.0)})[0].startswith("param_pitch_tol: 2: ")
+
+
+def test_the_landing_and_momentum_leave_out_the_faulted_episodes_the_counts_keep() -> None:
+    """`land` and `wheel` took in the episodes whose controller faulted: a PID flying on from the fault
+    to a 9 deg landing at 99 % of the wheel made them the PID's figures, not the controller's."""
+    table = episodes([True] * 5, [3] * 5, [0.1, 9.0, 0.2, 9.0, 9.0], [False] * 5)
+    table = table.set_column(table.column_names.index("momentum_used_pct"), "momentum_used_pct",
+                             pa.array([50.0, 99.0, 60.0, 99.0, 99.0]))  # fmt: skip
+    table = table.append_column("kd", pa.array([30.0, 30.0, 30.0, 40.0, 40.0]))
+    table = table.append_column("hops_target", pa.array([3] * 5))
+    cause = "Picky returned nan N m"
+    table = table.append_column("controller_fault", pa.array(["", cause, "", cause, cause]))
+    (line,) = axis_lines(table, {"kd": (30.0, 40.0)})
+    assert line == ("kd (N m s/rad): 30: 0/3 fell, 1 controller fault, land 0.20 deg, wheel 60.0 % (1 faulted left "
+                    "out); 40: 0/2 fell, 2 controller faults, land none, wheel none (all 2 faulted)"), line  # fmt: skip
+    assert "0 fell (0.0 %), 3 controller faults, worst landing 0.20 deg (3 faulted left out), " in overall_line(table)
+    every = table.filter(pa.array([False, True, False, True, True]))
+    assert "worst landing none (every episode's controller faulted), " in overall_line(every)

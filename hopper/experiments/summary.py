@@ -1,4 +1,7 @@
-"""One line per swept axis: for each of its values, episodes, falls and the worst landing and momentum."""
+"""One line per swept axis: for each of its values, episodes, falls and the worst landing and momentum.
+
+The landing and momentum say how the controller flew, so they leave out the episodes whose controller
+faulted (the PID flew on from the fault, hopper.experiments.outcome); the failure counts keep them."""
 
 from __future__ import annotations
 
@@ -15,7 +18,8 @@ UNITS = {"kp": "N m/rad", "ki": "N m/(rad s)", "kd": "N m s/rad", "gravity": "m/
 
 
 def axis_lines(episodes: pa.Table, axes: dict[str, tuple[Any, ...]]) -> list[str]:
-    """Axes with more than one value; each value: n episodes, falls, worst landing (deg), peak momentum (%)."""
+    """Axes with more than one value; each value: n episodes, falls, and over those without a controller
+    fault the worst landing (deg) and peak momentum (%)."""
     lines = []
     for name, values in axes.items():
         if len(values) < 2:
@@ -28,10 +32,7 @@ def axis_lines(episodes: pa.Table, axes: dict[str, tuple[Any, ...]]) -> list[str
             if rows.num_rows == 0:
                 continue
             falls = pc.sum(rows.column("fell")).as_py() or 0
-            momentum = pc.max(rows.column("momentum_used_pct")).as_py()
-            label = _label(value)
-            parts.append(f"{label}: {falls}/{rows.num_rows} fell{_failed_otherwise(rows)}, land {_landing(rows)}, "
-                         f"wheel {momentum:.1f} %")  # fmt: skip
+            parts.append(f"{_label(value)}: {falls}/{rows.num_rows} fell{_failed_otherwise(rows)}, {_flown(rows)}")
         notes = [_unit(pool, name)] + (["pid episodes"] if pool is not episodes else [])
         unit = ", ".join(note for note in notes if note)
         lines.append(f"{name}{f' ({unit})' if unit else ''}: " + "; ".join(parts))
@@ -72,9 +73,29 @@ def overall_line(episodes: pa.Table) -> str:
         return "no episodes"
     falls = pc.sum(episodes.column("fell")).as_py() or 0
     sim = pc.sum(episodes.column("sim_time_s")).as_py()
-    landing = _landing(episodes)
+    kept, faults = _unfaulted(episodes)
+    if kept.num_rows:
+        landing = _landing(kept) + (f" ({faults} faulted left out)" if faults else "")
+    else:
+        landing = "none (every episode's controller faulted)"
     return (f"{n} episodes, {falls} fell ({100 * falls / n:.1f} %){_failed_otherwise(episodes)}, worst landing "
             f"{landing}, {sim:.0f} s simulated")  # fmt: skip
+
+
+def _unfaulted(rows: pa.Table) -> tuple[pa.Table, int]:
+    """The episodes the controller flew to the end, and how many faulted (their later flights the PID's)."""
+    faulted = outcome.faulted(rows)
+    return rows.filter(pa.array(~faulted)), int(faulted.sum())
+
+
+def _flown(rows: pa.Table) -> str:
+    """ "land X, wheel Y %": the worst landing and peak wheel momentum over the episodes without a fault,
+    saying how many faulted ones were left out."""
+    kept, faults = _unfaulted(rows)
+    if not kept.num_rows:
+        return f"land none, wheel none (all {faults} faulted)"
+    momentum = pc.max(kept.column("momentum_used_pct")).as_py()
+    return f"land {_landing(kept)}, wheel {momentum:.1f} %" + (f" ({faults} faulted left out)" if faults else "")
 
 
 def _failed_otherwise(rows: pa.Table) -> str:

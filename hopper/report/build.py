@@ -10,6 +10,7 @@ from typing import Any
 from matplotlib.figure import Figure
 
 from hopper.config import GaitParams
+from hopper.experiments.reduction import SeedPair, median_reduction
 from hopper.report import page, run_figures, style
 from hopper.report.runs import Run
 from hopper.scenarios import scenario_of
@@ -72,13 +73,13 @@ def run_report(on: Sequence[Run], off: Sequence[Run], title: str, subtitle: str)
               "1 ms tick, may count pulses the curve does not show.", run_figures.wheel_torque(shown)),
         Named("hop_metrics", "Per-hop peak pitch and RMS pitch rate, wheel on vs off",
               f"Peak |pitch| and RMS pitch rate over each flight; {bands}Hatched: the flight ended in a fall (its "
-              "peak is the 60 deg fall limit).",
+              f"peak is the 60 deg fall limit). {run_figures.left_out([*on, *off])}".strip(),
               run_figures.hop_metrics([r for r in on], [r for r in off], paper)),
     ]  # fmt: skip
     if on:
         figures.append(Named("saturation", "Saturation time per hop",
-                             "Time with |wheel torque| ≥ 98 % of 29.5 N m in each hop (ground and flight).",
-                             run_figures.saturation(list(on))))  # fmt: skip
+                             "Time with |wheel torque| ≥ 98 % of 29.5 N m in each hop (ground and flight). "
+                             f"{run_figures.left_out(on)}".strip(), run_figures.saturation(list(on))))  # fmt: skip
     tables = [hop_table(shown)]
     if on and off:
         tables.append(seed_table(on, off))
@@ -105,25 +106,30 @@ def fault_section(faulted: Sequence[Run], runs: int) -> page.Section:
     controller = faulted[0].settings.get("controller", "the controller")
     rows = [[r.label, r.fault] for r in faulted]
     note = (f"{controller} failed in {len(faulted)} of {runs} runs and the built-in PID flew on from the fault: "
-            "their later flights are the PID's, not the controller's; such a run counts as failed.")  # fmt: skip
+            "their later flights are the PID's, not the controller's; such a run counts as failed and is left out "
+            "of the per-hop medians and the median reduction.")  # fmt: skip
     return page.Section("Controller faults", header=["run", "cause"], rows=rows, note=note)
 
 
 def hop_table(run: Run) -> page.Section:
     rows = [[hop[key] for key, _ in HOP_TABLE] for hop in run.hops]
-    return page.Section(f"Hops: {run.label}", header=[h for _, h in HOP_TABLE], rows=rows,
-                        note="" if rows else "no hop completed")  # fmt: skip
+    notes = [] if rows else ["no hop completed"]
+    if run.fault:  # drawn as it flew: its hops after the fault are the PID's
+        notes.append("its controller faulted and the PID flew on from the fault (Controller faults)")
+    return page.Section(f"Hops: {run.label}", header=[h for _, h in HOP_TABLE], rows=rows, note="; ".join(notes))
 
 
 def seed_table(on: Sequence[Run], off: Sequence[Run]) -> page.Section:
     """Per seed: the worst of each figure with the wheel on, the wheel-off peak and the reduction."""
     off_by_seed = {r.seed: r for r in off}
-    rows = []
+    rows, pairs = [], []
     for run in sorted(on, key=lambda r: str(r.seed)):
         done = [h for h in run.hops if h["completed"]]
         peak = max((h["peak_pitch_deg"] for h in run.hops), default=0.0)
         twin = off_by_seed.get(run.seed)
         peak_off = max((h["peak_pitch_deg"] for h in twin.hops), default=0.0) if twin else float("nan")
+        if twin:
+            pairs.append(SeedPair(run.seed, peak, peak_off, faulted_runs=bool(run.fault) + bool(twin.fault)))
         rows.append([
             run.seed, f"{len(done)}{_ended(run)}", peak,
             max((h["rms_pitch_rate_deg_s"] for h in run.hops), default=0.0),
@@ -134,8 +140,11 @@ def seed_table(on: Sequence[Run], off: Sequence[Run]) -> page.Section:
         ])  # fmt: skip
     header = ["seed", "on: hops", "peak (deg)", "RMS rate (deg/s)", "landing (deg)", "saturation (s/hop)",
               "off: hops", "off peak (deg)", "reduction (%)"]  # fmt: skip
-    return page.Section("Per seed (worst hop of each), wheel on vs off", header=header, rows=rows,
-                        note="Wheel off = zero wheel torque, the wheel free to spin.")  # fmt: skip
+    note = "Wheel off = zero wheel torque, the wheel free to spin."
+    if pairs:  # compare's own line: a seed with a faulted run (its figures the PID's) is left out of it
+        line = median_reduction(pairs).line()
+        note = f"{line[0].upper()}{line[1:]}."
+    return page.Section("Per seed (worst hop of each), wheel on vs off", header=header, rows=rows, note=note)
 
 
 def _ended(run: Run) -> str:

@@ -9,7 +9,7 @@ from matplotlib.figure import Figure
 
 from hopper.config import SATURATION_FRACTION
 from hopper.report import style
-from hopper.report.runs import Run
+from hopper.report.runs import Run, wheel_label
 
 # The paper's reported ranges (Sec. V-B, V-D), drawn as references.
 PAPER_PEAK_DEG = (15.0, 20.0)
@@ -104,9 +104,41 @@ def _per_hop(runs: Sequence[Run], key: str) -> tuple[np.ndarray, list[np.ndarray
     return np.arange(1, n + 1), values
 
 
+def flown(runs: Sequence[Run]) -> list[Run]:
+    """The runs whose controller flew them to the end. A run whose controller faulted is a failure and
+    its later flights are the PID's (hopper.experiments.outcome's rule): the per-hop medians leave it out."""
+    return [r for r in runs if not r.fault]
+
+
+def left_out(runs: Sequence[Run]) -> str:
+    """The faulted runs the per-hop medians leave out, in a sentence for a caption; "" if none."""
+    faulted = [r for r in runs if r.fault]
+    if not faulted:
+        return ""
+    which = ", ".join(f"seed {r.seed} wheel {'on' if r.wheel else 'off'}" for r in faulted)  # as compare says it
+    text = (f"Left out of the medians: {_runs(len(faulted))} whose controller faulted ({which}), as the PID flew on "
+            "from the fault: their figures are not the controller's.")  # fmt: skip
+    for wheel in (True, False):
+        group = [r for r in runs if r.wheel is wheel]
+        if group and not flown(group):
+            text += f" {wheel_label(wheel).capitalize()}: every run faulted, so no bars."
+    return text
+
+
+def _runs(n: int) -> str:
+    return f"{n} run{'s' if n != 1 else ''}"
+
+
 def _bars(ax, runs: Sequence[Run], key: str, offset: float, color: str, label: str) -> None:  # noqa: ANN001
-    """Median per hop over the runs, whiskers from the lowest to the highest; hatched if any run
-    ended that hop in a fall (its value is then the flight that fell)."""
+    """Median per hop over the runs the controller flew to the end (flown), whiskers from the lowest to
+    the highest; hatched if any run ended that hop in a fall (its value is then the flight that fell).
+    A group whose every run faulted gets a line saying so instead of bars."""
+    faulted = len(runs) - len(flown(runs))
+    runs = flown(runs)
+    if faulted and not runs:
+        ax.text(0.5, 0.6 if offset <= 0 else 0.4, f"{label}: no bars, the controller faulted in every run "
+                f"({faulted}) and the PID flew on", transform=ax.transAxes, ha="center", va="center", color=color,
+                fontsize=9, bbox={"facecolor": "white", "edgecolor": color, "boxstyle": "round"})  # fmt: skip
     hops, values = _per_hop(runs, key)
     if not len(hops):
         return
@@ -136,9 +168,9 @@ def paper_bands() -> str:
 def hop_metrics(on: Sequence[Run], off: Sequence[Run] = (), paper: bool = True) -> Figure:
     """Per-hop peak mid-air pitch and RMS pitch rate, wheel on vs off, with the paper's ranges when the
     runs fly the `paper`'s scenario (paper Fig. 5; in another, its flights are other flights, and its
-    band would set the scale). With several runs (seeds), bars are medians and whiskers the range."""
-    n = len(on) or len(off)
-    what = f"over {n} seeds" if n > 1 else (on or off)[0].label.split(",")[0]
+    band would set the scale). With several runs (seeds), bars are medians and whiskers the range, over
+    the runs the controller flew to the end (flown)."""
+    what = _over(on or off, [*on, *off])
     states = "wheel on vs off" if on and off else ("wheel on" if on else "wheel off")
     fig, (ax_p, ax_r) = style.new_figure(2, height=2.5, title=f"Per-hop flight metrics, {states} ({what})")
     for ax, key, unit, band in (
@@ -153,27 +185,35 @@ def hop_metrics(on: Sequence[Run], off: Sequence[Run] = (), paper: bool = True) 
         ax.set_ylabel(unit)
         style.legend_above(ax)
     ax_r.set_xlabel("hop")
-    hops = _per_hop([*on, *off], "peak_pitch_deg")[0]
+    hops = _per_hop(flown([*on, *off]), "peak_pitch_deg")[0]
     ax_r.set_xticks(hops)
+    if len(hops):  # each hop's slot whole, though one group has no bars there (a fall, a fault)
+        ax_r.set_xlim(0.5, len(hops) + 0.5)
     return fig
+
+
+def _over(group: Sequence[Run], runs: Sequence[Run]) -> str:
+    """What a figure's bars are over: its seeds (one group's count) or its one run's, and how many of
+    `runs` faulted and were left out."""
+    what = f"over {len(group)} seeds" if len(group) > 1 else group[0].label.split(",")[0]
+    faulted = len(runs) - len(flown(runs))
+    return f"{what}, {_runs(faulted)} that faulted left out" if faulted else what
 
 
 def saturation(on: Sequence[Run]) -> Figure:
     """Wheel saturation time per hop (|torque| >= 98 % of the limit), with the paper's 0.9 s bound."""
-    n = len(on)
-    what = f"over {n} seeds" if n > 1 else on[0].label
-    fig, (ax,) = style.new_figure(1, height=2.6, title=f"Wheel saturation time per hop ({what})")
+    fig, (ax,) = style.new_figure(1, height=2.6, title=f"Wheel saturation time per hop ({_over(on, on)})")
     _bars(ax, on, "saturation_time_s", 0.0, style.WHEEL_ON, "wheel on")
     ax.axhline(
         PAPER_SATURATION_S, color=style.PAPER, ls="--", lw=1, label=f"paper: under {PAPER_SATURATION_S:g} s per hop"
     )
-    hops, values = _per_hop(on, "saturation_time_s")
+    hops, values = _per_hop(flown(on), "saturation_time_s")
     top = max((v.max() for v in values), default=0.0)
     ax.set_ylim(0, max(1.1 * PAPER_SATURATION_S, 1.2 * top))
     ax.set_xticks(hops)
     ax.set_xlabel("hop")
     ax.set_ylabel("saturation time (s)")
     style.legend_above(ax)
-    if top == 0.0:
+    if top == 0.0 and flown(on):
         ax.text(0.5, 0.5, "no saturation in any hop", transform=ax.transAxes, ha="center", color="#555555")
     return fig

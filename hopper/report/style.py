@@ -48,9 +48,12 @@ def new_figure(rows: int = 1, height: float = 2.4, title: str = "", sharex: bool
 
 
 def legend_above(ax, handles: list | None = None, labels: list | None = None) -> None:  # noqa: ANN001 (Axes)
-    """The legend in one row above the axes, clear of the data."""
+    """The legend in one row above the axes, clear of the data; none for axes with nothing labelled (a
+    group drawn as a line of text, hopper.report.run_figures._bars)."""
     if handles is None:
         handles, labels = ax.get_legend_handles_labels()
+    if not handles:
+        return
     ax.legend(handles, labels, loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=len(handles), frameon=False,
               borderaxespad=0.2)  # fmt: skip
 

@@ -226,19 +226,24 @@ def _success_lines(ax, sweep: Sweep, chosen: np.ndarray, column: str, label: str
 
 
 def axis_table(sweep: Sweep) -> page.Section:
-    """One line per value of each varied setting: episodes, success, falls, controller faults, worst landing."""
+    """One line per value of each varied setting: episodes, success, falls, controller faults, and the worst
+    landing over the episodes without a fault (after one the PID flew on: its landings are not the controller's)."""
     ok, fell, faulted = sweep.success(), sweep.column("fell").astype(bool), outcome.faulted(sweep.episodes)
-    landing = sweep.landing()
+    landing = np.where(faulted, np.nan, sweep.landing())
     rows = []
     for name in sweep.varied():
         values = sweep.column(name)
         for v in sweep.values(name):
             sel = sweep.flying(name) & (values == v)
             worst = np.nanmax(landing[sel]) if np.isfinite(landing[sel]).any() else "no landing"
+            if sel.any() and faulted[sel].all():
+                worst = "every one faulted"
             rows.append([name, v, int(sel.sum()), 100.0 * ok[sel].mean(), int(fell[sel].sum()), worst,
                          int(faulted[sel].sum())])  # fmt: skip
     header = ["setting", "value", "episodes", "success (%)", "falls", "worst landing (deg)", "controller faults"]
     note = f"Success: {outcome.SUCCESS_RULE}. {sweep.episodes.num_rows} episodes, {int(ok.sum())} successful."
+    if faulted.any():
+        note += " The worst landing leaves out the episodes with a controller fault (they count as failed)."
     for line in (outcome.fault_line(sweep.episodes), outcome.not_applied_line(sweep.episodes)):
         note += f" {line[0].upper()}{line[1:]}." if line else ""
     return page.Section("Per setting value", header=header, rows=rows, note=note)
