@@ -485,27 +485,33 @@ def groups(text: str) -> tuple[str, ...]:
 
 
 def command_stress(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
 
-    from hopper.experiments.stress import battery, run_case
+    from hopper.experiments.stress import battery
 
     flown = with_controller_flags(SimConfig(model=args.model), args)
     seeds, gravity_seeds = args.seeds or 100, args.gravity_seeds or 5  # None: not given (check_counts refuses 0)
     cases = battery(seeds=seeds, gravity_seeds=gravity_seeds, quick=args.quick, controller=flown)
     cases = [c for c in cases if c.group in args.groups]
-    workers = max(1, min(args.workers, len(cases)))
-    outcomes = []
-
-    def gather() -> None:
-        with children_ignore_ctrl_c():  # pool workers leave Ctrl-C to this process, which stops them
-            pool = multiprocessing.get_context("spawn").Pool(workers)
-        with pool:
-            runs = each(pool.imap(run_case, cases, chunksize=1))
-            for outcome in tqdm(runs, total=len(cases), desc="cases", unit="case", file=sys.stderr):
-                outcomes.append(outcome)  # one by one: a stop then knows how many are in
-
+    outcomes: list = []
+    gather = functools.partial(_fly_cases, cases, args.workers, "cases", outcomes)
     finish = functools.partial(_stress_results, args, outcomes)
     return finish_complete(gather, lambda: len(outcomes) == len(cases), finish, "stress", "case")
+
+
+def _fly_cases(cases: list, workers: int, desc: str, outcomes: list) -> None:
+    """Fly `cases` (hopper.experiments.stress.run_case) on a pool of up to `workers` processes with a
+    progress bar (`desc`), each outcome appended to `outcomes` as it comes: a stop then knows how many
+    are in (finish_complete)."""
+    from tqdm import tqdm
+
+    from hopper.experiments.stress import run_case
+
+    with children_ignore_ctrl_c():  # pool workers leave Ctrl-C to this process, which stops them
+        pool = multiprocessing.get_context("spawn").Pool(max(1, min(workers, len(cases))))
+    with pool:
+        runs = each(pool.imap(run_case, cases, chunksize=1))
+        for outcome in tqdm(runs, total=len(cases), desc=desc, unit="case", file=sys.stderr):
+            outcomes.append(outcome)  # one by one: a stop then knows how many are in
 
 
 def _stress_results(args: argparse.Namespace, outcomes: list) -> int:
@@ -602,23 +608,35 @@ def command_envelope(args: argparse.Namespace) -> int:
 
 
 def _fly_envelope(args: argparse.Namespace, folder: Path | None) -> list[Row]:
-    """The envelope's rows, its table printed, its figure and JSON written into `folder` if given."""
-    from tqdm import tqdm
+    """The envelope's rows, its table printed, its figure and JSON written into `folder` if given. A
+    stop once every kick has flown cuts nothing short (finish_complete): the envelope is written whole."""
 
     from hopper.analysis import envelope
-    from hopper.experiments.stress import LANDING_LIMIT_DEG, run_case
 
     config = SimConfig(terrain="flat", model=args.model)
     moments = envelope.flight_moments(config)
     flight = moments[-1].t + moments[-1].to_go
     sizes = [s * v for v in args.sizes for s in (1.0, -1.0)]
     cases = envelope.envelope_cases(config, sizes, args.moments, flight)
-    workers = max(1, min(args.workers, len(cases)))
-    with children_ignore_ctrl_c():  # pool workers leave Ctrl-C to this process, which stops them
-        pool = multiprocessing.get_context("spawn").Pool(workers)
-    with pool:
-        runs = each(pool.imap(run_case, cases, chunksize=1))
-        outcomes = list(tqdm(runs, total=len(cases), desc="kicks", unit="case", file=sys.stderr))
+    outcomes: list = []
+    rows: list[Row] = []
+    gather = functools.partial(_fly_cases, cases, args.workers, "kicks", outcomes)
+
+    def finish() -> int:
+        rows[:] = _envelope_results(args, folder, outcomes, moments, flight)
+        return EXIT_OK
+
+    finish_complete(gather, lambda: len(outcomes) == len(cases), finish, "envelope", "kick")
+    return rows
+
+
+def _envelope_results(
+    args: argparse.Namespace, folder: Path | None, outcomes: list, moments: list, flight: float
+) -> list[Row]:
+    """The envelope's rows from every kick's outcome: its table printed, its figure and JSON written."""
+    from hopper.analysis import envelope
+    from hopper.experiments.stress import LANDING_LIMIT_DEG
+
     rows = envelope.rows(outcomes, moments, args.moments, flight)
     print(f"flat Moon, kicks in the second flight ({flight:.3f} s); landing limit {LANDING_LIMIT_DEG:g} deg")
     print("\n".join(envelope.table(rows)))

@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import multiprocessing.pool
 import signal
+import types
 from collections.abc import Iterable, Iterator
+
+import pytest
 
 from hopper.experiments import executor
 from hopper.experiments.worker import EpisodeResult
@@ -32,3 +36,21 @@ class StopAt(executor.InProcess):
     def close(self) -> None:
         if self.moment == "close":
             ctrl_c()
+
+
+def pool_stopping_after(monkeypatch: pytest.MonkeyPatch, item: int | None) -> None:
+    """hopper-sim's spawned pool (stress, envelope) on threads of this process, where the test sends
+    its signal, and Ctrl-C once the command has taken result `item` (from 0; None: never)."""
+    from hopper.app import sim_cli
+
+    monkeypatch.setattr(sim_cli.multiprocessing, "get_context", lambda method: types.SimpleNamespace(
+        Pool=multiprocessing.pool.ThreadPool))  # fmt: skip
+    each = sim_cli.each
+
+    def stop_at(results):  # noqa: ANN001, ANN202 (a pool's imap, each's items)
+        for i, outcome in enumerate(each(results)):
+            yield outcome  # the command takes it before it asks for the next
+            if i == item:
+                ctrl_c()
+
+    monkeypatch.setattr(sim_cli, "each", stop_at)

@@ -5,14 +5,11 @@ their table printed and their own status (0, or 1 or 4 on what they found), as `
 from __future__ import annotations
 
 import json
-import multiprocessing.pool
-import types
 from pathlib import Path
 
 import pytest
-from hopper.app import sim_cli
 from in_process import cli
-from stops import StopAt, ctrl_c
+from stops import StopAt, ctrl_c, pool_stopping_after
 from sweep_data import FLAKY
 
 from hopper.experiments import executor, league, reduction, stress
@@ -80,18 +77,7 @@ def test_stress_stopped_after_its_last_case_ends_complete(
 ) -> None:
     battery = stress.battery
     monkeypatch.setattr(stress, "battery", lambda **kwargs: battery(**kwargs)[4:6])  # two short ground cases
-    # Threads for the spawned pool: the cases fly in this process, where the test sends its signal.
-    monkeypatch.setattr(sim_cli.multiprocessing, "get_context", lambda method: types.SimpleNamespace(
-        Pool=multiprocessing.pool.ThreadPool))  # fmt: skip
-    each = sim_cli.each
-
-    def stop_at(results):  # noqa: ANN001, ANN202 (a pool's imap, each's items)
-        for i, outcome in enumerate(each(results)):
-            yield outcome  # the command takes it before it asks for the next
-            if (moment, i) in (("first", 0), ("last", 1)):
-                ctrl_c()
-
-    monkeypatch.setattr(sim_cli, "each", stop_at)
+    pool_stopping_after(monkeypatch, {"first": 0, "last": 1}.get(moment))
     if moment == "table":
         table = stress.table
         monkeypatch.setattr(stress, "table", lambda outcomes: (ctrl_c(), table(outcomes))[1])

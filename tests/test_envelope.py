@@ -144,23 +144,18 @@ def test_an_interrupted_envelope_leaves_out_as_it_was_and_a_finished_one_replace
     tmp_path: Path,
     capsys: pytest.CaptureFixture[str],
     monkeypatch: pytest.MonkeyPatch,
+    handlers: None,
 ) -> None:
     """It wrote its three files in place: stopped between the figure and the JSON, OUT held the new
-    figures beside the earlier JSON (or, new, the figures without their JSON)."""
+    figures beside the earlier JSON (or, new, the figures without their JSON). Stopped before its
+    last kick now, OUT is as it was."""
     from in_process import cli, tree
-
-    from hopper.report import envelope as envelope_report
+    from stops import pool_stopping_after
 
     old = tmp_path / "old"
     _earlier_envelope(old)
     before = tree(tmp_path)
-    figure = envelope_report.figure
-
-    def figure_then_ctrl_c(*args: object) -> list[Path]:
-        figure(*args)  # type: ignore[arg-type]
-        raise KeyboardInterrupt
-
-    monkeypatch.setattr(envelope_report, "figure", figure_then_ctrl_c)
+    pool_stopping_after(monkeypatch, 0)  # of 2
     for out in (old, tmp_path / "new"):
         code, _, err = cli(capsys, *ENVELOPE, "--out", str(out))
         assert code == 130 and err.endswith("hopper-sim: interrupted\n"), err
@@ -173,6 +168,31 @@ def test_an_interrupted_envelope_leaves_out_as_it_was_and_a_finished_one_replace
     assert len(json.loads((old / "envelope.json").read_text())["cases"]) == 2, "the new envelope, whole"
     assert old.stat().st_mode & 0o777 == 0o750, "the folder keeps who may read it"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["old"], "a partial or old folder was left beside it"
+
+
+@pytest.mark.parametrize("moment", ["last kick", "figure"])
+def test_a_stop_once_every_kick_has_flown_ends_the_envelope_complete(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, handlers: None, moment: str
+) -> None:
+    """A Ctrl-C once the last kick was in (or as the figure was drawn) exited 130 `interrupted`, OUT
+    unwritten, though every kick had flown: it cuts nothing short, and the envelope is written whole."""
+    from in_process import cli
+    from stops import ctrl_c, pool_stopping_after
+
+    from hopper.report import envelope as envelope_report
+
+    if moment == "last kick":
+        pool_stopping_after(monkeypatch, 1)  # of 2
+    else:
+        figure = envelope_report.figure
+        monkeypatch.setattr(envelope_report, "figure", lambda *args: (ctrl_c(), figure(*args))[1])
+    out = tmp_path / "out"
+    code, printed, err = cli(capsys, *ENVELOPE, "--out", str(out))
+    assert code in (0, 1) and "interrupted" not in err, (code, err)
+    assert "hopper-sim: the stop came after every kick was done: envelope is complete" in err, err
+    assert printed.endswith(f"wrote {out / 'envelope.png'}, .pdf and .json\n"), printed
+    assert len(json.loads((out / "envelope.json").read_text())["cases"]) == 2
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"], "a partial folder was left beside it"
 
 
 @pytest.mark.parametrize(
