@@ -6,15 +6,19 @@ envelope the controller holds today and must keep holding.
 
 from __future__ import annotations
 
+import dataclasses
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
+from test_sim_cli import PICKY
 
 from hopper.config import GRAVITY_PRESETS, SimConfig
 from hopper.control import Phase
 from hopper.control.gait import momentum_capacity
-from hopper.experiments.stress import Case, Schedule, battery, run_case
+from hopper.controllers import with_controller
+from hopper.experiments.stress import Case, Schedule, battery, run_case, table
 from hopper.sim import TORQUE_PULSE_S
 
 pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)
@@ -98,3 +102,20 @@ def test_hopper_sim_stress_prints_the_table_and_exits_by_it() -> None:
     assert run == 16 and passed == run - sum(line.startswith("FAIL ground") for line in lines)
     assert result.returncode == (0 if passed == run else 1), result.stderr
     assert "Traceback" not in result.stderr
+
+
+def test_the_worst_figures_leave_out_the_cases_whose_controller_faulted(tmp_path: Path) -> None:
+    """A group's worst landing, peak and wheel speed took in the cases whose controller faulted, where the
+    PID flew on from the fault (and here the faulting law's 5 deg tip): the PID's figures, not the
+    controller's. Picky faults in its second flight from seed 1."""
+    (tmp_path / "picky.py").write_text(PICKY)
+    picky = with_controller(FLAT, f"{tmp_path / 'picky.py'}:Picky")
+    flown, faulted = (run_case(Case("terrain", f"seed {s}", dataclasses.replace(picky, seed=s), 3)) for s in (0, 1))
+    assert not flown.fault and faulted.fault.startswith("Picky returned nan")
+    assert faulted.worst_peak_deg > flown.worst_peak_deg + 2  # would be the group's worst peak
+    every = dataclasses.replace(faulted, case=dataclasses.replace(faulted.case, group="gravity"))
+    lines = table([flown, faulted, every])
+    assert lines[1] == (f"terrain     1 / 2    {flown.worst_landing_deg:>10.2f} deg {flown.worst_peak_deg:>7.2f} deg "
+                        f"{flown.peak_wheel_rpm:>10.0f}  (1 faulted left out)"), lines  # fmt: skip
+    assert lines[2] == "gravity     0 / 1           faulted     faulted    faulted  (all 1 faulted)", lines
+    assert lines[3] == f"FAIL terrain: seed 1: 3/3 hops; {faulted.fault}", lines  # still a failed case

@@ -173,17 +173,29 @@ def _cases(seeds: int, gravity_seeds: int, quick: bool, robot: Robot) -> list[Ca
 
 
 def table(outcomes: list[Outcome]) -> list[str]:
-    """Per group: passed / run and the worst figures; then every failed case on its own line."""
+    """Per group: passed / run and the worst figures; then every failed case on its own line.
+
+    The worst figures say how the controller flew, so they leave out the cases whose controller faulted (the
+    PID flew on from the fault, hopper.experiments.outcome) and say how many; the passed count keeps them.
+    """
     lines = [f"{'group':<8} {'passed':>9} {'worst landing':>14} {'worst peak':>11} {'wheel rpm':>10}"]
     for group in ("terrain", "gravity", "ground", "flight"):
         rows = [o for o in outcomes if o.case.group == group]
         if not rows:
             continue
         ok = sum(o.passed for o in rows)
-        land = max(o.worst_landing_deg for o in rows)
-        peak = max(o.worst_peak_deg for o in rows)
-        wheel = max(o.peak_wheel_rpm for o in rows)
-        lines.append(f"{group:<8} {ok:>4} / {len(rows):<4} {land:>10.2f} deg {peak:>7.2f} deg {wheel:>10.0f}")
+        flown = [o for o in rows if not o.fault]
+        faulted = len(rows) - len(flown)
+        if flown:
+            land = max(o.worst_landing_deg for o in flown)
+            peak = max(o.worst_peak_deg for o in flown)
+            wheel = max(o.peak_wheel_rpm for o in flown)
+            figures = f"{land:>10.2f} deg {peak:>7.2f} deg {wheel:>10.0f}"
+            note = f"  ({faulted} faulted left out)" if faulted else ""
+        else:
+            figures = f"{'faulted':>14} {'faulted':>11} {'faulted':>10}"
+            note = f"  (all {faulted} faulted)"
+        lines.append(f"{group:<8} {ok:>4} / {len(rows):<4} {figures}{note}")
     for o in outcomes:
         if not o.passed:
             why = o.cause or (f"landing {o.worst_landing_deg:.2f} deg" if o.hops >= o.case.hops else "too few hops")

@@ -1,4 +1,7 @@
-"""The league's figure and table (`hopper-sim league --json`): one bar per controller and figure."""
+"""The league's figure and table (`hopper-sim league --json`): one bar per controller and figure.
+
+The flight figures (landing to saturation) are over each controller's episodes without a controller fault
+(hopper.experiments.league); a controller whose every episode faulted has none, and says so."""
 
 from __future__ import annotations
 
@@ -26,6 +29,7 @@ COLUMNS = (  # row key, heading
 
 
 COMPILED = "compiled (in the ~1 us kernel tick)"  # a compute of 0: no Python call to time (the league's rule)
+ALL_FAULTED = "every episode faulted"  # no flight figure is the controller's: the PID flew on from each fault
 
 
 def name(spec: str) -> str:
@@ -39,7 +43,28 @@ def cell(row: dict[str, Any], key: str) -> Any:
         return name(row[key])
     if key == "compute_us" and row[key] == 0:
         return COMPILED
+    if row[key] is None or (isinstance(row[key], float) and math.isnan(row[key])):  # NaN: an older league JSON
+        return ALL_FAULTED if _all_faulted(row) else "n/a"
     return row[key]
+
+
+def _all_faulted(row: dict[str, Any]) -> bool:
+    return row.get("flown") == 0 and row["episodes"] > 0
+
+
+def left_out_note(rows: list[dict[str, Any]]) -> str:
+    """What the flight figures leave out: each controller's faulted episodes; "" where none faulted. A league
+    JSON written before they were left out (no `flown`) says its figures include them."""
+    faulted = [r for r in rows if r["faults"]]
+    if not faulted:
+        return ""
+    older = [name(r["controller"]) for r in faulted if "flown" not in r]
+    if older:
+        return (f"The flight figures of {', '.join(older)} include their faulted episodes, whose later flights are the "
+                "PID's (a league JSON written before they were left out).")  # fmt: skip
+    which = ", ".join(f"{name(r['controller'])} {r['faults']} of {r['episodes']}" for r in faulted)
+    return (f"The landing, peak pitch, RMS rate, energy and saturation leave out the episodes with a controller "
+            f"fault (the PID flew on from each; they count as failed): {which}.")  # fmt: skip
 
 
 def bars(rows: list[dict[str, Any]]) -> Figure:
@@ -54,7 +79,7 @@ def bars(rows: list[dict[str, Any]]) -> Figure:
         ax.set_ylabel(label, fontsize=8)
         ax.set_title(better, fontsize=7, loc="right")
         for i, (v, r) in enumerate(zip(raw, rows, strict=True)):
-            text = f"{v:.3g}" if math.isfinite(v) else "n/a"
+            text = f"{v:.3g}" if math.isfinite(v) else ("all faulted" if _all_faulted(r) else "n/a")
             if key == "compute_us" and r[key] == 0:
                 text = COMPILED
             ax.annotate(text, (i, values[i]), ha="center", va="bottom", fontsize=7)
@@ -65,13 +90,16 @@ def bars(rows: list[dict[str, Any]]) -> Figure:
 def league_report(document: dict[str, Any], title: str) -> Report:
     """The league document's figure, its table, and each controller's worst failure."""
     rows = document["rows"]
+    worst = "; ".join(f"{name(r['controller'])}: {r['worst']}" for r in rows if r["worst"]) or "no failures"
+    left = left_out_note(rows)
     table = page.Section(
         "The league",
         header=[h for _, h in COLUMNS],
         rows=[[cell(r, k) for k, _ in COLUMNS] for r in rows],
-        note="; ".join(f"{name(r['controller'])}: {r['worst']}" for r in rows if r["worst"]) or "no failures",
+        note=f"{worst}. {left}" if left else worst,
     )
     episodes = rows[0]["episodes"] if rows else 0
-    figure = Named("league", "League", f"{episodes} episodes per controller, realistic sensing", bars(rows))
+    caption = f"{episodes} episodes per controller, realistic sensing. {left}".strip()
+    figure = Named("league", "League", caption, bars(rows))
     subtitle = f"{len(rows)} controllers, {episodes} episodes each (hopper-sim league, version {document['version']})"
     return Report(title, subtitle, {"controllers": [r["controller"] for r in rows]}, [figure], [table])
