@@ -28,7 +28,7 @@ EXIT_STATUSES = (
     "exit status: 0 success, 1 the robot fell (run), a case failed (stress) or a kick under the physical limit "
     "fell (envelope), 2 bad arguments (a controller that cannot fly included), 3 the run stopped short of the "
     "hops asked without a fall (run; it says why), 4 the controller failed mid-run and the PID flew on (run, and "
-    "compare or sweep once finished; it says why), 130 interrupted (Ctrl-C or SIGTERM; for compare, league, "
+    "compare, league or sweep once finished; it says why), 130 interrupted (Ctrl-C or SIGTERM; for compare, league, "
     "stress and envelope, before their last result was in: a later stop lets them finish), "
     f"{CLOSED_STDOUT_STATUS}. compare exits 0 once it has finished without a controller fault: with the wheel off "
     "the robot is expected to fall."

@@ -565,6 +565,12 @@ def _league_results(args: argparse.Namespace, specs: list[str], entries: list, e
         ]  # fmt: skip
         doc = {"version": version(), "kind": "league", "rows": [r.as_dict() for r in rows], "runs": runs}
         args.json.write_text(json.dumps(doc, indent=2))
+    faulted = [r for r in rows if r.faults]
+    if faulted:  # the PID flew on from each fault, as in compare and sweep (run's exit 4); the table says which
+        which = ", ".join(f"{r.controller} in {r.faults} of {r.episodes}" for r in faulted)
+        print(f"hopper-sim: error: a controller failed mid-episode and the PID flew on from there: {which}",
+              file=sys.stderr)  # fmt: skip
+        return EXIT_CONTROLLER
     return EXIT_OK
 
 

@@ -47,7 +47,7 @@ def test_the_flight_figures_leave_out_the_episodes_whose_controller_faulted(tmp_
     out = tmp_path / "league.json"
     result = hopper_sim("league", "--quick", "--controllers", f"{SOME},{EVERY}", "--workers", "2", "--json",
                         str(out), cwd=tmp_path)  # fmt: skip
-    assert result.returncode == 0, result.stderr
+    assert result.returncode == 4, result.stderr  # finished, but a controller faulted: as compare and sweep
     document = json.loads(out.read_text())
     rows = {r["controller"].rpartition("/")[2]: r for r in document["rows"]}
     runs = [r for r in document["runs"] if r["settings"]["controller"].endswith(SOME)]
@@ -55,6 +55,9 @@ def test_the_flight_figures_leave_out_the_episodes_whose_controller_faulted(tmp_
     assert [r["settings"]["seed"] for r in flown] == [0] and len(runs) == rows[SOME]["episodes"] > 10
 
     some, every = rows[SOME], rows[EVERY]
+    said = ", ".join(f"{r['controller']} in {r['faults']} of {r['episodes']}" for r in (some, every))
+    assert result.stderr.splitlines()[-1] == f"hopper-sim: error: a controller failed mid-episode and the PID flew " \
+        f"on from there: {said}", result.stderr  # fmt: skip
     for key, value in flight_figures(flown).items():
         assert some[key] == pytest.approx(value), key
     assert flight_figures(runs)["peak_pitch_deg"] > some["peak_pitch_deg"] + 2  # the faulted ones' would move it
