@@ -347,7 +347,7 @@ def test_help_documents_the_exit_statuses() -> None:
             "exit status: 0 success, 1 the robot fell (run), a case failed (stress) or a kick under the physical "
             "limit fell (envelope), 2 bad arguments (a controller that cannot fly included), 3 the run stopped "
             "short of the hops asked without a fall (run; it says why), 4 the controller failed mid-run and the "
-            "PID flew on (run, and compare or sweep once finished; it says why), 130"
+            "PID flew on (run, and compare, league or sweep once finished; it says why), 130"
         )
         assert expected in text, text
         assert "141 the reader of its output went away (e.g. | head): it stops quietly" in text, text
