@@ -353,6 +353,30 @@ def test_record_and_stop_write_a_session_file(dashboard: Dashboard, client: Prob
     assert f"recording started: {path}" in log and f"recording saved: {path}" in log
 
 
+def test_a_second_stop_signal_while_stopping_waits_for_the_recording_and_the_port(
+    start, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, handlers: None
+) -> None:
+    """A second Ctrl-C that came while stop() ran (here as it closes the analysis panel, its first
+    step) raised there: the recording was never finished nor the server stopped (stop() is
+    idempotent, so nothing did it later). It now comes once both are done."""
+    import signal
+
+    from rrd import verify
+
+    from hopper import interrupts
+
+    dashboard = start(rrd=tmp_path / "session.rrd")
+    assert wait_until(lambda: dashboard.sim.time > 0.5)
+    interrupts.stop_like_ctrl_c()
+    analysis = dashboard.layout.analysis
+    close = analysis.close
+    monkeypatch.setattr(analysis, "close", lambda: (signal.raise_signal(signal.SIGINT), close()))
+    with pytest.raises(KeyboardInterrupt):
+        dashboard.stop()
+    assert not dashboard.recorder.active and port_is_free(dashboard.config.port)
+    verify(tmp_path / "session.rrd")
+
+
 def test_record_without_telemetry_says_so(dashboard: Dashboard, client: ProbeClient, monkeypatch) -> None:
     import hopper.app.dashboard.recording as recording
 

@@ -193,20 +193,25 @@ class Dashboard:
         return self
 
     def stop(self) -> None:
-        """Stop the loop, finalize any recording, stop the server (frees the port). Idempotent."""
+        """Stop the loop, finalize any recording, stop the server (frees the port). Idempotent.
+
+        A second Ctrl-C (or SIGTERM) while it runs waits for it, and comes after (held): one that
+        came while the loop was being joined skipped the rest, and left the recording unfinished
+        and the port taken."""
         if self._stopped:
             return
         self._stopped = True
-        self._stopping.set()
-        self.layout.analysis.close()
-        if self.layout.stand is not None:
-            self.layout.stand.inject.close()
-        if self._thread.is_alive():
-            self._thread.join(timeout=5.0)
-        try:
-            self.recorder.close_now(self.sim)
-        finally:
-            self.server.stop()
+        with interrupts.held():
+            self._stopping.set()
+            self.layout.analysis.close()
+            if self.layout.stand is not None:
+                self.layout.stand.inject.close()
+            if self._thread.is_alive():
+                self._thread.join(timeout=5.0)
+            try:
+                self.recorder.close_now(self.sim)
+            finally:
+                self.server.stop()
 
     def __enter__(self) -> Dashboard:
         return self.start()
