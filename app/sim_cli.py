@@ -485,7 +485,6 @@ def groups(text: str) -> tuple[str, ...]:
 
 
 def command_stress(args: argparse.Namespace) -> int:
-
     from hopper.experiments.stress import battery
 
     flown = with_controller_flags(SimConfig(model=args.model), args)
@@ -606,17 +605,16 @@ def command_envelope(args: argparse.Namespace) -> int:
                        "an envelope")  # fmt: skip
     # Written beside --out and swapped in whole at the end: stopped before, --out is as it was.
     with staged_out(args.out) if args.out else contextlib.nullcontext() as partial:
-        rows = _fly_envelope(args, partial)
+        status = _fly_envelope(args, partial)
     if args.out:
         print(f"wrote {args.out / 'envelope.png'}, .pdf and .json")
-    falls = sum(r.falls_below_limit for r in rows)
-    return EXIT_OK if falls == 0 else EXIT_FELL
+    return status
 
 
-def _fly_envelope(args: argparse.Namespace, folder: Path | None) -> list[Row]:
-    """The envelope's rows, its table printed, its figure and JSON written into `folder` if given. A
-    stop once every kick has flown cuts nothing short (finish_complete): the envelope is written whole."""
-
+def _fly_envelope(args: argparse.Namespace, folder: Path | None) -> int:
+    """Fly the envelope's kicks; its table printed, its figure and JSON written into `folder` if given.
+    Its exit status: EXIT_FELL if a kick under the physical limit fell. A stop once every kick has flown
+    cuts nothing short (finish_complete): the envelope is written whole."""
     from hopper.analysis import envelope
 
     config = SimConfig(terrain="flat", model=args.model)
@@ -625,15 +623,13 @@ def _fly_envelope(args: argparse.Namespace, folder: Path | None) -> list[Row]:
     sizes = [s * v for v in args.sizes for s in (1.0, -1.0)]
     cases = envelope.envelope_cases(config, sizes, args.moments, flight)
     outcomes: list = []
-    rows: list[Row] = []
     gather = functools.partial(_fly_cases, cases, args.workers, "kicks", outcomes)
 
     def finish() -> int:
-        rows[:] = _envelope_results(args, folder, outcomes, moments, flight)
-        return EXIT_OK
+        rows = _envelope_results(args, folder, outcomes, moments, flight)
+        return EXIT_FELL if any(r.falls_below_limit for r in rows) else EXIT_OK
 
-    finish_complete(gather, lambda: len(outcomes) == len(cases), finish, "envelope", "kick")
-    return rows
+    return finish_complete(gather, lambda: len(outcomes) == len(cases), finish, "envelope", "kick")
 
 
 def _envelope_results(

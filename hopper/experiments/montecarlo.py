@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 import pyarrow as pa
 
-from hopper.experiments.outcome import failed, success
+from hopper.experiments.outcome import column, failed, success
 from hopper.experiments.stress import LANDING_LIMIT_DEG
 from hopper.experiments.uncertainty import MODEL_PREFIX
 
@@ -59,21 +59,17 @@ def quantile(values: np.ndarray, q: float) -> float:
     return float(np.quantile(values, q, method="inverted_cdf"))
 
 
-def _column(table: pa.Table, name: str) -> np.ndarray:
-    return table.column(name).to_numpy(zero_copy_only=False)
-
-
 def landing_or_inf(table: pa.Table) -> np.ndarray:
     """Each episode's worst landing error (deg), inf where it failed (short of its hops, a fall or a
     controller fault: hopper.experiments.outcome.failed)."""
-    return np.where(failed(table), np.inf, _column(table, "worst_landing_deg").astype(float))
+    return np.where(failed(table), np.inf, column(table, "worst_landing_deg").astype(float))
 
 
 def group_columns(table: pa.Table) -> list[str]:
     """The setting columns that vary, but for the robot, its terrain and what it is sampled from."""
     settings = table.column_names[: table.column_names.index("hops_completed")]
     keep = [c for c in settings if c not in NOT_GROUPS and not c.startswith(MODEL_PREFIX)]
-    return [c for c in keep if len(set(_column(table, c).tolist())) > 1]
+    return [c for c in keep if len(set(column(table, c).tolist())) > 1]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -95,13 +91,13 @@ class GroupStats:
 
 def _label(table: pa.Table, rows: np.ndarray, columns: list[str]) -> str:
     first = int(np.flatnonzero(rows)[0])
-    controller = str(_column(table, "controller")[first]) if "controller" in table.column_names else "pid"
+    controller = str(column(table, "controller")[first]) if "controller" in table.column_names else "pid"
     parts = [controller]
     if controller == "pid":
-        parts += [f"{g} {_column(table, g)[first]:g}" for g in ("kp", "ki", "kd")]
+        parts += [f"{g} {column(table, g)[first]:g}" for g in ("kp", "ki", "kd")]
     for c in columns:
         if c not in ("controller", "kp", "ki", "kd"):
-            v = _column(table, c)[first]
+            v = column(table, c)[first]
             parts.append(f"{c} {v:g}" if isinstance(v, float) else f"{c} {v}")
     return " ".join(parts)
 
@@ -109,12 +105,12 @@ def _label(table: pa.Table, rows: np.ndarray, columns: list[str]) -> str:
 def group_stats(table: pa.Table) -> list[GroupStats]:
     """Per group of varied settings (gains, controller, ...), in the table's order of first appearance."""
     columns = group_columns(table)
-    keys = list(zip(*(_column(table, c).tolist() for c in columns), strict=True)) if columns else [()] * len(table)
+    keys = list(zip(*(column(table, c).tolist() for c in columns), strict=True)) if columns else [()] * len(table)
     ok, landing = success(table), landing_or_inf(table)
     out = []
     for key in dict.fromkeys(keys):
         rows = np.array([k == key for k in keys], dtype=bool)
-        values = {m: (landing if m == "worst_landing_deg" else _column(table, m).astype(float))[rows] for m in METRICS}
+        values = {m: (landing if m == "worst_landing_deg" else column(table, m).astype(float))[rows] for m in METRICS}
         quantiles = {m: tuple(quantile(v, q) for q in QUANTILES) for m, v in values.items()}
         k, n = int(ok[rows].sum()), int(rows.sum())
         out.append(GroupStats(_label(table, rows, columns), dict(zip(columns, key, strict=True)), n, k,

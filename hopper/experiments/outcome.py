@@ -19,7 +19,8 @@ SUCCESS_RULE = f"all hops done, no fall, no controller fault, every landing with
 NOT_APPLIED = "its hop or phase never came, or its delay outlasted the phase"
 
 
-def _column(table: pa.Table, name: str) -> np.ndarray:
+def column(table: pa.Table, name: str) -> np.ndarray:
+    """A column of `table` as a numpy array."""
     return table.column(name).to_numpy(zero_copy_only=False)
 
 
@@ -44,13 +45,13 @@ def applied(table: pa.Table) -> np.ndarray:
 
 def failed(table: pa.Table) -> np.ndarray:
     """Per episode (bool): short of its hops, fell, or its controller faulted."""
-    short = _column(table, "hops_completed") < _column(table, "hops_target")
-    return short | _column(table, "fell").astype(bool) | faulted(table)
+    short = column(table, "hops_completed") < column(table, "hops_target")
+    return short | column(table, "fell").astype(bool) | faulted(table)
 
 
 def success(table: pa.Table) -> np.ndarray:
     """Per episode (bool): not failed and every landing within LANDING_LIMIT_DEG (SUCCESS_RULE)."""
-    landing = np.nan_to_num(_column(table, "worst_landing_deg").astype(float), nan=np.inf)
+    landing = np.nan_to_num(column(table, "worst_landing_deg").astype(float), nan=np.inf)
     return ~failed(table) & (landing <= LANDING_LIMIT_DEG)
 
 

@@ -133,8 +133,8 @@ def _bars(ax, runs: Sequence[Run], key: str, offset: float, color: str, label: s
     """Median per hop over the runs the controller flew to the end (flown), whiskers from the lowest to
     the highest; hatched if any run ended that hop in a fall (its value is then the flight that fell).
     A group whose every run faulted gets a line saying so instead of bars."""
-    faulted = len(runs) - len(flown(runs))
-    runs = flown(runs)
+    kept = flown(runs)
+    faulted, runs = len(runs) - len(kept), kept
     if faulted and not runs:
         ax.text(0.5, 0.6 if offset <= 0 else 0.4, f"{label}: no bars, the controller faulted in every run "
                 f"({faulted}) and the PID flew on", transform=ax.transAxes, ha="center", va="center", color=color,

@@ -74,6 +74,18 @@ SINK_TIMEOUT_S = 60.0  # s a flush may wait for the sinks before it is reported 
 BEHIND_S, BEHIND_SHARE, CAUGHT_UP_SHARE = 5.0, 0.5, 0.1
 LIMIT_EVERY_BATCHES = 5  # the torque limit lines only need a point now and then
 POSE_EVERY_TICKS = 20  # 50 Hz body poses
+# The kernel memory's fields kept every tick beside MjData's, each as (its signal, scale from SI): the
+# controller's pitch and rate estimate, beside the truth (hopper.control.sensing); the injected
+# excitations (hopper.analysis.bench: the wheel torque's, N m; the reference's, rad); the wheel torque
+# asked (N m), the command a log's replay or a fit starts from.
+KERNEL_SIGNALS = {
+    "pitch_est": ("pitch_est_deg", math.degrees(1.0)),
+    "rate_est": ("pitch_rate_est_deg_s", math.degrees(1.0)),
+    "inject_torque": ("inject_torque_nm", 1.0),
+    "inject_ref": ("inject_ref_deg", math.degrees(1.0)),
+    "wheel_command": ("wheel_cmd_nm", 1.0),
+}
+KERNEL_FIELDS = tuple(KERNEL_SIGNALS)
 EVENT_LEVELS = {
     EventKind.FALL: "ERROR",
     EventKind.COMMAND_FAILED: "ERROR",
@@ -278,11 +290,7 @@ class Telemetry:
         self._hops = 0
         # The kernel's phase slot, appended to every row: phases exact to the tick at no cost.
         self._phase_view = memoryview(sim.controller.field("phase")).cast("B")  # int64
-        # The controller's pitch and rate estimate, beside the truth (hopper.control.sensing), and the
-        # injected excitations (hopper.analysis.bench: the wheel torque's, N m; the reference's, rad),
-        # and the wheel torque asked (N m): the command a log's replay or a fit starts from.
-        fields = ("pitch_est", "rate_est", "inject_torque", "inject_ref", "wheel_command")
-        self._est_views = [memoryview(sim.controller.field(f)).cast("B") for f in fields]
+        self._est_views = [memoryview(sim.controller.field(f)).cast("B") for f in KERNEL_FIELDS]
         self._phase = int(sim.phase)
 
         self.rec = rr.RecordingStream(APPLICATION_ID)
@@ -454,12 +462,10 @@ class Telemetry:
             "wheel_torque_nm": (self._nsens + lay.a_wheel, lay.wheel_gear),
             "foot_L_n": (lay.s_foot_l, 1.0),
             "foot_R_n": (lay.s_foot_r, 1.0),
-            "pitch_est_deg": (self._nsens + self._nu + self._nq, math.degrees(1.0)),
-            "pitch_rate_est_deg_s": (self._nsens + self._nu + self._nq + 1, math.degrees(1.0)),
-            "inject_torque_nm": (self._nsens + self._nu + self._nq + 2, 1.0),
-            "inject_ref_deg": (self._nsens + self._nu + self._nq + 3, math.degrees(1.0)),
-            "wheel_cmd_nm": (self._nsens + self._nu + self._nq + 4, 1.0),
         }
+        after = self._nsens + self._nu + self._nq  # the kernel's fields follow MjData's in a row
+        for i, (signal, scale) in enumerate(KERNEL_SIGNALS.values()):
+            sources[signal] = (after + i, scale)
         for j, qi, fi in zip(LEG_JOINTS, lay.q_legs, lay.a_legs, strict=True):
             sources[f"{j}_deg"] = (self._nsens + self._nu + qi, math.degrees(1.0))
             sources[f"{j}_torque_nm"] = (self._nsens + fi, 1.0)
@@ -497,7 +503,8 @@ class Telemetry:
 
     # -- Listener --------------------------------------------------------------------------
     def tick(self, sim: Simulation) -> None:
-        """Buffer one tick. The hot path: nine byte-view appends and a counter."""
+        """Buffer one tick. The hot path: nine byte-view appends (unrolled: one per KERNEL_FIELDS among
+        them) and a counter."""
         b = self._ticks
         b += self._sensor_view
         b += self._force_view
@@ -578,7 +585,8 @@ class Telemetry:
         ticks, rows, poses = bytes(self._ticks), self._pose_rows, bytes(self._poses)
         count, events, phases, hop_rows = self._n, self._events, self._phases, self._hop_rows
         self._drop_buffers()
-        width = self._nsens + self._nu + self._nq + 6  # ... | pitch_est | rate_est | injections (2) | command | phase
+        extra = len(KERNEL_FIELDS) + 1  # ... | KERNEL_FIELDS | phase
+        width = self._nsens + self._nu + self._nq + extra
         ticks, poses = np.frombuffer(ticks, dtype=np.float64), np.frombuffer(poses, dtype=np.float64)
         n = min(count, len(ticks) // width)  # an interrupt may cut a tick's appends short
         k = min(len(rows), len(poses) // (7 * self._nbody))
@@ -586,7 +594,7 @@ class Telemetry:
             times = self._next_ns + np.arange(n, dtype=np.int64) * self._dt_ns
             self._next_ns += n * self._dt_ns
             table = ticks[: n * width].reshape(n, width)
-            self._send_signals(times, table[:, :-6], table[:, -6:-1])
+            self._send_signals(times, table[:, :-extra], table[:, -extra:-1])
             codes = table[:, -1].view(np.int64)  # the phase field is an int64 in the kernel memory
             phases = sorted(phases + self._phase_changes(times, codes, hop_rows))
             self._batches += 1
@@ -646,8 +654,8 @@ class Telemetry:
         ]
 
     def _send_signals(self, times: np.ndarray, rows: np.ndarray, estimates: np.ndarray) -> None:
-        """rows: (n, nsensordata + nu + nq) as buffered by tick(); estimates: (n, 5) pitch, rate, the
-        injected torque and reference, and the wheel command."""
+        """rows: (n, nsensordata + nu + nq) as buffered by tick(); estimates: (n, len(KERNEL_FIELDS)),
+        the kernel's fields in that order."""
         s, f = rows[:, : self._nsens], rows[:, self._nsens : self._nsens + self._nu]
         after = rows[:, self._nsens + self._nu :]  # qpos after each step: the next row's state
         q = np.vstack([self._carry_qpos, after[:-1]])
