@@ -6,9 +6,11 @@ Browser input is stood in for by `ProbeClient`, which speaks viser's real websoc
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import html
 import logging
 import math
+import re
 import time
 from pathlib import Path
 from typing import Any
@@ -457,25 +459,84 @@ def test_side_view_looks_at_the_robot_where_it_is_shown_with_follow_off(
     assert np.allclose(np.asarray(handle.camera.position) - handle.camera.look_at, [0.0, -4.4, 1.9])
 
 
-def test_the_status_strip_shows_the_wheels_momentum_as_a_share_of_its_capacity() -> None:
-    from hopper.app.dashboard.panels.status import Status, status_html
+def _strip(**changes: object):
+    from hopper.app.dashboard.panels.status import Status
 
     status = Status(
         phase="flight", time=3.0, rtf=1.0, speed=1.0, paused=False, behind=False, hops=2, pitch_deg=0.4,
         wheel_rpm=-200.0, saturation=0.5, capacity=-0.5, capacity_nms=2.0, gravity=1.625, recording=False,
     )  # fmt: skip
-    html = status_html(status)
-    assert "capacity" in html and "-50 % · -1.00 N m s" in html and "-200 rpm" in html
+    return dataclasses.replace(status, **changes)
+
+
+def _text(strip: str) -> str:
+    return html.unescape(re.sub(r"<[^>]+>", "", strip))
+
+
+def test_the_status_strip_shows_the_wheels_momentum_as_a_share_of_its_capacity() -> None:
+    from hopper.app.dashboard.panels.status import status_html
+
+    text = _text(status_html(_strip()))
+    assert "capacity-50 % · -1.00 N m s" in text and "wheel-200 rpm" in text  # cells run together
+    still = _text(status_html(_strip(wheel_rpm=-0.3, pitch_deg=-0.04, capacity=-0.001)))
+    assert "wheel+0 rpm" in still and "pitch+0.0°" in still and "capacity+0 % · +0.00 N m s" in still  # no "-0"
 
 
 def test_the_momentum_gauge_fills_from_the_centre_toward_the_wheels_side() -> None:
-    from hopper.app.dashboard.panels.status import gauge_html
+    from hopper.app.dashboard.panels.status import status_html
 
-    back = gauge_html(-0.5, 2.0)  # half the capacity spent backward: the fill is the left quarter
-    assert "left:25.0%;width:25.0%" in back and "hd-warn" in back and "−1.00 N m s" not in back
-    ahead = gauge_html(0.9, 2.0)
-    assert "left:50.0%;width:45.0%" in ahead and "hd-bad" in ahead
-    assert "hd-ok" in gauge_html(0.1, 2.0) and "width:50.0%" in gauge_html(-3.0, 2.0)  # clipped at the capacity
+    back = status_html(_strip(capacity=-0.5))  # half the capacity spent backward: the fill is the left quarter
+    assert "hd-gauge-fill hd-warn' data-v='8' style='left:25.0%;width:25.0%'" in back
+    ahead = status_html(_strip(capacity=0.9))
+    assert "hd-gauge-fill hd-bad' data-v='8' style='left:50.0%;width:45.0%'" in ahead
+    assert "hd-ok" in status_html(_strip(capacity=0.1))
+    assert "width:50.0%" in status_html(_strip(capacity=-3.0))  # clipped at the capacity
+
+
+class _Element:
+    """A stand-in for viser's HTML handle that counts what is sent."""
+
+    def __init__(self) -> None:
+        self._content, self.sent = "", []
+
+    @property
+    def content(self) -> str:
+        return self._content
+
+    @content.setter
+    def content(self, value: str) -> None:
+        self._content = value
+        self.sent.append(value)
+
+
+def test_the_status_table_is_sent_on_a_new_layout_and_its_values_alone_otherwise() -> None:
+    from hopper.app.dashboard.panels.status import FIELDS, StatusPanel, decode_values, status_html, values
+
+    panel = StatusPanel(frame=_Element(), carrier=_Element())  # type: ignore[arg-type]
+    for i in range(10):  # time, pitch and wheel move: values only
+        panel.show(_strip(time=3.0 + 0.2 * i, pitch_deg=0.1 * i, wheel_rpm=-200.0 + 10 * i))
+    assert len(panel.frame.sent) == 1 and len(panel.carrier.sent) == 10
+    assert decode_values(panel.carrier.content) == dict(zip(FIELDS, values(panel.status), strict=True))
+    assert decode_values(panel.carrier.content)["time"] == "4.80"
+    assert panel.shown == status_html(panel.status) and "4.80" not in panel.frame.content  # the page writes it
+    panel.show(_strip(time=4.8, pitch_deg=0.9, wheel_rpm=-110.0))  # nothing new: nothing sent
+    assert len(panel.frame.sent) == 1 and len(panel.carrier.sent) == 10
+    for change in ({"paused": True}, {"recording": True}, {"speed": math.inf}, {"behind": True}, {"gravity": 9.81}):
+        panel.show(_strip(**change))  # a new layout: the table again, with the values in it
+        assert panel.frame.sent[-1] == status_html(panel.status), change
+    assert len(panel.frame.sent) == 6
+    panel.show(_strip(phase="landing"))  # a phase is a value: its badge is written by the page
+    assert len(panel.frame.sent) == 7 and decode_values(panel.carrier.content)["phase"] == "landing"
+    panel.show(_strip(phase="stance"))
+    assert len(panel.frame.sent) == 7 and decode_values(panel.carrier.content)["phase"] == "stance"
+
+
+def test_the_status_values_survive_quotes_and_markup_in_their_carrier() -> None:
+    from hopper.app.dashboard.panels.status import decode_values, values_html
+
+    shown = ("a'b", "<i>", "&amp;", '"', "·", "5", "6", "7", "8")
+    assert list(decode_values(values_html(shown)).values()) == list(shown)
+    assert decode_values("<div>no values</div>") is None
 
 
 @pytest.mark.parametrize(

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import re
 import socket
 import time
 from pathlib import Path
@@ -21,6 +20,7 @@ from hopper.app.dashboard.feedback import notify_all
 from hopper.app.dashboard.pacing import MAX, MAX_LAG_S, MAX_ROUND_STEPS, Pacer, chart_scale
 from hopper.app.dashboard.panels.events import describe
 from hopper.app.dashboard.panels.hops import hop_mean_html, hop_row_html, transport
+from hopper.app.dashboard.panels.status import decode_values
 from hopper.app.dashboard.probe import ProbeClient
 from hopper.app.dashboard.server import FALL_RESET_S, FRAME_S, STATUS_S, Dashboard, PortInUse
 from net import free_port, port_is_free, wait_until
@@ -197,8 +197,8 @@ def test_every_published_frame_reaches_the_client_as_one_pose_update(dashboard: 
 
 def _badge(dashboard: Dashboard) -> str:
     """The phase the status strip's badge shows, as last handed to viser (what the browsers get)."""
-    match = re.search(r"class='hd-phase hd-(\w+)'", dashboard.layout.status.html.content)
-    return match.group(1) if match else ""
+    shown = decode_values(dashboard.layout.status.carrier.content)
+    return "" if shown is None else shown["phase"]
 
 
 @pytest.mark.parametrize("speed", [1.0, 64.0])
@@ -217,13 +217,13 @@ def test_the_phase_label_and_the_status_badge_show_the_same_phase_in_every_frame
         for frame in range(frames):
             for _ in range(ticks):
                 d.sim.step()
-            phase, due, strip = d.sim.phase.label, frame % every == 0, d.layout.status.html.content
+            phase, due, strip = d.sim.phase.label, frame % every == 0, d.layout.status.carrier.content
             d._publish(frame * FRAME_S, FRAME_S, due)
             where = f"frame {frame} at t = {d.sim.time:.3f} s"
             assert d.robot.label.visible and (d.robot.label.text, _badge(d)) == (phase, phase), where
             seen.add(phase)
             phase_changes, status_frames = phase_changes + (phase != previous), status_frames + due
-            resent += d.layout.status.html.content != strip
+            resent += d.layout.status.carrier.content != strip
             previous = phase
         assert {"landing", "stance", "crouch", "push", "flight"} <= seen, seen
         # The strip goes out on its own cadence and on a phase change, not with every frame.
@@ -556,7 +556,7 @@ def test_max_asked_at_start_runs_flat_out_and_the_slider_can_take_over(start) ->
     dashboard = start(speed=MAX)
     panel = dashboard.layout.simulation
     assert dashboard.pacer.flat_out and (panel.speed.value, panel.entry.handle.value) == (64.0, "Max")
-    assert wait_until(lambda: "(Max)" in dashboard.layout.status.html.content)
+    assert wait_until(lambda: "(Max)" in dashboard.layout.status.frame.content)
     frames = dashboard.frames
     assert wait_until(lambda: dashboard.frames >= frames + 3), "no frames at Max"
     panel.choose("4×")
@@ -571,7 +571,7 @@ def test_max_runs_flat_out_with_frames_stretched_charts_and_says_so(dashboard: D
     panel.choose("Max")
     assert wait_until(lambda: dashboard.pacer.flat_out)
     assert wait_until(lambda: dashboard.chart_scale > 1, timeout=30), "the charts' window never stretched"
-    assert wait_until(lambda: "(Max)" in dashboard.layout.status.html.content, timeout=10)
+    assert wait_until(lambda: "(Max)" in dashboard.layout.status.frame.content, timeout=10)
     frames = dashboard.frames
     assert wait_until(lambda: dashboard.frames >= frames + 3, timeout=10), "no frames at Max"
     scale = dashboard.chart_scale
@@ -580,7 +580,7 @@ def test_max_runs_flat_out_with_frames_stretched_charts_and_says_so(dashboard: D
     assert (spacing >= 0.025 * min(scale, 2) - 0.0015).all(), (scale, spacing)
     panel.choose("1×")
     assert wait_until(lambda: dashboard.pacer.speed == 1.0 and dashboard.chart_scale == 1)
-    assert wait_until(lambda: "(Max)" not in dashboard.layout.status.html.content, timeout=10)
+    assert wait_until(lambda: "(Max)" not in dashboard.layout.status.frame.content, timeout=10)
     panel.choose("Max")
     assert wait_until(lambda: dashboard.pacer.flat_out)
     panel.reset()

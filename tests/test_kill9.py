@@ -6,7 +6,6 @@ The flush policy is --rrd-flush-s: every that many wall seconds the batch is enc
 
 from __future__ import annotations
 
-import re
 import shutil
 import signal
 import subprocess
@@ -17,6 +16,7 @@ from pathlib import Path
 
 import msgspec
 import pytest
+from hopper.app.dashboard.panels.status import decode_values
 from hopper.app.dashboard.probe import ProbeClient
 from net import free_port, wait_until
 from rrd import RERUN_BINARY, signal_times, verify
@@ -24,7 +24,6 @@ from rrd import RERUN_BINARY, signal_times, verify
 pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)
 
 REPO = Path(__file__).resolve().parent.parent
-STATUS_TIME = re.compile(r"<td>time</td><td>\s*([0-9.]+) s</td>")
 
 
 class StatusProbe(ProbeClient):
@@ -39,9 +38,9 @@ class StatusProbe(ProbeClient):
         payload = self._decompressor.decompress(raw[16 : 16 + compressed], max_output_size=size)
         for message in msgspec.msgpack.decode(payload)["messages"]:
             content = message.get("updates", {}).get("content") if message.get("type") == "GuiUpdateMessage" else None
-            match = STATUS_TIME.search(content) if isinstance(content, str) else None
-            if match:
-                self.latest = (float(match.group(1)), time.monotonic())
+            shown = decode_values(content)  # the strip's values (its table goes only when its layout changes)
+            if shown is not None:
+                self.latest = (float(shown["time"]), time.monotonic())
 
 
 @pytest.mark.parametrize("flush_s", [0.5])  # one case: a server start costs ~10 s here

@@ -55,3 +55,9 @@ def theme() -> Theme:
 def chart_runtime() -> str:
     """static/charts.js: the page's side of the live charts' feed (hopper.app.dashboard.chart_feed)."""
     return _read("charts.js")
+
+
+@functools.cache
+def status_runtime() -> str:
+    """static/status.js: the page's side of the status strip (hopper.app.dashboard.panels.status)."""
+    return _read("status.js")

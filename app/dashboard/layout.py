@@ -94,7 +94,7 @@ def build_layout(
     gui, theme = server.gui, assets.theme()
     gui.add_html(f"<style>{assets.stylesheet()}</style>")
     gui.add_html(f"<div class='hd-logo'><img src='{assets.logo_data_uri()}' alt='lunar hopper' height='44'></div>")
-    status = build_status_panel(gui)
+    status = build_status_panel(server)
     control = gui.add_folder("Control")
     with gui.add_folder("Simulation"):
         simulation = build_simulation_panel(gui, ctx, speed)

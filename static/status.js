@@ -1,0 +1,33 @@
+// The status strip's values, written into its cells (hopper.app.dashboard.panels.status): the server
+// re-sends the strip's table only when its layout changes, and its values five times a second in a
+// hidden <template data-hd-status='[...]'>. Each cell marked data-v="i" shows value i; the phase
+// badge takes its colour class from its value, the gauge's fill "level left width" (%). Run once per
+// page; it watches the page, so a value arriving or a strip drawn again (a new layout, a re-render)
+// is written at once.
+(() => {
+  if (window.hopperStatus) return;
+  const apply = () => {
+    const carrier = document.querySelector("template[data-hd-status]");
+    const strip = document.querySelector(".hd-status");
+    if (!carrier || !strip) return;
+    const text = carrier.getAttribute("data-hd-status");
+    if (strip.dataset.shown === text) return; // written already (also ends the observer's own echo)
+    const values = JSON.parse(text);
+    for (const cell of strip.querySelectorAll("[data-v]")) {
+      const v = values[Number(cell.dataset.v)];
+      if (cell.classList.contains("hd-gauge-fill")) {
+        const [level, left, width] = v.split(" ");
+        cell.className = `hd-gauge-fill ${level}`;
+        cell.style.left = `${left}%`;
+        cell.style.width = `${width}%`;
+      } else {
+        if (cell.classList.contains("hd-phase")) cell.className = `hd-phase hd-${v}`;
+        cell.textContent = v;
+      }
+    }
+    strip.dataset.shown = text;
+  };
+  window.hopperStatus = { apply };
+  new MutationObserver(apply).observe(document.body, { childList: true, subtree: true });
+  apply();
+})();
