@@ -594,6 +594,28 @@ def test_only_staging_folders_of_writers_gone_from_this_host_are_removed(tmp_pat
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(kept)
 
 
+def test_an_earlier_report_moved_aside_by_a_killed_swap_is_put_back_or_removed(tmp_path: Path) -> None:
+    """A kill -9 between a swap's two renames left OUT missing and the earlier report in .OUT.old-*:
+    the next run puts it back; killed after the new report took OUT's place, the old copy is removed.
+    A live writer's moved-aside report is its to finish with, and kept."""
+    from hopper.report.folder import remove_stale
+
+    gone = subprocess.Popen([sys.executable, "-c", ""])
+    assert gone.wait(timeout=60) == 0  # reaped: its pid names no process now
+    here = socket.gethostname()
+    earlier = tmp_path / f".fig.old-0123abcd-{gone.pid}@{here}"
+    live = tmp_path / f".fig.old-4567abcd-{os.getpid()}@{here}"
+    for path in (earlier, live):
+        path.mkdir()
+        (path / "report.html").write_text(path.name)
+    assert remove_stale(tmp_path / "fig") == [earlier]
+    assert (tmp_path / "fig" / "report.html").read_text() == earlier.name and live.is_dir()
+    earlier.mkdir()  # now beside a report in place: a stale copy
+    assert remove_stale(tmp_path / "fig") == [earlier]
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["fig", live.name])
+    assert (tmp_path / "fig" / "report.html").read_text() == earlier.name
+
+
 @pytest.mark.parametrize(
     "files, message",
     [

@@ -26,8 +26,9 @@ def is_report_folder(folder: Path) -> bool:
     )
 
 
-# A staging folder's name after .NAME.partial-: a token, then its writer (pid@host), so that a later
-# run can tell the folder of a writer killed with SIGKILL, which nothing could clean up, from a live one's.
+# A staging folder's name after .NAME.partial- (and an earlier report's, moved aside, after .NAME.old-):
+# a token, then its writer (pid@host), so that a later run can tell the folders of a writer killed with
+# SIGKILL, which nothing could clean up, from a live one's.
 WRITER = re.compile(r"[0-9a-f]{8}-(?P<pid>[1-9][0-9]{0,8})@(?P<host>.+)")
 
 
@@ -37,39 +38,46 @@ def staged(folder: Path) -> Iterator[Path]:
     the block ends it takes the place of `folder` whole: what `folder` held (an earlier report) is
     removed only then. If the block raises (a refused input, Ctrl-C), it is removed and `folder` is
     left as it was. OSError, before the block, if it cannot be made: the folder holding `folder` is
-    not writable. A symbolic link's folder is the one replaced, the link kept. Killed writers' staging
-    folders of `folder` are removed first (remove_stale)."""
+    not writable. A symbolic link's folder is the one replaced, the link kept. What killed writers
+    left of `folder` is cleared first (remove_stale)."""
     target = folder.resolve()
     remove_stale(target)
-    token = secrets.token_hex(4)
-    partial = target.with_name(f".{target.name}.partial-{token}-{os.getpid()}@{socket.gethostname()}")
+    writer = f"{secrets.token_hex(4)}-{os.getpid()}@{socket.gethostname()}"
+    partial = target.with_name(f".{target.name}.partial-{writer}")
     partial.mkdir()  # mkdir's mode (umask's), not mkdtemp's 0700: the folder people will open
     try:
         yield partial
-        _swap(partial, target, target.with_name(f".{target.name}.old-{token}"))
+        _swap(partial, target, target.with_name(f".{target.name}.old-{writer}"))
     except BaseException:
         shutil.rmtree(partial, ignore_errors=True)  # gone already once swapped in
         raise
 
 
 def remove_stale(folder: Path) -> list[Path]:
-    """Remove the staging folders of `folder` whose writer is gone: named by a process of this host
-    that runs no more (killed with SIGKILL: nothing could clean up). A live writer's folder is kept,
-    as is one of another host (a shared disk, where this host cannot tell) or of an unknown writer
-    (named otherwise). A pid since reused keeps its folder: never a live one removed. The removed."""
-    prefix, host = f".{folder.name}.partial-", socket.gethostname()
-    removed = []
+    """Clear what writers gone from this host left of `folder` (killed with SIGKILL: nothing could
+    clean up): their staging folders are removed, and an earlier report moved aside by a swap the
+    kill cut short (.NAME.old-*) is put back if `folder` is missing (its only copy), else removed. A
+    live writer's folders are kept, as are another host's (a shared disk, where this host cannot
+    tell) and an unknown writer's (named otherwise). A pid since reused keeps its folders: never a
+    live one's touched. The paths cleared."""
+    prefix, host = f".{folder.name}.", socket.gethostname()
+    cleared = []
     try:
-        siblings = list(folder.parent.iterdir())
+        siblings = sorted(folder.parent.iterdir())
     except OSError:  # unreadable: staged's own mkdir says what is wrong
         return []
     for path in siblings:
-        writer = WRITER.fullmatch(path.name[len(prefix) :]) if path.name.startswith(prefix) else None
-        if writer and writer["host"] == host and not _runs(int(writer["pid"])) and not path.is_symlink():
+        kind, _, writer = path.name[len(prefix) :].partition("-") if path.name.startswith(prefix) else ("",) * 3
+        gone = WRITER.fullmatch(writer) if kind in ("partial", "old") else None
+        if not gone or gone["host"] != host or _runs(int(gone["pid"])) or path.is_symlink():
+            continue
+        if kind == "old" and not folder.exists() and not folder.is_symlink():
+            os.rename(path, folder)  # the earlier report, back where it was
+        else:
             shutil.rmtree(path, ignore_errors=True)
-            if not path.exists():
-                removed.append(path)
-    return removed
+        if not path.exists():
+            cleared.append(path)
+    return cleared
 
 
 def _runs(pid: int) -> bool:
