@@ -471,7 +471,8 @@ def finish_complete(
     A stop (Ctrl-C, SIGTERM: KeyboardInterrupt) while gathering interrupts the command (130) unless
     `complete()`, every result in: then, like one that comes while finish runs (held until it ends),
     it cut nothing short. It is dropped, said in a line, and the command ends as a complete one, with
-    its table and its status (0, or 1 or 4 on what it found), as `hopper-sim sweep` does."""
+    its table and its status (0, or 1 or 4 on what it found), as `hopper-sim sweep` does; so does a
+    second stop that comes while that finish runs."""
     from hopper.interrupts import clear, held
 
     status = None
@@ -485,8 +486,13 @@ def finish_complete(
         clear()
         print(late_stop(command, noun), file=sys.stderr)
         if status is None:  # it came before finish: the results are all in, so finish them
-            with held():
-                status = finish()
+            try:
+                with held():
+                    status = finish()
+            except KeyboardInterrupt:  # another stop, held until that finish ended: it cut nothing short either
+                if status is None:
+                    raise
+                clear()
     return status
 
 

@@ -54,6 +54,21 @@ def test_compare_stopped_after_its_last_run_ends_complete(
         assert len(json.loads(out.read_text())["runs"]) == 2
 
 
+def test_a_second_stop_while_a_late_stop_finishes_the_command_ends_it_complete_too(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, handlers: None
+) -> None:
+    """A Ctrl-C once every run was in, then another while the table printed: the second was held to
+    the finish's end and then exited 130 `interrupted`, though the table and the JSON were written."""
+    monkeypatch.setattr(executor, "choose", lambda *args, **kwargs: StopAt("close"))
+    median = reduction.median_reduction
+    monkeypatch.setattr(reduction, "median_reduction", lambda pairs: (ctrl_c(), median(pairs))[1])
+    out = tmp_path / "compare.json"
+    code, printed, err = cli(capsys, "compare", "--seeds", "1", "--hops", "2", "--terrain", "flat", "--json", str(out))
+    check(code, printed, err, 0, "compare", "run")
+    assert printed.splitlines()[-1].startswith("median reduction of the peak mid-air pitch deviation"), printed
+    assert len(json.loads(out.read_text())["runs"]) == 2
+
+
 @pytest.mark.parametrize("moment, status", MOMENTS, ids=[m for m, _ in MOMENTS])
 def test_league_stopped_after_its_last_episode_ends_complete(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, handlers: None,
