@@ -593,6 +593,17 @@ def test_the_trail_creates_each_node_once_then_sends_only_its_points() -> None:
         server.stop()
 
 
+def trail_drawn(probe: ProbeClient) -> set[tuple[float, ...]]:
+    """The trail segments (x0, z0, x1, z1) the page draws: the trail nodes' shown and not collapsed."""
+    return {
+        (float(a[0]), float(a[2]), float(b[0]), float(b[2]))
+        for name, points in probe.scene_points.items()
+        if name.startswith("/world/trail/") and probe.scene_visible.get(name)
+        for a, b in points
+        if (a != b).any()
+    }
+
+
 def test_a_rewound_trail_ends_at_the_moment_shown_until_the_run_goes_on_from_there() -> None:
     """Scrubbed back, the robot stood behind the end of its own trail: the path ahead of it was still
     drawn. It ends at the moment shown now; a later moment brings the path back while paused, and once
@@ -603,19 +614,9 @@ def test_a_rewound_trail_ends_at_the_moment_shown_until_the_run_goes_on_from_the
     server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
     probe = ProbeClient(f"http://127.0.0.1:{server.get_port()}")
 
-    def drawn() -> set[tuple[float, ...]]:
-        """The segments (x0, z0, x1, z1) the page draws: the trail nodes' shown and not collapsed."""
-        return {
-            (float(a[0]), float(a[2]), float(b[0]), float(b[2]))
-            for name, points in probe.scene_points.items()
-            if name.startswith("/world/trail/") and probe.scene_visible.get(name)
-            for a, b in points
-            if (a != b).any()
-        }
-
     def drawn_to() -> float:
         """The largest x (m) the page draws a trail segment to."""
-        return max((x1 for _, _, x1, _ in drawn()), default=-1.0)
+        return max((x1 for _, _, x1, _ in trail_drawn(probe)), default=-1.0)
 
     def shows_to(x: float) -> bool:
         return probe.wait_for(lambda p: drawn_to() == np.float32(x), timeout=20)
@@ -624,7 +625,7 @@ def test_a_rewound_trail_ends_at_the_moment_shown_until_the_run_goes_on_from_the
         f = np.float32
         path = [(float(f(x)), float(f(z))) for x, z in trail.points]
         segments = {(*a, *b) for a, b in zip(path[:-1], path[1:], strict=True)}
-        return probe.wait_for(lambda p: drawn() == segments, timeout=20)
+        return probe.wait_for(lambda p: trail_drawn(probe) == segments, timeout=20)
 
     try:
         trail = Trail(server.scene)
@@ -648,20 +649,56 @@ def test_a_rewound_trail_ends_at_the_moment_shown_until_the_run_goes_on_from_the
             trail.sample(k * step, path[k][0], 0.5)
         trail.publish()
         regrown = path[: cut + 1] + [(x, 0.5) for x, _ in path[cut + 1 : later + 1]]
-        assert trail.points == regrown and shows_the_path(), sorted(drawn())
+        assert trail.points == regrown and shows_the_path(), sorted(trail_drawn(probe))
         trail.rewind(len(path) * step, *regrown[-1])
         assert trail.points == regrown  # the path it left is gone
-        # A moment older than the path's oldest point (History reaches 40 s back, the trail 15): nothing
-        # drawn there, and the path is there again at a later moment (it was forgotten).
+        # A moment older than the path's oldest point (the path is kept as far back as the history
+        # reaches, but not before the run): nothing drawn there, and the path is there again at a
+        # later moment (it was not forgotten).
         trail.rewind(-1.0, *regrown[0])
         trail.publish()
         assert trail.points == [] and probe.wait_for(lambda p: drawn_to() == -1.0, timeout=20)
         trail.rewind(cut * step, *regrown[cut])
         trail.publish()
-        assert trail.points == regrown[: cut + 1] and shows_the_path(), sorted(drawn())
+        assert trail.points == regrown[: cut + 1] and shows_the_path(), sorted(trail_drawn(probe))
         trail.rewind(cut * step, 50.0, 0.3)  # a moment the path does not lead to (a keyframe from elsewhere)
         trail.publish()
         assert trail.points == [] and probe.wait_for(lambda p: drawn_to() == -1.0, timeout=20)
+    finally:
+        probe.close()
+        server.stop()
+
+
+def test_a_moment_put_back_further_than_the_trail_shows_is_drawn_with_the_path_that_led_to_it() -> None:
+    """The trail showed 15 s and kept no more, and the history reaches 40 s back: a moment 30 s ago
+    was shown with no trail at all. The path is kept as far back as the history reaches, and the
+    15 s before the moment shown are drawn."""
+    from hopper.app.dashboard.scene import TRAIL_CHUNK, TRAIL_CHUNKS, TRAIL_SAMPLE_S, Trail
+
+    from hopper.history import RING_SPAN_S
+
+    server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
+    probe = ProbeClient(f"http://127.0.0.1:{server.get_port()}")
+    f = np.float32
+
+    try:
+        trail = Trail(server.scene)
+        step = 2.0 ** math.ceil(math.log2(TRAIL_SAMPLE_S))  # s between samples: exact, so none is skipped
+        n = round(60.0 / step)  # a minute of path
+        path = [(0.01 * k, float(f(0.3 + 0.001 * (k % 7)))) for k in range(n)]
+        for k, (x, z) in enumerate(path):
+            trail.sample(k * step, x, z)
+            if k % 4 == 3:
+                trail.publish()
+        back = n - 1 - round(30.0 / step)  # 30 s ago: within the history, beyond the 15 s shown
+        assert RING_SPAN_S > 30.0
+        trail.rewind(back * step, *path[back])
+        trail.publish()
+        shown = trail.points
+        assert shown[-1] == path[back] and len(shown) > (TRAIL_CHUNKS - 1) * TRAIL_CHUNK  # 29 to 30 chunks of it
+        assert shown == path[back + 1 - len(shown) : back + 1]
+        want = {(float(f(a[0])), a[1], float(f(b[0])), b[1]) for a, b in zip(shown[:-1], shown[1:], strict=True)}
+        assert probe.wait_for(lambda p: trail_drawn(probe) == want, timeout=20), len(trail_drawn(probe) ^ want)
     finally:
         probe.close()
         server.stop()

@@ -12,6 +12,7 @@ import trimesh
 import viser
 
 from hopper.control import Phase
+from hopper.history import RING_SPAN_S
 from hopper.meshes import BodyMesh, body_meshes, body_poses
 from hopper.robot import PACKAGED, Robot
 
@@ -23,7 +24,10 @@ WORLD = "/world"  # parent of every scene node; following the robot moves this f
 ROBOT = f"{WORLD}/robot"  # the robot's scene tree: a frame at the torso's position
 TRAIL_SAMPLE_S = 0.05  # s of simulation between trail points
 TRAIL_CHUNK = 10  # segments per line-segment node; only the newest chunk is re-sent
-TRAIL_CHUNKS = 30  # nodes kept: 15 s of trail
+TRAIL_CHUNKS = 30  # nodes shown: 15 s of trail
+# Chunks kept: those shown and the replay history's reach before them (RING_SPAN_S at 1x), so that a
+# moment put back up to 40 s ago shows the 15 s of path that led to it.
+TRAIL_KEPT = TRAIL_CHUNKS + math.ceil(RING_SPAN_S / (TRAIL_SAMPLE_S * TRAIL_CHUNK))
 TRAIL_PUBLISH_S = 0.2  # s of wall time between re-sends of the newest chunk; 5 a second, as the charts refresh
 TRAIL_COLOR = (255, 176, 59)
 # m: a path whose last point before a rewound moment is farther from the robot does not lead to it.
@@ -246,6 +250,8 @@ class Trail:
     colours never change shape. A chunk is sent again only when its points change: the newest as it
     grows, a recycled one, the one a rewind cuts.
 
+    The path is kept as far back as the replay history reaches (TRAIL_KEPT chunks), and its newest
+    TRAIL_CHUNKS are shown: a moment put back 40 s shows the 15 s of path that led to it.
     While the robot is rewound (a restore), the path ends at the moment shown; the rest is kept aside
     (a later moment shown again brings it back) until the path grows again from the moment: the run
     then takes another course, and the path it left is dropped, as the history after it is.
@@ -273,7 +279,7 @@ class Trail:
         self._next_time = time + TRAIL_SAMPLE_S
         self._ahead.clear()  # the run goes on from the moment rewound to: the path it left is no more
         self._path.append((time, x, z))
-        if len(self._path) > TRAIL_CHUNKS * TRAIL_CHUNK + 1:  # a chunk more than the nodes: the oldest goes
+        if len(self._path) > TRAIL_KEPT * TRAIL_CHUNK + 1:  # a chunk more than kept: the oldest goes
             del self._path[:TRAIL_CHUNK]
             self._first += 1
         self._dirty = True
@@ -296,10 +302,15 @@ class Trail:
         self._next_time = path[n - 1][0] + TRAIL_SAMPLE_S
         self._dirty = True
 
+    def _shown_from(self) -> int:
+        """The index in the path of the first point shown: the newest TRAIL_CHUNKS chunks are."""
+        chunks = -(-(len(self._path) - 1) // TRAIL_CHUNK)  # the last one partly grown
+        return max(chunks - TRAIL_CHUNKS, 0) * TRAIL_CHUNK
+
     @property
     def points(self) -> list[tuple[float, float]]:
         """The path shown, (x, z) m, oldest first (for tests)."""
-        return [(x, z) for _, x, z in self._path]
+        return [(x, z) for _, x, z in self._path[self._shown_from() :]]
 
     def publish(self, now: float | None = None) -> None:
         """Send the chunks that changed (at most every TRAIL_PUBLISH_S of wall time `now`, if given)."""
@@ -314,7 +325,7 @@ class Trail:
             self._next_publish = now + TRAIL_PUBLISH_S
         # Fast-forward samples several chunks between two publishes: each is sent once, as it is now.
         chunks = {}
-        for i in range(0, max(len(self._path) - 1, 0), TRAIL_CHUNK):
+        for i in range(self._shown_from(), max(len(self._path) - 1, 0), TRAIL_CHUNK):
             chunk = self._first + i // TRAIL_CHUNK
             chunks[chunk % TRAIL_CHUNKS] = (chunk, tuple(self._path[i : i + TRAIL_CHUNK + 1]))
         for slot in [s for s in self._sent if s not in chunks]:  # beyond a rewound moment
