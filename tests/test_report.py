@@ -11,6 +11,7 @@ import json
 import math
 import os
 import re
+import shutil
 import signal
 import socket
 import subprocess
@@ -594,26 +595,46 @@ def test_only_staging_folders_of_writers_gone_from_this_host_are_removed(tmp_pat
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(kept)
 
 
-def test_an_earlier_report_moved_aside_by_a_killed_swap_is_put_back_or_removed(tmp_path: Path) -> None:
+def test_an_earlier_report_moved_aside_by_a_killed_swap_is_put_back_or_removed(
+    run_json: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     """A kill -9 between a swap's two renames left OUT missing and the earlier report in .OUT.old-*:
-    the next run puts it back; killed after the new report took OUT's place, the old copy is removed.
-    A live writer's moved-aside report is its to finish with, and kept."""
+    the next run puts it back, also where it made OUT empty first, and keeps it there if that run is
+    stopped; once a report is in OUT the copy is removed; beside anything else it is kept (it may be
+    the only copy). A live writer's moved-aside report is its own to finish with, and kept."""
     from hopper.report.folder import remove_stale
 
     gone = subprocess.Popen([sys.executable, "-c", ""])
     assert gone.wait(timeout=60) == 0  # reaped: its pid names no process now
-    here = socket.gethostname()
+    here, out = socket.gethostname(), tmp_path / "fig"
     earlier = tmp_path / f".fig.old-0123abcd-{gone.pid}@{here}"
     live = tmp_path / f".fig.old-4567abcd-{os.getpid()}@{here}"
-    for path in (earlier, live):
+
+    def aside(path: Path) -> None:
         path.mkdir()
         (path / "report.html").write_text(path.name)
-    assert remove_stale(tmp_path / "fig") == [earlier]
-    assert (tmp_path / "fig" / "report.html").read_text() == earlier.name and live.is_dir()
-    earlier.mkdir()  # now beside a report in place: a stale copy
-    assert remove_stale(tmp_path / "fig") == [earlier]
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["fig", live.name])
-    assert (tmp_path / "fig" / "report.html").read_text() == earlier.name
+
+    aside(earlier)
+    aside(live)
+    assert remove_stale(out) == [earlier]
+    assert (out / "report.html").read_text() == earlier.name and live.is_dir()
+    shutil.rmtree(out)
+    aside(earlier)  # and a report run that is refused: it made OUT empty, put the copy back, and stopped
+    bad = tmp_path / "bad.json"
+    bad.write_text("{}")  # read once OUT is made: refused then
+    code, _, err = cli(capsys, "report", str(bad), "--out", str(out), "--no-simulate")
+    assert code == 2 and (out / "report.html").read_text() == earlier.name and not earlier.exists(), err
+    aside(earlier)  # beside a report in place: a stale copy
+    assert remove_stale(out) == [earlier] and (out / "report.html").read_text() == earlier.name
+    shutil.rmtree(out)
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    aside(earlier)  # beside something else: kept
+    assert remove_stale(out) == [] and earlier.is_dir() and (out / "notes.txt").is_file()
+    shutil.rmtree(out)
+    code, _, err = cli(capsys, "report", str(run_json), "--out", str(out), "--no-simulate")
+    assert code == 0 and not earlier.exists(), err
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["fig", live.name, bad.name])
 
 
 @pytest.mark.parametrize(

@@ -56,7 +56,8 @@ def staged(folder: Path) -> Iterator[Path]:
 def remove_stale(folder: Path) -> list[Path]:
     """Clear what writers gone from this host left of `folder` (killed with SIGKILL: nothing could
     clean up): their staging folders are removed, and an earlier report moved aside by a swap the
-    kill cut short (.NAME.old-*) is put back if `folder` is missing (its only copy), else removed. A
+    kill cut short (.NAME.old-*) is put back if `folder` is missing or empty (it is the only copy),
+    removed if `folder` holds a report, and kept otherwise (it may still be the only copy). A
     live writer's folders are kept, as are another host's (a shared disk, where this host cannot
     tell) and an unknown writer's (named otherwise). A pid since reused keeps its folders: never a
     live one's touched. The paths cleared."""
@@ -71,13 +72,24 @@ def remove_stale(folder: Path) -> list[Path]:
         gone = WRITER.fullmatch(writer) if kind in ("partial", "old") else None
         if not gone or gone["host"] != host or _runs(int(gone["pid"])) or path.is_symlink():
             continue
-        if kind == "old" and not folder.exists() and not folder.is_symlink():
-            os.rename(path, folder)  # the earlier report, back where it was
-        else:
+        if kind == "partial" or is_report_folder(folder):  # a report in place: the copy aside is stale
             shutil.rmtree(path, ignore_errors=True)
+        elif _vacant(folder):
+            with contextlib.suppress(OSError):  # a live writer raced us to it: it is theirs now
+                os.rename(path, folder)  # the earlier report, back where it was
         if not path.exists():
             cleared.append(path)
     return cleared
+
+
+def _vacant(folder: Path) -> bool:
+    """`folder` is missing, or an empty folder (as a command makes for its OUT before it writes):
+    removed, so that a copy can take its place."""
+    if folder.is_symlink():
+        return False
+    with contextlib.suppress(OSError):  # missing (or it holds something: then not vacant)
+        folder.rmdir()
+    return not folder.exists()
 
 
 def _runs(pid: int) -> bool:
