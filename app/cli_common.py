@@ -483,16 +483,16 @@ def finish_complete(
     except KeyboardInterrupt:
         if not complete():
             raise
-        clear()
-        print(late_stop(command, noun), file=sys.stderr)
-        if status is None:  # it came before finish: the results are all in, so finish them
-            try:
-                with held():
-                    status = finish()
-            except KeyboardInterrupt:  # another stop, held until that finish ended: it cut nothing short either
-                if status is None:
-                    raise
+        try:
+            with held():  # another stop, held until the command is finished: it cuts nothing short either
                 clear()
+                print(late_stop(command, noun), file=sys.stderr)
+                if status is None:  # it came before finish: the results are all in, so finish them
+                    status = finish()
+        except KeyboardInterrupt:
+            if status is None:
+                raise
+            clear()
     return status
 
 
