@@ -1,11 +1,12 @@
 // The status strip's values, written into its cells (hopper.app.dashboard.panels.status): the server
 // re-sends the strip's table only when its layout changes, and its values five times a second in a
 // hidden <template data-hd-status='[...]'>. Each cell marked data-v="i" shows value i; the phase
-// badge takes its colour class from its value, the gauge's fill "level left width" (%). Run once per
-// page; it watches the page, so a value arriving or a strip drawn again (a new layout, a re-render)
-// is written at once.
+// badge takes its colour class from its value, the gauge's fill "level left width" (%). Run as the
+// page connects (again on a reconnect, which may be to another server version: the last one run
+// replaces the one before); it watches the page, so a value arriving or a strip drawn again (a new
+// layout, a re-render) is written at once.
 (() => {
-  if (window.hopperStatus) return;
+  window.hopperStatus?.observer.disconnect();
   const apply = () => {
     const carrier = document.querySelector("template[data-hd-status]");
     const strip = document.querySelector(".hd-status");
@@ -27,7 +28,10 @@
     }
     strip.dataset.shown = text;
   };
-  window.hopperStatus = { apply };
-  new MutationObserver(apply).observe(document.body, { childList: true, subtree: true });
+  const observer = new MutationObserver(apply);
+  observer.observe(document.body, { childList: true, subtree: true });
+  window.hopperStatus = { apply, observer };
+  const strip = document.querySelector(".hd-status");
+  if (strip) delete strip.dataset.shown; // written by the script before this one: write it again
   apply();
 })();

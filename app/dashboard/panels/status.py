@@ -4,7 +4,7 @@ The strip is a table of labels around nine values that change five times a secon
 element re-sends its whole content when set (630 bytes, 2.4 kB/s a client compressed), so the
 strip is two elements: the table itself (the *frame*), sent only when its layout changes (paused,
 Max, behind, recording, gravity, another robot), and a hidden one that carries the values alone
-(`<template data-hd-status='[...]'>`, about 100 bytes). static/status.js, run once in each page,
+(`<template data-hd-status='[...]'>`, about 100 bytes). static/status.js, run in each page as it connects,
 writes the values into the frame's cells marked `data-v` (their index in FIELDS) as each arrives.
 Both are viser's shared elements, so they go in the frame's atomic batch with the poses and a new
 page gets the latest of each; until its script runs, a page shows the values the frame was sent with.
