@@ -14,7 +14,7 @@ samples are 25 ms apart). Numbers go as JSON text inside the zstd-compressed fra
 
 What it costs: the charts are drawn by the page's script through viser's private chart registry
 (viser_compat.CHART_INSTANCE_JS), and a chart's expand dialog (viser's second uPlot, not registered)
-shows only its first sample.
+would show only its first sample: its button is hidden (static/dashboard.css).
 """
 
 from __future__ import annotations
