@@ -1,12 +1,14 @@
 // Live charts fed with what is new: the page keeps each chart's window and hands it to uPlot.
-// Installed once per page by hopper.app.dashboard.chart_feed; each push then brings, per chart, the
+// Installed with a page's first push by hopper.app.dashboard.chart_feed (again after a reconnect, which
+// may be to another server version: the last one run replaces the one before, and its first push
+// brings whole windows); each push then brings, per chart, the
 // samples since the last one ("c": one array per column, or one number for a constant column such as
 // a limit line), the window's first time ("f": older samples are dropped) and "r" when the window was
 // replaced (a reset or a restore). The uPlot instances are viser's own, found by CHART_INSTANCE
 // (hopper.app.dashboard.viser_compat.CHART_INSTANCE_JS); a chart created or re-created after the
 // last push (a page still loading, a theme switch) is drawn within WATCH_MS.
 (() => {
-  if (window.hopperCharts) return;
+  if (window.hopperCharts) clearInterval(window.hopperCharts.watch);
   const WATCH_MS = 250;
   const chartOf = CHART_INSTANCE;
   const windows = {};
@@ -19,11 +21,12 @@
     chart.setData(w.map((c) => (typeof c === "number" ? new Array(n).fill(c) : c)));
     drawn[uuid] = chart;
   };
-  setInterval(() => {
+  const watch = setInterval(() => {
     for (const uuid of Object.keys(windows)) if (chartOf(uuid) !== drawn[uuid]) draw(uuid);
   }, WATCH_MS);
   window.hopperCharts = {
     windows,
+    watch,
     push(update) {
       for (const [uuid, u] of Object.entries(update)) {
         let w = windows[uuid];
