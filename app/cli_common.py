@@ -124,6 +124,17 @@ def writable_file(text: str) -> Path:
     return path
 
 
+def mjcf_out(text: str) -> Path:
+    """writable_file for an MJCF the command writes: its name must end in .xml, as --model then reads it."""
+    from hopper.model import MJCF_SUFFIX
+
+    if Path(text).suffix != MJCF_SUFFIX:
+        raise argparse.ArgumentTypeError(
+            f"{text}: an MJCF file is read back (--model) only if its name ends in {MJCF_SUFFIX}: give such a path"
+        )
+    return writable_file(text)
+
+
 def same_file(a: Path | str, b: Path | str) -> bool:
     """`a` and `b` name one file: the same resolved path (symlinks, ./x and x), or, both there, the
     same inode (a hard link)."""

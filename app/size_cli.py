@@ -15,7 +15,7 @@ import argparse
 import math
 from pathlib import Path
 
-from hopper.app.cli_common import EXIT_OK, add_model_flag, fail, gravity, writable_file
+from hopper.app.cli_common import EXIT_OK, add_model_flag, fail, gravity, mjcf_out
 
 from hopper.config import SimConfig
 from hopper.errors import ModelError
@@ -43,7 +43,7 @@ def add_parser(commands: argparse._SubParsersAction, epilog: str) -> None:
         help="scale only the leg motors or only the wheel (its motor and momentum), keeping the other as it is",
     )  # fmt: skip
     add_model_flag(p)
-    p.add_argument("--out", type=writable_file, required=True, metavar="PATH.xml", help="the MJCF to write")
+    p.add_argument("--out", type=mjcf_out, required=True, metavar="PATH.xml", help="the MJCF to write")
 
 
 def run(args: argparse.Namespace) -> int:

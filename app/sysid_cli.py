@@ -24,6 +24,7 @@ from hopper.app.cli_common import (
     finite,
     gravity,
     made_out,
+    mjcf_out,
     model_file,
     same_file,
     seed,
@@ -130,7 +131,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:  # noqa: SLF001 
     )
     ide.add_argument("log", type=Path, help=f"the log: {LOG_KINDS}")
     add_model_flags(ide)
-    ide.add_argument("--out", type=writable_file, required=True, metavar="PATH.xml", help="the identified MJCF")
+    ide.add_argument("--out", type=mjcf_out, required=True, metavar="PATH.xml", help="the identified MJCF")
     ide.add_argument("--hops", type=int, default=7, help="fit on hops 1..N (default 7)")
     left_out = [name for name in PARAMS if name not in DEFAULT_FIT]
     ide.add_argument(
@@ -406,14 +407,12 @@ def command_identify(args: argparse.Namespace) -> int:
 
 def identify_out(args: argparse.Namespace) -> None:
     """Refuse (one line, exit 2, before any work) an --out that would overwrite the log or the model the
-    fit starts from (the same file by its resolved path: symlinks, ./x and x), or that is no .xml."""
+    fit starts from (the same file by its resolved path: symlinks, ./x and x)."""
     out, start = args.out, args.model or str(MODEL_XML)
     if same_file(out, args.log):
         fail(f"--out {out}: is the log; write the identified MJCF to another file")
     if same_file(out, start):
         fail(f"--out {out}: is the model the fit starts from ({start}); write the identified MJCF to another file")
-    if out.suffix.lower() != ".xml":
-        fail(f"--out {out}: identify writes the identified robot as MJCF: give a path ending in .xml")
 
 
 def table(fit, truth: dict[str, float]) -> str:  # noqa: ANN001 (a sysid.Fit)

@@ -17,6 +17,7 @@ from hopper.layout import check_names
 from hopper.robot import WHEEL_ACTUATOR_GROUP, Robot
 
 MODEL_XML = resources.files("hopper.models") / "hopper.xml"  # models/hopper.xml, installed or not
+MJCF_SUFFIX = ".xml"  # the one MjSpec.from_file reads (MuJoCo 4: not .XML, .mjcf nor none; from_xml_path reads any)
 
 
 def terrain_window(config: SimConfig) -> terrain.Window:
@@ -85,6 +86,10 @@ def model_spec(config: SimConfig) -> mujoco.MjSpec:
     path = Path(config.model)
     if not path.is_file():
         raise ModelError(f"model {config.model}: no such file")
+    if path.suffix != MJCF_SUFFIX:  # MjSpec.from_file picks its decoder by the name alone
+        raise ModelError(
+            f"model {config.model}: MuJoCo reads an MJCF file only if its name ends in {MJCF_SUFFIX}: rename it"
+        )
     try:  # from_file: includes, meshes and textures resolve next to the file
         spec = mujoco.MjSpec.from_file(str(path))
     except ValueError as exc:

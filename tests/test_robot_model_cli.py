@@ -40,6 +40,29 @@ def test_a_missing_model_file_exits_2_in_one_line(tmp_path: Path) -> None:
     assert done.returncode == 2 and done.stderr.count("\n") == 1 and "no such file" in done.stderr
 
 
+@pytest.mark.parametrize("name", ["robot.mjcf", "robot.XML", "robot"])
+def test_a_model_whose_name_mujoco_will_not_read_exits_2_saying_so(tmp_path: Path, name: str) -> None:
+    """MjSpec.from_file picks its decoder by the name: a valid MJCF named otherwise read as 'not a
+    valid MJCF file (could not find decoder ...)', with MuJoCo's own warning lines before it."""
+    path = tmp_path / name
+    path.write_bytes(variants.variant(tmp_path).read_bytes())
+    done = hopper_sim("run", "--model", str(path))
+    assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
+    assert done.stderr.strip().endswith(
+        f"model {path}: MuJoCo reads an MJCF file only if its name ends in .xml: rename it"
+    )
+
+
+@pytest.mark.parametrize("command", [["size", "--gravity", "earth"], ["identify", "log.csv"]])
+def test_a_model_written_under_a_name_mujoco_will_not_read_back_is_refused_first(
+    tmp_path: Path, command: list[str]
+) -> None:
+    done = hopper_sim(*command, "--out", str(tmp_path / "earth.mjcf"))
+    assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
+    assert "earth.mjcf: an MJCF file is read back (--model) only if its name ends in .xml" in done.stderr
+    assert not (tmp_path / "earth.mjcf").exists()
+
+
 def test_run_flies_a_variant_from_a_relative_path(tmp_path: Path) -> None:
     variants.variant(tmp_path)
     out = tmp_path / "run.json"

@@ -103,12 +103,12 @@ def test_bad_input_is_refused_in_one_line(argv, message, logged: Path, tmp_path:
 @pytest.mark.parametrize(
     ("out", "extra", "message"),
     [
-        ("victim.csv", [], "--out victim.csv: is the log; write the identified MJCF to another file"),
-        ("./victim.csv", [], "--out victim.csv: is the log"),  # the same file by another spelling
-        ("link.xml", [], "--out link.xml: is the log"),  # a symlink to it
+        ("victim.csv", [], "--out: victim.csv: an MJCF file is read back (--model) only if its name ends in .xml"),
+        ("./victim.csv", [], "--out: ./victim.csv: an MJCF file is read back"),  # the same file by another spelling
+        ("link.xml", [], "--out link.xml: is the log; write the identified MJCF to another file"),  # a symlink to it
         ("hard.xml", [], "--out hard.xml: is the log"),  # a hard link to it
         ("m.xml", ["--model", "m.xml"], "--out m.xml: is the model the fit starts from"),
-        ("x.csv", [], "--out x.csv: identify writes the identified robot as MJCF: give a path ending in .xml"),
+        ("x.XML", [], "--out: x.XML: an MJCF file is read back (--model) only if its name ends in .xml"),
     ],
 )
 def test_identify_refuses_an_out_that_would_overwrite_its_inputs_before_any_work(
