@@ -22,7 +22,6 @@ STOP_SIGNALS = (signal.SIGTERM, signal.SIGINT)
 _held = 0  # depth of held() blocks in the main thread
 _pending: int | None = None  # the first signal that came inside a held() block, raised as it ends
 _requested = False  # a stop signal came at all (raise_if_stop_requested)
-_stopped = threading.Event()  # set with _requested, for a thread that only waits for a stop
 # s: the longest a main thread blocked in wait() sleeps through a stop signal. The kernel hands a
 # process a signal on whichever of its threads can take it; Python's handler then runs only once
 # the main thread wakes, and an untimed wait would never wake (the dashboard hung on a SIGTERM).
@@ -30,9 +29,12 @@ WAKE_S = 0.1
 
 
 def _interrupt(signum: int, frame: object) -> None:
+    """The handler: plain stores only. It runs in the main thread between two bytecodes, also inside
+    a lock's block or inside itself (a second signal): a lock taken here (threading.Event.set) can
+    be one that the interrupted frame holds, and then the process hangs (seen: two SIGTERMs at once
+    while the dashboard's main thread waited)."""
     global _pending, _requested
     _requested = True
-    _stopped.set()
     if _held:
         if _pending is None:
             _pending = signum
@@ -99,8 +101,10 @@ def each(results: Iterator[T]) -> Iterator[T]:
 
 
 def wait_for_stop() -> None:
-    """Block until a stop signal comes, then raise KeyboardInterrupt (inside held() or not)."""
-    wait(_stopped)
+    """Block until a stop signal comes, then raise KeyboardInterrupt (inside held() or not). It looks
+    every WAKE_S (the handler sets no event: see _interrupt); outside held() the handler raises at once."""
+    while not _requested:
+        time.sleep(WAKE_S)
     raise KeyboardInterrupt
 
 
@@ -108,7 +112,6 @@ def clear() -> None:
     """Forget a stop request that was handled, for a process that goes on after it (a test, a REPL)."""
     global _pending, _requested
     _pending, _requested = None, False
-    _stopped.clear()
 
 
 @contextlib.contextmanager

@@ -174,3 +174,48 @@ def test_importing_the_simulation_starts_no_process() -> None:
     result = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, env=env, timeout=120)
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == "0", result.stdout
+
+
+NESTED = """
+import signal, sys
+from hopper import interrupts
+
+interrupts.stop_like_ctrl_c()
+handler = interrupts._interrupt.__code__
+for k in range(1, 30):
+    seen = 0
+
+    def local(frame, event, arg):
+        global seen
+        if event == "line":
+            seen += 1
+            if seen == k:  # the k-th line the first signal's handling runs, in the handler or what it calls
+                signal.raise_signal(signal.SIGTERM)
+        return local
+
+    def within(frame):
+        while frame is not None:
+            if frame.f_code is handler:
+                return True
+            frame = frame.f_back
+        return False
+
+    sys.settrace(lambda frame, event, arg: local if within(frame) else None)
+    try:
+        signal.raise_signal(signal.SIGTERM)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        sys.settrace(None)
+    interrupts.clear()
+print("stopped every time")
+"""
+
+
+def test_a_second_stop_signal_while_the_handler_runs_does_not_hang_the_process() -> None:
+    """Two SIGTERMs at once (`timeout` forwarding one and a `pkill` sending another) hung a served
+    dashboard: the handler set a threading.Event, the second signal ran the handler again inside that
+    Event's lock, and it waited on itself for good. Here the second comes at each line the first's
+    handling runs."""
+    done = subprocess.run([sys.executable, "-c", NESTED], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and done.stdout.strip() == "stopped every time", done.stderr[-2000:]
