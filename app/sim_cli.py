@@ -29,6 +29,7 @@ from hopper.app.cli_common import (
     add_controller_flags,
     add_model_flag,
     add_run_flags,
+    capped,
     check_executor,
     check_replaced,
     checked_controller,
@@ -370,7 +371,7 @@ def command_run(args: argparse.Namespace) -> int:
         fail("--rrd-max-mb and --rrd-max-min need --rrd and cannot be combined with --rerun-viewer")
     config = make_config(args, args.seed, wheel=not args.no_wheel)
     result = simulate(config, args.hops, args.rrd, args.rerun_viewer, report, limits=limits, kicks=args.schedule)
-    for note in (size_cli.capped(config), trapped(result)):
+    for note in (capped(config), trapped(result)):
         if note:
             print(note)
     if result["short"] is not None:

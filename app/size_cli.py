@@ -87,19 +87,3 @@ def run(args: argparse.Namespace) -> int:
         print(f"  {name:24s} {was:9.4g} -> {now:9.4g} {unit}")
     print(f"fly it with --model {args.out}")
     return EXIT_OK
-
-
-def capped(config: SimConfig) -> str | None:
-    """A note when the flown robot's legs cap the hop at `config`'s gravity (it is sized for less),
-    naming the command that sizes it; None when they do not."""
-    from hopper.control.gait import legs_cap  # numba's import, not paid by --help
-
-    robot = robot_of(config)
-    cap = legs_cap(config.gravity, config.gait, robot)
-    if cap is None:
-        return None
-    return (
-        f"note: at {config.gravity:g} m/s^2 this robot's {robot.leg_torque_limit:g} N m legs cap the hop at "
-        f"{cap[0]:.2f} m of the {cap[1]:g} m asked; `hopper-sim size --gravity {config.gravity:g} --out FILE` "
-        "writes it sized for this gravity (README: A robot sized for another gravity)"
-    )

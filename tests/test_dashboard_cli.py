@@ -20,6 +20,8 @@ from net import free_port, port_is_free, wait_until
 from rrd import verify
 from threads import signal_a_thread_not_main
 
+from hopper.config import GRAVITY_PRESETS
+
 pytestmark = pytest.mark.integration  # servers, processes or pools (conftest: the suite in parts)
 
 REPO = Path(__file__).resolve().parent.parent
@@ -83,6 +85,7 @@ def dashboard_process(*args: str, cwd: Path = REPO) -> subprocess.Popen[str]:
         (["--rrd", "run.txt"], "must name a .rrd file"),
         (["--rerun-viewer", "sometimes"], "invalid choice"),
         (["--lighting", "dim"], "invalid choice 'dim' (choose from full, no-shadows, simple)"),
+        (["--gravity", "9.81"], "invalid choice '9.81' (choose from moon, mars, ceres, earth)"),
         (["--bogus"], "unrecognized arguments: --bogus"),
         (["--sess", "runs"], "unrecognized arguments: --sess runs"),  # no abbreviation of --sessions-dir
         (["--sessions-dir", "/proc/foo"], "cannot use sessions folder '/proc/foo'"),
@@ -128,6 +131,7 @@ def test_no_flags_give_the_default_config_and_flags_reach_their_fields() -> None
     assert config.sessions_dir == Path("runs") and config.rrd == Path("a.rrd")
     assert parse(["--speed", "max"]).speed == MAX and parse(["--speed", "Max"]).speed == MAX
     assert parse(["--speed", "16"]).speed == 16.0
+    assert parse(["--gravity", "Earth"]).sim_config().gravity == GRAVITY_PRESETS["earth"]
 
 
 def test_a_sessions_folder_is_made_in_a_folder_that_exists_and_probed_and_left_empty(tmp_path: Path) -> None:
@@ -289,3 +293,27 @@ def test_a_reader_that_goes_away_stops_it_quietly_with_141(tmp_path: Path, close
     assert "Traceback" not in err and "BrokenPipeError" not in err, err[-2000:]
     verify_recording(rrd)
     assert port_is_free(port)
+
+
+def test_a_gravity_its_robot_is_too_weak_for_is_served_with_a_note_naming_the_fix(tmp_path: Path) -> None:
+    """hopper-dashboard --gravity earth flies the paper's robot at Earth, as hopper-sim run does,
+    and says on its output, as run does, that its legs cap the hop there and how to size it."""
+    port = free_port()
+    process = dashboard_process("--gravity", "earth", "--port", str(port), "--sessions-dir", str(tmp_path))
+    try:
+        lines = []
+        for line in process.stdout:  # the note follows the serving line
+            lines.append(line)
+            if "note:" in line:
+                break
+        else:
+            raise AssertionError(f"no note: {lines} {_ended(process)}")
+        process.send_signal(signal.SIGTERM)
+        out, err = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 0 and "stopped" in out, err[-2000:]
+    assert lines[-2].startswith("hopper-dashboard: serving http://127.0.0.1:")
+    assert lines[-1].startswith("hopper-dashboard: note: at 9.81 m/s^2 this robot's 30 N m legs cap the hop at ")
+    assert "`hopper-sim size --gravity 9.81 --out FILE` writes it sized for this gravity, for --model" in lines[-1]

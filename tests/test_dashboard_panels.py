@@ -539,6 +539,22 @@ def test_the_status_values_survive_quotes_and_markup_in_their_carrier() -> None:
     assert decode_values("<div>no values</div>") is None
 
 
+def test_a_gravity_given_at_start_is_flown_shown_and_the_default_the_reset_goes_back_to(tmp_path: Path) -> None:
+    earth = GRAVITY_PRESETS["earth"]
+    config = DashboardConfig(port=free_port(), sessions_dir=tmp_path / "s", gravity=earth)
+    dashboard = Dashboard(config, verbose=False)
+    try:
+        terrain = dashboard.layout.terrain
+        assert dashboard.sim.config.gravity == earth and terrain.gravity.value == "Earth"
+        terrain.gravity.value = "Mars"
+        terrain.reset()
+        assert terrain.gravity.value == "Earth"
+    finally:
+        dashboard.stop()
+    with pytest.raises(ValueError, match=r"gravity must be one of the presets \(moon 1.625, mars 3.72"):
+        DashboardConfig(gravity=9.8)
+
+
 @pytest.mark.parametrize(
     ("controller", "shown"), [("policy", "Policy is not a linear law"), ("lqr", "LQR as state feedback")]
 )

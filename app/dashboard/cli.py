@@ -17,13 +17,14 @@ from hopper.app.cli_common import (
     EXIT_CLOSED_STDOUT,
     add_controller_flags,
     add_model_flag,
+    capped,
     output_closed,
     seed,
 )
 from hopper.app.dashboard.config import LIGHTING, DashboardConfig, check_sessions_dir
 from hopper.app.dashboard.pacing import MAX
 
-from hopper.config import GAIN_RANGES
+from hopper.config import GAIN_RANGES, GRAVITY_PRESETS
 from hopper.controllers import ControllerError
 from hopper.interrupts import raise_if_stop_requested, stop_like_ctrl_c
 
@@ -65,6 +66,11 @@ def choice(*options: str) -> Callable[[str], str]:
     return check
 
 
+def gravity_preset(text: str) -> float:
+    """An argparse type: a gravity preset's name (any case), its m/s^2."""
+    return GRAVITY_PRESETS[choice(*GRAVITY_PRESETS)(text.strip().lower())]
+
+
 def speed(text: str) -> float:
     """An argparse type: a speed (x real time), or 'max' for MAX (the range is DashboardConfig's check)."""
     if text.strip().lower() == "max":
@@ -90,6 +96,13 @@ def parser() -> Parser:
         default=DEFAULTS.sensing,
         metavar="{ideal,realistic}",
         help="what the controller reads: the true pitch, or a simulated IMU's estimate (noise, bias, delay)",
+    )
+    p.add_argument(
+        "--gravity",
+        type=gravity_preset,
+        default=DEFAULTS.gravity,
+        metavar="{" + ",".join(GRAVITY_PRESETS) + "}",
+        help="the gravity at start, by its preset's name (the Gravity control's); the default is the Moon's m/s^2",
     )
     for name, what in (("kp", "proportional"), ("ki", "integral"), ("kd", "derivative")):
         low, high, unit = GAIN_RANGES[name]
@@ -219,6 +232,9 @@ def serve(dashboard: Dashboard) -> int:
         dashboard.start()
         # The token's one appearance: this line on stdout, for whoever started the server.
         print(f"{PROG}: serving {dashboard.page_url}  (Ctrl-C to stop)", flush=True)
+        note = capped(dashboard.sim.config)  # the robot stumbles at a gravity its legs are too weak for
+        if note is not None:
+            print(f"{PROG}: {note}", flush=True)
         if dashboard.recorder.path is not None:
             print(f"{PROG}: recording to {dashboard.recorder.path}", flush=True)
         if dashboard.recorder.viewer_url:

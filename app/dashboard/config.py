@@ -14,7 +14,7 @@ from hopper.app.cli_common import missing_folder
 from hopper.app.dashboard.access import AUTO, check_token, generate_token, is_loopback
 from hopper.app.dashboard.pacing import MAX, MAX_SPEED, MIN_SPEED
 
-from hopper.config import Gains, InvalidConfig, SimConfig
+from hopper.config import GRAVITY_PRESETS, MOON_GRAVITY, Gains, InvalidConfig, SimConfig
 from hopper.controllers import load_class, with_controller
 from hopper.controllers.loading import canonical
 
@@ -42,6 +42,8 @@ class DashboardConfig:
     """Terrain kind."""
     sensing: Literal["ideal", "realistic"] = "ideal"
     """What the controller reads: the true pitch, or a simulated IMU's estimate with a motor delay."""
+    gravity: float = MOON_GRAVITY
+    """m/s^2 at start: one of GRAVITY_PRESETS' (the Gravity control offers those)."""
     kp: float = _DEFAULT_GAINS.kp
     """Wheel PID proportional gain, N m/rad."""
     ki: float = _DEFAULT_GAINS.ki
@@ -106,6 +108,9 @@ class DashboardConfig:
             raise InvalidConfig(
                 f"speed must be in [{MIN_SPEED:g}, {MAX_SPEED:g}] x real time, or max, got {self.speed!r}"
             )
+        if self.gravity not in GRAVITY_PRESETS.values():
+            presets = ", ".join(f"{name} {g:g}" for name, g in GRAVITY_PRESETS.items())
+            raise InvalidConfig(f"gravity must be one of the presets ({presets} m/s^2), got {self.gravity!r}")
         self.sim_config()  # validates seed, terrain and gains with the core's own messages
         object.__setattr__(self, "controller_choice", tuple(canonical(c) for c in self.controller_choice))
         for spec in self.controller_choice:
@@ -134,7 +139,12 @@ class DashboardConfig:
     def sim_config(self) -> SimConfig:
         """The simulation this dashboard starts with."""
         config = SimConfig(
-            seed=self.seed, terrain=self.terrain, gains=self.gains, sensing=self.sensing, model=self.model
+            seed=self.seed,
+            terrain=self.terrain,
+            gains=self.gains,
+            sensing=self.sensing,
+            gravity=self.gravity,
+            model=self.model,
         )
         return with_controller(config, self.controller, self.controller_param)
 

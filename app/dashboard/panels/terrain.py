@@ -33,6 +33,7 @@ class TerrainPanel:
     reset_button: viser.GuiButtonHandle
     default_seed: int
     default_flat: bool
+    default_gravity: str  # the preset's name the dashboard started with
     robot: Robot = PACKAGED  # the flown robot and its gait: whether its legs cap the hop at a gravity
     gait: GaitParams = dataclasses.field(default_factory=GaitParams)
 
@@ -71,8 +72,8 @@ class TerrainPanel:
         self.gravity.value = _preset_name(gravity)
 
     def reset(self) -> None:
-        """Back to the starting terrain on the Moon (one rebuild)."""
-        self.gravity.value = "Moon"
+        """Back to the starting terrain and gravity (one rebuild)."""
+        self.gravity.value = self.default_gravity
         self.seed.show(self.default_seed)
         if self.flat.value != self.default_flat:
             self.flat.value = self.default_flat  # its callback rebuilds
@@ -109,6 +110,7 @@ def build_terrain_panel(
         reset_button=gui.add_button("Default terrain and gravity", icon=viser.Icon.RESTORE, color="dark"),
         default_seed=seed,
         default_flat=kind == "flat",
+        default_gravity=_preset_name(gravity),
         robot=robot,
         gait=gait or GaitParams(),
     )
