@@ -26,6 +26,7 @@ _requested = False  # a stop signal came at all (raise_if_stop_requested)
 # process a signal on whichever of its threads can take it; Python's handler then runs only once
 # the main thread wakes, and an untimed wait would never wake (the dashboard hung on a SIGTERM).
 WAKE_S = 0.1
+POLL_S = 0.01  # s between two looks at an event in wait(): the latency it adds to the event
 
 
 def _interrupt(signum: int, frame: object) -> None:
@@ -73,11 +74,15 @@ def stop_requested() -> bool:
 
 def wait(event: threading.Event, timeout: float | None = None) -> bool:
     """`event.wait(timeout)` that a stop signal interrupts in the main thread, whichever thread the
-    kernel handed it to (see WAKE_S); True if the event was set."""
+    kernel handed it to (see WAKE_S); True if the event was set. It sleeps and looks (is_set takes no
+    lock): a stop signal raised inside Event.wait, and a second one as that unwound, left its lock
+    released twice (RuntimeError: release unlocked lock, for SIGTERM and SIGINT sent at once)."""
     deadline = math.inf if timeout is None else time.monotonic() + timeout
-    while not event.wait(min(WAKE_S, max(deadline - time.monotonic(), 0.0))):
-        if time.monotonic() >= deadline:
+    while not event.is_set():
+        left = deadline - time.monotonic()
+        if left <= 0.0:
             return False
+        time.sleep(min(POLL_S, left))
     return True
 
 
@@ -98,6 +103,10 @@ def each(results: Iterator[T]) -> Iterator[T]:
             continue
         except StopIteration:
             return
+        except RuntimeError:  # two stop signals inside the iterator's Condition.wait (see wait): a stop
+            if _requested:
+                raise KeyboardInterrupt from None
+            raise
 
 
 def wait_for_stop() -> None:

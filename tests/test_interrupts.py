@@ -93,16 +93,16 @@ def _signal_from_another_thread_once_main_waits(release: threading.Event) -> thr
     for 30 s, sets `release` so the test fails instead of hanging."""
     main = threading.main_thread().ident
 
-    def blocked() -> bool:  # in a wait of threading's, called (at any depth) from interrupts
+    def blocked() -> bool:  # in one of interrupts' waits (its own sleep, or threading's below it)
         frame = sys._current_frames().get(main)
-        if frame is None or frame.f_code.co_filename != threading.__file__:
-            return False
         while frame is not None and frame.f_code.co_filename != interrupts.__file__:
             frame = frame.f_back
         return frame is not None
 
     def run() -> None:
-        assert wait_until(blocked, timeout=30)
+        if not wait_until(blocked, timeout=30):  # fail, not hang
+            release.set()
+            return
         signal.pthread_kill(threading.get_ident(), signal.SIGTERM)
         if not wait_until(interrupts.stop_requested, timeout=30):
             release.set()
@@ -219,3 +219,55 @@ def test_a_second_stop_signal_while_the_handler_runs_does_not_hang_the_process()
     handling runs."""
     done = subprocess.run([sys.executable, "-c", NESTED], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0 and done.stdout.strip() == "stopped every time", done.stderr[-2000:]
+
+
+AT_ONCE = """
+import os, signal, sys, threading, time
+from multiprocessing.pool import ThreadPool
+from hopper import interrupts
+
+interrupts.stop_like_ctrl_c()
+release, pool = threading.Event(), ThreadPool(1)
+waits = {
+    "wait": lambda: interrupts.wait(release),
+    "each": lambda: list(interrupts.each(pool.imap(lambda _: release.wait(), [0]))),
+}
+
+
+def both():
+    time.sleep(0.05)  # a head start only: main is in its wait or about to be; either way both must stop it
+    os.kill(os.getpid(), signal.SIGTERM)
+    os.kill(os.getpid(), signal.SIGINT)
+
+
+came = []  # what the wait raised, then what the second signal raised (wherever it landed)
+threading.Thread(target=both, daemon=True).start()
+try:
+    try:
+        waits[sys.argv[1]]()
+    except BaseException as exc:
+        came.append(type(exc).__name__)
+        raise
+except BaseException as exc:
+    came.append(type(exc).__name__)
+while True:  # say what came first and end here: the second signal's handler may run at any later call
+    try:
+        os.write(1, came[0].encode())
+        os._exit(0)
+    except KeyboardInterrupt:
+        continue
+"""
+
+
+def test_two_stop_signals_at_once_stop_a_wait_as_one() -> None:
+    """SIGTERM and SIGINT sent at once while the main thread waited on an Event (the dashboard's
+    serve) or on a pool's results: the first raised inside Condition.wait, the second as that
+    unwound, before the lock was taken back, and Event.wait's `with` then released it a second time:
+    RuntimeError (release unlocked lock), a traceback and exit 1 instead of a stop."""
+    came = {
+        wait: [subprocess.run([sys.executable, "-c", AT_ONCE, wait], capture_output=True, text=True, timeout=120)
+               for _ in range(8)]
+        for wait in ("wait", "each")
+    }  # fmt: skip
+    for wait, runs in came.items():
+        assert [(r.returncode, r.stdout) for r in runs] == [(0, "KeyboardInterrupt")] * len(runs), wait

@@ -68,7 +68,10 @@ def choice(*options: str) -> Callable[[str], str]:
 
 def gravity_preset(text: str) -> float:
     """An argparse type: a gravity preset's name (any case), its m/s^2."""
-    return GRAVITY_PRESETS[choice(*GRAVITY_PRESETS)(text.strip().lower())]
+    name = text.strip().lower()
+    if name not in GRAVITY_PRESETS:
+        raise argparse.ArgumentTypeError(f"invalid choice {text!r} (choose from {', '.join(GRAVITY_PRESETS)})")
+    return GRAVITY_PRESETS[name]
 
 
 def speed(text: str) -> float:
@@ -100,9 +103,9 @@ def parser() -> Parser:
     p.add_argument(
         "--gravity",
         type=gravity_preset,
-        default=DEFAULTS.gravity,
+        default="moon",  # a name, as typed: argparse passes a string default through the type
         metavar="{" + ",".join(GRAVITY_PRESETS) + "}",
-        help="the gravity at start, by its preset's name (the Gravity control's); the default is the Moon's m/s^2",
+        help="the gravity at start, by its preset's name (the Gravity control's)",
     )
     for name, what in (("kp", "proportional"), ("ki", "integral"), ("kd", "derivative")):
         low, high, unit = GAIN_RANGES[name]
@@ -232,7 +235,7 @@ def serve(dashboard: Dashboard) -> int:
         dashboard.start()
         # The token's one appearance: this line on stdout, for whoever started the server.
         print(f"{PROG}: serving {dashboard.page_url}  (Ctrl-C to stop)", flush=True)
-        note = capped(dashboard.sim.config)  # the robot stumbles at a gravity its legs are too weak for
+        note = capped(dashboard.sim.config, dashboard.sim.robot)  # it stumbles where its legs are too weak
         if note is not None:
             print(f"{PROG}: {note}", flush=True)
         if dashboard.recorder.path is not None:
@@ -247,8 +250,19 @@ def serve(dashboard: Dashboard) -> int:
             raise
         return EXIT_CLOSED_STDOUT
     finally:
-        dashboard.stop()
+        _stop(dashboard)
     return 0
+
+
+def _stop(dashboard: Dashboard) -> None:
+    """dashboard.stop(), again if a second stop signal came before it held the rest (stop is idempotent
+    and holds signals once it has begun): the first one's KeyboardInterrupt goes on, the second is spent."""
+    while True:
+        try:
+            dashboard.stop()
+            return
+        except KeyboardInterrupt:
+            continue
 
 
 def main(args: Sequence[str] | None = None) -> int:

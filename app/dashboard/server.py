@@ -198,10 +198,10 @@ class Dashboard:
         A second Ctrl-C (or SIGTERM) while it runs waits for it, and comes after (held): one that
         came while the loop was being joined skipped the rest, and left the recording unfinished
         and the port taken."""
-        if self._stopped:
-            return
-        self._stopped = True
-        with interrupts.held():
+        with interrupts.held():  # the check too: a signal between it and the hold skipped the stop for good
+            if self._stopped:
+                return
+            self._stopped = True
             self._stopping.set()
             self.layout.analysis.close()
             if self.layout.stand is not None:
