@@ -14,11 +14,14 @@ import select
 import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import NoReturn
+from typing import TYPE_CHECKING, NoReturn
 
 from hopper.config import GRAVITY_PRESETS, Gains, InvalidConfig, SimConfig, check_seed
 from hopper.scenarios import SCENARIOS
 from hopper.schedule import KickSchedule, parse
+
+if TYPE_CHECKING:
+    from hopper.robot import Robot
 
 EXIT_OK, EXIT_FELL, EXIT_USAGE, EXIT_SHORT, EXIT_CONTROLLER, EXIT_INTERRUPTED = 0, 1, 2, 3, 4, 130
 EXIT_CLOSED_STDOUT = 141  # 128 + SIGPIPE: what a shell reports for a tool a closed pipe ended
@@ -548,13 +551,13 @@ def add_run_flags(p: argparse.ArgumentParser) -> None:
     )
 
 
-def capped(config: SimConfig) -> str | None:
-    """A note when the flown robot's legs cap the hop at `config`'s gravity (it is sized for less),
-    naming the command that sizes it; None when they do not."""
+def capped(config: SimConfig, robot: Robot | None = None) -> str | None:
+    """A note when the flown robot (`config`'s, or `robot` if it is known) has legs that cap the hop
+    at `config`'s gravity (it is sized for less), naming the command that sizes it; None otherwise."""
     from hopper.control.gait import legs_cap  # numba's import, not paid by --help
     from hopper.model import robot_of
 
-    robot = robot_of(config)
+    robot = robot or robot_of(config)
     cap = legs_cap(config.gravity, config.gait, robot)
     if cap is None:
         return None

@@ -19,6 +19,8 @@
     const n = w.find((c) => typeof c !== "number").length;
     if (!chart || !n) return;
     chart.setData(w.map((c) => (typeof c === "number" ? new Array(n).fill(c) : c)));
+    // Its expand dialog would draw the element's own data, one sample: the stylesheet hides the button.
+    chart.root.closest(".uplot-container")?.classList.add("hd-fed");
     drawn[uuid] = chart;
   };
   const watch = setInterval(() => {

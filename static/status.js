@@ -6,7 +6,7 @@
 // replaces the one before); it watches the page, so a value arriving or a strip drawn again (a new
 // layout, a re-render) is written at once.
 (() => {
-  window.hopperStatus?.observer.disconnect();
+  window.hopperStatus?.observer?.disconnect(); // an older copy may have none
   const apply = () => {
     const carrier = document.querySelector("template[data-hd-status]");
     const strip = document.querySelector(".hd-status");

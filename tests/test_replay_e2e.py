@@ -109,6 +109,13 @@ def test_refly_overlays_before_and_after(browser, dashboard: Dashboard, tmp_path
         page.wait_for_function(
             f"() => {{ const v = ({LEGEND_JS})(); return v.length == 3 && v.every(t => /\\d/.test(t)); }}"
         )
+        # A chart drawn from its own data keeps viser's expand button (only the live, fed charts hide it).
+        button_shown = """([x, y]) => {
+            const box = document.elementFromPoint(x, y)?.closest('.uplot-container');
+            const button = box?.querySelector(':scope > .mantine-ActionIcon-root');
+            return !!button && getComputedStyle(button).display !== 'none';
+        }"""
+        page.wait_for_function(button_shown, arg=[x, y])
         data = replay.plots.pitch.data
         assert len(data) == 3 and np.isfinite(data[1]).sum() > 100 and np.isfinite(data[2]).sum() > 100
         assert wait_until(lambda: dashboard.ghost.shown_frame >= 0, timeout=30)  # the ghost is flying
