@@ -85,7 +85,8 @@ def dashboard_process(*args: str, cwd: Path = REPO) -> subprocess.Popen[str]:
         (["--rrd", "run.txt"], "must name a .rrd file"),
         (["--rerun-viewer", "sometimes"], "invalid choice"),
         (["--lighting", "dim"], "invalid choice 'dim' (choose from full, no-shadows, simple)"),
-        (["--gravity", "9.81"], "invalid choice '9.81' (choose from moon, mars, ceres, earth)"),
+        (["--gravity", "Jupiter"], "'Jupiter' is neither m/s^2 nor one of moon, mars, ceres, earth"),
+        (["--gravity", "9.8"], "gravity must be one of the presets (moon 1.625, mars 3.72, ceres 0.28, earth 9.81"),
         (["--bogus"], "unrecognized arguments: --bogus"),
         (["--sess", "runs"], "unrecognized arguments: --sess runs"),  # no abbreviation of --sessions-dir
         (["--sessions-dir", "/proc/foo"], "cannot use sessions folder '/proc/foo'"),
@@ -132,6 +133,7 @@ def test_no_flags_give_the_default_config_and_flags_reach_their_fields() -> None
     assert parse(["--speed", "max"]).speed == MAX and parse(["--speed", "Max"]).speed == MAX
     assert parse(["--speed", "16"]).speed == 16.0
     assert parse(["--gravity", "Earth"]).sim_config().gravity == GRAVITY_PRESETS["earth"]
+    assert parse(["--gravity", "9.81"]).gravity == GRAVITY_PRESETS["earth"]  # a preset's m/s^2, as hopper-sim takes it
 
 
 def test_a_sessions_folder_is_made_in_a_folder_that_exists_and_probed_and_left_empty(tmp_path: Path) -> None:

@@ -18,6 +18,7 @@ from hopper.app.cli_common import (
     add_controller_flags,
     add_model_flag,
     capped,
+    gravity,
     output_closed,
     seed,
 )
@@ -66,14 +67,6 @@ def choice(*options: str) -> Callable[[str], str]:
     return check
 
 
-def gravity_preset(text: str) -> float:
-    """An argparse type: a gravity preset's name (any case), its m/s^2."""
-    name = text.strip().lower()
-    if name not in GRAVITY_PRESETS:
-        raise argparse.ArgumentTypeError(f"invalid choice {text!r} (choose from {', '.join(GRAVITY_PRESETS)})")
-    return GRAVITY_PRESETS[name]
-
-
 def speed(text: str) -> float:
     """An argparse type: a speed (x real time), or 'max' for MAX (the range is DashboardConfig's check)."""
     if text.strip().lower() == "max":
@@ -102,7 +95,7 @@ def parser() -> Parser:
     )
     p.add_argument(
         "--gravity",
-        type=gravity_preset,
+        type=gravity,  # hopper-sim's (a name or m/s^2); DashboardConfig takes a preset's only
         default="moon",  # a name, as typed: argparse passes a string default through the type
         metavar="{" + ",".join(GRAVITY_PRESETS) + "}",
         help="the gravity at start, by its preset's name (the Gravity control's)",
